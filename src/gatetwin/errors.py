@@ -1,0 +1,39 @@
+"""Exception classes of gatetwin.
+
+Every error a user can cause by bad input derives from :class:`GatetwinError`, so the
+command line can turn it into one clear line and a non-zero exit. Programming errors are
+left to propagate as ordinary Python exceptions.
+"""
+
+from __future__ import annotations
+
+
+class GatetwinError(Exception):
+    """Base class of all errors gatetwin reports to a user."""
+
+
+class RecordError(GatetwinError, ValueError):
+    """A record (CSV + optional JSON sidecar) breaks the data-format contract.
+
+    The message names the file and the row or column at fault.
+    """
+
+
+class FlumeError(GatetwinError, ValueError):
+    """A virtual-flume scenario or configuration is invalid or physically impossible."""
+
+
+class IdentificationError(GatetwinError, ValueError):
+    """A record cannot support the requested identification method."""
+
+
+class ModelFileError(GatetwinError, ValueError):
+    """A model file does not follow the model-file schema."""
+
+
+class ExportError(GatetwinError, RuntimeError):
+    """An FMU could not be built (no compiler, build failure, bad model)."""
+
+
+class PipelineError(GatetwinError, RuntimeError):
+    """The ``gatetwin run`` pipeline cannot run or cannot write its output directory."""

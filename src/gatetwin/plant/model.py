@@ -1,0 +1,204 @@
+"""Plant data objects: scheduled FOPDT and ARX models of one gauge.
+
+Semantics shared by every rendering (Python simulator, C FMU, pythonfmu FMU, MPC):
+
+* Inputs: gate opening ``e`` (mm) and discharge ``Q`` (m³/h), piecewise constant between
+  communication points.
+* Parameters follow ``Q`` by piecewise-linear interpolation over the schedule knots; outside
+  ``[Q_min, Q_max]`` they are clamped to the end knot (and a warning is logged once).
+* Output: absolute level ``y = level_ref_mm(Q) + x``, where ``level_ref_mm(Q)`` is the rating
+  relation's level at the reference opening ``opening_ref_mm`` and ``x`` the dynamic
+  deviation driven by ``u = e - opening_ref_mm``.
+* FOPDT: ``T dx/dt = K u(t - L) - x``, integrated exactly for piecewise-constant input.
+* ARX (paper's sign convention, nk >= 1):
+  ``x(k) = sum_i a_i x(k-i) + sum_j b_j u(k-nk-j+1)``, stepped at ``sample_period_s``; ``u(k)``
+  is the input in force at communication point ``k``.
+* The initial state is the equilibrium for the first inputs.
+
+This module holds data only; simulation is in :mod:`gatetwin.plant.simulate`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from gatetwin.errors import ModelFileError
+
+#: Inputs outside these bounds are physically impossible for any gate we model.
+OPENING_RANGE_MM = (0.0, 2000.0)
+FLOW_RANGE_M3H = (0.0, 5000.0)
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Parameters tabulated over discharge knots.
+
+    Attributes
+    ----------
+    flow_m3h : tuple[float, ...]
+        Strictly increasing discharge knots, m³/h. One knot means constant parameters.
+    values : dict[str, tuple[float, ...]]
+        Each parameter's value at every knot (same length as ``flow_m3h``).
+    """
+
+    flow_m3h: tuple[float, ...]
+    values: dict[str, tuple[float, ...]]
+
+    def __post_init__(self) -> None:
+        q = np.asarray(self.flow_m3h, dtype=float)
+        if q.size == 0 or not np.all(np.isfinite(q)) or np.any(np.diff(q) <= 0):
+            raise ModelFileError("schedule: flow_m3h knots must be finite and strictly increasing")
+        for name, col in self.values.items():
+            arr = np.asarray(col, dtype=float)
+            if arr.shape != q.shape or not np.all(np.isfinite(arr)):
+                raise ModelFileError(f"schedule: column {name!r} must hold one finite value a knot")
+
+    @property
+    def flow_range_m3h(self) -> tuple[float, float]:
+        return (self.flow_m3h[0], self.flow_m3h[-1])
+
+    def at(self, name: str, flow_m3h: float) -> float:
+        """Piecewise-linear interpolation of ``name`` at ``flow_m3h``, clamped at the ends."""
+        return interp_clamped(self.flow_m3h, self.values[name], flow_m3h)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"flow_m3h": list(self.flow_m3h), **{k: list(v) for k, v in self.values.items()}}
+
+
+def interp_clamped(knots: tuple[float, ...], values: tuple[float, ...], x: float) -> float:
+    """Linear interpolation with end clamping, written as the C FMU evaluates it."""
+    n = len(knots)
+    if n == 1 or x <= knots[0]:
+        return float(values[0])
+    if x >= knots[-1]:
+        return float(values[-1])
+    i = 0
+    while x > knots[i + 1]:
+        i += 1
+    w = (x - knots[i]) / (knots[i + 1] - knots[i])
+    return float(values[i] + w * (values[i + 1] - values[i]))
+
+
+@dataclass(frozen=True)
+class FopdtPlant:
+    """Scheduled first-order-plus-dead-time plant of one gauge.
+
+    Schedule columns: ``gain_mm_per_mm`` (K), ``time_constant_s`` (T > 0),
+    ``dead_time_s`` (L >= 0), ``level_ref_mm`` (rating level at ``opening_ref_mm``).
+    """
+
+    gauge: str
+    opening_ref_mm: float
+    schedule: Schedule
+    effects: tuple[dict[str, Any], ...] = ()
+
+    kind = "fopdt"
+    columns = ("gain_mm_per_mm", "time_constant_s", "dead_time_s", "level_ref_mm")
+
+    def __post_init__(self) -> None:
+        _check_columns(self, self.columns)
+        if min(self.schedule.values["time_constant_s"]) <= 0:
+            raise ModelFileError("fopdt: time_constant_s must be > 0 at every knot")
+        if min(self.schedule.values["dead_time_s"]) < 0:
+            raise ModelFileError("fopdt: dead_time_s must be >= 0 at every knot")
+
+    @property
+    def max_dead_time_s(self) -> float:
+        return float(max(self.schedule.values["dead_time_s"]))
+
+
+@dataclass(frozen=True)
+class ArxPlant:
+    """Scheduled ARX(na, nb, nk) plant of one gauge, paper's sign convention.
+
+    Schedule columns: ``a1..a<na>``, ``b1..b<nb>``, ``level_ref_mm``.
+    """
+
+    gauge: str
+    opening_ref_mm: float
+    sample_period_s: float
+    na: int
+    nb: int
+    nk: int
+    schedule: Schedule
+    effects: tuple[dict[str, Any], ...] = ()
+
+    kind = "arx"
+
+    def __post_init__(self) -> None:
+        if not (self.na >= 1 and self.nb >= 1 and self.nk >= 1):
+            raise ModelFileError(
+                "arx: an exported plant needs na >= 1, nb >= 1 and nk >= 1 "
+                f"(got {self.na}, {self.nb}, {self.nk}); nk = 0 has no causal co-simulation"
+            )
+        if not self.sample_period_s > 0:
+            raise ModelFileError("arx: sample_period_s must be > 0")
+        _check_columns(self, self.columns)
+
+    @property
+    def columns(self) -> tuple[str, ...]:  # type: ignore[override]
+        a = tuple(f"a{i}" for i in range(1, self.na + 1))
+        b = tuple(f"b{j}" for j in range(1, self.nb + 1))
+        return (*a, *b, "level_ref_mm")
+
+    def coefficients(self, flow_m3h: float) -> tuple[np.ndarray, np.ndarray]:
+        a = np.array([self.schedule.at(f"a{i}", flow_m3h) for i in range(1, self.na + 1)])
+        b = np.array([self.schedule.at(f"b{j}", flow_m3h) for j in range(1, self.nb + 1)])
+        return a, b
+
+
+Plant = FopdtPlant | ArxPlant
+
+
+def _check_columns(plant: Any, columns: tuple[str, ...]) -> None:
+    missing = [c for c in columns if c not in plant.schedule.values]
+    if missing:
+        raise ModelFileError(f"{plant.kind}: schedule lacks column(s) {', '.join(missing)}")
+    if not np.isfinite(plant.opening_ref_mm):
+        raise ModelFileError(f"{plant.kind}: opening_ref_mm must be finite")
+
+
+def plant_to_dict(plant: Plant) -> dict[str, Any]:
+    """The ``plant`` section of a model file."""
+    out: dict[str, Any] = {
+        "kind": plant.kind,
+        "gauge": plant.gauge,
+        "opening_ref_mm": plant.opening_ref_mm,
+        "schedule": plant.schedule.to_dict(),
+        "effects": [dict(e) for e in plant.effects],
+    }
+    if isinstance(plant, ArxPlant):
+        out.update(sample_period_s=plant.sample_period_s, na=plant.na, nb=plant.nb, nk=plant.nk)
+    return out
+
+
+def plant_from_dict(data: dict[str, Any]) -> Plant:
+    """Inverse of :func:`plant_to_dict`; raises :class:`ModelFileError` on bad content."""
+    try:
+        sched = dict(data["schedule"])
+        knots = tuple(float(v) for v in sched.pop("flow_m3h"))
+        schedule = Schedule(knots, {k: tuple(float(x) for x in v) for k, v in sched.items()})
+        common = dict(
+            gauge=str(data["gauge"]),
+            opening_ref_mm=float(data["opening_ref_mm"]),
+            schedule=schedule,
+            effects=tuple(dict(e) for e in data.get("effects", ())),
+        )
+        if data["kind"] == "fopdt":
+            return FopdtPlant(**common)
+        if data["kind"] == "arx":
+            return ArxPlant(
+                sample_period_s=float(data["sample_period_s"]),
+                na=int(data["na"]),
+                nb=int(data["nb"]),
+                nk=int(data["nk"]),
+                **common,
+            )
+    except (KeyError, TypeError, ValueError) as exc:
+        if isinstance(exc, ModelFileError):
+            raise
+        raise ModelFileError(f"plant: malformed section ({exc})") from None
+    raise ModelFileError(f"plant: unknown kind {data.get('kind')!r} (expected fopdt or arx)")
