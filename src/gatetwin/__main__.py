@@ -1,0 +1,7 @@
+"""``python -m gatetwin``: the same as the ``gatetwin`` command."""
+
+import sys
+
+from gatetwin.cli import main
+
+sys.exit(main())

@@ -1,0 +1,278 @@
+"""Hold segments, step onsets, test-type detection and method sufficiency checks.
+
+Works on plain arrays (segment boundaries as index arrays) so it can be vectorised for
+records of a million samples; :mod:`gatetwin.records` wraps the results in its frozen
+classes. The rules are those of ``records.py``'s docstrings:
+
+* a hold segment is a maximal run of ``hold`` samples, split where the time step exceeds
+  ``GAP_FACTOR`` nominal periods (segments never bridge a logging gap) and where the
+  opening moves by at least the actuator resolution from the segment's first opening;
+* a step is an opening change of at least the resolution between consecutive hold
+  segments, observed only when no logging gap lies between them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from gatetwin._checks import Origin, column
+from gatetwin._sidecar import TEST_TYPES
+
+if TYPE_CHECKING:
+    from gatetwin.records import Record, StepOnset
+
+#: Actuator position resolution, mm: smaller opening differences are not steps.
+RESOLUTION_MM = 1.0
+#: A time step longer than this many nominal sample periods is a logging gap.
+GAP_FACTOR = 1.5
+#: Valid hold samples needed before and after the first step (the paper's 40-sample windows).
+STEP_WINDOW_SAMPLES = 40
+#: Steps and usable hold samples a PRBS test needs; ARX(2,2,1) drops 2 samples per segment.
+PRBS_MIN_STEPS = 2
+PRBS_MIN_USABLE_SAMPLES = 30
+PRBS_DROPPED_PER_SEGMENT = 2
+#: Detection: at most this many steps between long hold segments make a step test ...
+STEP_DETECT_MAX_STEPS = 3
+#: ... and at least this many steps a PRBS test.
+PRBS_DETECT_MIN_STEPS = 4
+
+_TOL = 1e-9
+_SOURCE_WORDS = {
+    "option": "from the test option",
+    "sidecar": "from the sidecar",
+    "detected": "detected from the data",
+}
+
+
+@dataclass(frozen=True)
+class Segmentation:
+    """Hold segments as index arrays, and the opening with hold gaps filled.
+
+    Attributes
+    ----------
+    starts, stops : ndarray of int
+        Segment bounds, ``stops`` exclusive.
+    openings_mm : ndarray
+        Median opening of each segment, mm.
+    opening_mm : ndarray
+        The opening per sample, with empty hold openings filled by their segment median.
+    filled : ndarray of bool
+        True where an empty hold opening was filled.
+    """
+
+    starts: np.ndarray
+    stops: np.ndarray
+    openings_mm: np.ndarray
+    opening_mm: np.ndarray
+    filled: np.ndarray
+
+
+def is_gap(time_s: np.ndarray, period_s: float) -> np.ndarray:
+    """For each time step, whether it is a logging gap (length ``n - 1``)."""
+    return np.diff(time_s) > GAP_FACTOR * period_s
+
+
+def segment_holds(
+    origin: Origin, time_s: np.ndarray, opening_mm: np.ndarray, hold: np.ndarray,
+    period_s: float,
+) -> Segmentation:
+    """Find the hold segments and fill empty hold openings.
+
+    Raises
+    ------
+    RecordError
+        If a hold segment has no opening value at all.
+    """
+    starts, stops = _hold_runs(hold, is_gap(time_s, period_s))
+    starts, stops = _split_on_opening_change(opening_mm, starts, stops)
+    index, segment = _expand(starts, stops)
+    medians = _segment_medians(opening_mm[index], segment, starts.size)
+    empty = np.flatnonzero(np.isnan(medians))
+    if empty.size:
+        k = empty[0]
+        raise origin.error(
+            f"{origin.row(starts[k])} to {origin.row(stops[k] - 1)}",
+            column("opening_mm"),
+            "hold samples without any opening value; expected the opening of the held gate",
+        )
+    opening = np.array(opening_mm, dtype=np.float64, copy=True)
+    missing = np.isnan(opening[index])
+    opening[index[missing]] = medians[segment[missing]]
+    filled = np.zeros(opening.size, dtype=bool)
+    filled[index[missing]] = True
+    return Segmentation(starts, stops, medians, opening, filled)
+
+
+def _hold_runs(hold: np.ndarray, gap: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    starts_here = np.concatenate(([True], gap | ~hold[:-1]))
+    ends_here = np.concatenate((gap | ~hold[1:], [True]))
+    return np.flatnonzero(hold & starts_here), np.flatnonzero(hold & ends_here) + 1
+
+
+def _split_on_opening_change(
+    opening_mm: np.ndarray, starts: np.ndarray, stops: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    bounds = np.column_stack((starts, stops)).ravel()
+    padded = np.concatenate((opening_mm, [np.nan]))
+    low = np.fmin.reduceat(padded, bounds)[::2]
+    high = np.fmax.reduceat(padded, bounds)[::2]
+    moving = np.flatnonzero(high - low >= RESOLUTION_MM - _TOL)
+    if not moving.size:
+        return starts, stops
+    cuts = np.concatenate(
+        [_cuts(opening_mm, starts[k], stops[k]) for k in moving], dtype=np.int64
+    )
+    return np.sort(np.concatenate((starts, cuts))), np.sort(np.concatenate((stops, cuts)))
+
+
+def _cuts(opening_mm: np.ndarray, start: int, stop: int) -> list[int]:
+    """Sample indices inside ``[start, stop)`` where the opening leaves the resolution."""
+    cuts: list[int] = []
+    values = opening_mm[start:stop]
+    reference = None
+    for i in np.flatnonzero(np.isfinite(values)):
+        value = float(values[i])
+        if reference is None:
+            reference = value
+        elif abs(value - reference) >= RESOLUTION_MM - _TOL:
+            cuts.append(start + int(i))
+            reference = value
+    return cuts
+
+
+def _expand(starts: np.ndarray, stops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sample indices of all segments, and the segment number of each."""
+    lengths = stops - starts
+    offsets = np.concatenate(([0], np.cumsum(lengths)[:-1]))
+    index = np.repeat(starts - offsets, lengths) + np.arange(int(lengths.sum()))
+    return index, np.repeat(np.arange(starts.size), lengths)
+
+
+def _segment_medians(values: np.ndarray, segment: np.ndarray, n_segments: int) -> np.ndarray:
+    """Median of the finite ``values`` per segment (NaN for a segment without any)."""
+    ok = np.isfinite(values)
+    values, segment = values[ok], segment[ok]
+    order = np.lexsort((values, segment))
+    values = values[order]
+    counts = np.bincount(segment, minlength=n_segments)
+    offsets = np.concatenate(([0], np.cumsum(counts)[:-1]))
+    medians = np.full(n_segments, np.nan)
+    has = counts > 0
+    low = offsets[has] + (counts[has] - 1) // 2
+    high = offsets[has] + counts[has] // 2
+    medians[has] = 0.5 * (values[low] + values[high])
+    return medians
+
+
+def find_steps(
+    seg: Segmentation, time_s: np.ndarray, period_s: float
+) -> tuple[np.ndarray, int]:
+    """Steps between consecutive hold segments.
+
+    Returns
+    -------
+    pairs : ndarray of int
+        ``k`` for each observed step between segments ``k`` and ``k + 1``.
+    unobserved : int
+        Opening changes whose two segments are separated by a logging gap.
+    """
+    if seg.starts.size < 2:
+        return np.zeros(0, dtype=np.int64), 0
+    change = np.abs(np.diff(seg.openings_mm)) >= RESOLUTION_MM - _TOL
+    gaps_before = np.concatenate(([0], np.cumsum(is_gap(time_s, period_s))))
+    gapped = gaps_before[seg.starts[1:]] - gaps_before[seg.stops[:-1] - 1] > 0
+    return np.flatnonzero(change & ~gapped), int(np.count_nonzero(change & gapped))
+
+
+def choose_test(
+    origin: Origin, option: str | None, sidecar: str | None, steps: Sequence[StepOnset]
+) -> tuple[str, str]:
+    """The test type and where it came from (option, then sidecar, then detection)."""
+    if option is not None:
+        if option not in TEST_TYPES:
+            raise origin.error(f"test {option!r}", "expected 'step', 'prbs' or 'free'")
+        return option, "option"
+    if sidecar is not None:
+        return sidecar, "sidecar"
+    return detect_test(steps), "detected"
+
+
+def detect_test(steps: Sequence[StepOnset]) -> str:
+    """``"free"`` without steps, ``"step"`` for 1–3 steps between long holds, else
+    ``"prbs"`` for 4 or more steps (and ``"free"`` for a few short ones)."""
+    if not steps:
+        return "free"
+    long_holds = all(
+        min(s.before.n_samples, s.after.n_samples) >= STEP_WINDOW_SAMPLES for s in steps
+    )
+    if len(steps) <= STEP_DETECT_MAX_STEPS and long_holds:
+        return "step"
+    if len(steps) >= PRBS_DETECT_MIN_STEPS:
+        return "prbs"
+    return "free"
+
+
+def check_method(origin: Origin, record: Record) -> None:
+    """Refuse a record too short (or without steps) for its test type's method."""
+    if record.test == "step":
+        _check_step_test(origin, record)
+    elif record.test == "prbs":
+        _check_prbs_test(origin, record)
+
+
+def _test_words(record: Record) -> str:
+    return f"test '{record.test}' ({_SOURCE_WORDS[record.test_source]})"
+
+
+def _check_step_test(origin: Origin, record: Record) -> None:
+    if not record.steps:
+        openings = sorted({round(h.opening_mm, 1) for h in record.holds})
+        shown = ", ".join(f"{e:g}" for e in openings[:5])
+        hidden = (
+            f" ({record.unobserved_steps} opening change(s) fall inside logging gaps)"
+            if record.unobserved_steps else ""
+        )
+        raise origin.error(
+            column("opening_mm"),
+            f"{_test_words(record)} but no step: hold openings {shown} mm{hidden}; expected "
+            f"an opening change of ≥ {RESOLUTION_MM:g} mm between two hold segments",
+        )
+    first = record.steps[0]
+    for side, segment in (("before", first.before), ("after", first.after)):
+        count, gauge = min((record.valid_samples(segment, g), g) for g in record.gauges)
+        if count < STEP_WINDOW_SAMPLES:
+            raise origin.error(
+                origin.row(first.index),
+                f"step at {first.time_s:g} s: the hold segment {side} it has {count} valid "
+                f"samples at gauge {gauge}; {_test_words(record)} needs ≥ "
+                f"{STEP_WINDOW_SAMPLES} before and ≥ {STEP_WINDOW_SAMPLES} after the step",
+            )
+
+
+def _check_prbs_test(origin: Origin, record: Record) -> None:
+    usable, gauge = _fewest_usable(record)
+    n_steps = len(record.steps)
+    if n_steps >= PRBS_MIN_STEPS and usable >= PRBS_MIN_USABLE_SAMPLES:
+        return
+    raise origin.error(
+        column("opening_mm"),
+        f"{_test_words(record)} needs ≥ {PRBS_MIN_STEPS} steps and ≥ "
+        f"{PRBS_MIN_USABLE_SAMPLES} usable hold samples; found {n_steps} step(s) and "
+        f"{usable} usable samples at gauge {gauge} (the first {PRBS_DROPPED_PER_SEGMENT} "
+        "samples of each hold segment are not usable)",
+    )
+
+
+def _fewest_usable(record: Record) -> tuple[int, str]:
+    starts = np.array([h.start for h in record.holds], dtype=np.int64)
+    stops = np.array([h.stop for h in record.holds], dtype=np.int64)
+    counts = []
+    for gauge, level in record.levels_mm.items():
+        finite = np.concatenate(([0], np.cumsum(np.isfinite(level))))
+        valid = finite[stops] - finite[starts]
+        counts.append((int(np.maximum(valid - PRBS_DROPPED_PER_SEGMENT, 0).sum()), gauge))
+    return min(counts)

@@ -1,0 +1,173 @@
+"""The ``gatetwin`` command: parse arguments, call the library, print.
+
+No logic lives here. Each subcommand is one :class:`Command` in ``_COMMANDS`` (name,
+help, a function adding its arguments, a function running it and returning an exit
+code); add a subcommand by writing those two functions and one ``Command(...)`` line.
+
+Any :class:`~gatetwin.errors.GatetwinError` (bad input, impossible request) becomes one
+line ``gatetwin: error: <message>`` on stderr and exit code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from gatetwin import __version__
+from gatetwin._io import write_json_atomic
+from gatetwin._sidecar import TEST_TYPES
+from gatetwin._summary import format_record_summary, format_static_summary
+from gatetwin.errors import GatetwinError, RecordError
+
+#: Exit code for a refused input or a failed command.
+EXIT_ERROR = 2
+
+
+@dataclass(frozen=True)
+class Command:
+    """One subcommand.
+
+    Attributes
+    ----------
+    name : str
+        The word after ``gatetwin``.
+    help : str
+        One line for ``gatetwin --help``.
+    add_arguments : callable
+        Adds the subcommand's arguments to its parser.
+    run : callable
+        Runs it on the parsed arguments; returns the exit code.
+    """
+
+    name: str
+    help: str
+    add_arguments: Callable[[argparse.ArgumentParser], None]
+    run: Callable[[argparse.Namespace], int]
+
+
+def print_to_stderr(message: str) -> None:
+    """Progress output: one line on stderr, flushed."""
+    print(message, file=sys.stderr, flush=True)
+
+
+# --------------------------------------------------------------------------- check
+
+
+def _add_check_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("path", metavar="RECORD.csv", help="time-series record or static table")
+    parser.add_argument(
+        "--test", choices=TEST_TYPES, help="test type (overrides the sidecar and detection)"
+    )
+    parser.add_argument(
+        "--json", metavar="OUT.json", help="also write the findings as JSON (after success)"
+    )
+
+
+def _run_check(args: argparse.Namespace) -> int:
+    from gatetwin.records import detect_table_kind, read_record, read_static_table
+
+    if detect_table_kind(args.path) == "static":
+        if args.test is not None:
+            raise RecordError(f"{args.path}: --test applies to time-series records, not to "
+                              "a static rating table")
+        summary = read_static_table(args.path).summary()
+        text = format_static_summary(summary)
+    else:
+        summary = read_record(args.path, test=args.test).summary()
+        text = format_record_summary(summary)
+    print(text)
+    if args.json:
+        _write_json(args.json, summary)
+    return 0
+
+
+def _write_json(path: str, data: object) -> None:
+    try:
+        write_json_atomic(path, data)
+    except OSError as exc:
+        raise GatetwinError(f"{path}: cannot write ({exc.strerror or exc})") from None
+
+
+# --------------------------------------------------------------------------- run
+
+
+def _add_run_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--out", metavar="DIR", default="gatetwin-out",
+        help="output directory, replaced only after success (default: gatetwin-out)",
+    )
+
+
+def _run_run(args: argparse.Namespace) -> int:
+    from gatetwin.pipeline import run_pipeline
+
+    out = run_pipeline(Path(args.out), progress=print_to_stderr)
+    print_to_stderr(f"wrote {out}")
+    return 0
+
+
+# --------------------------------------------------------------------------- registry
+
+#: The subcommands, in ``--help`` order. Others (flume, identify, export, validate,
+#: mpc-demo, diagnose) are added here as they are written.
+_COMMANDS: tuple[Command, ...] = (
+    Command(
+        "check",
+        "read and check a record or static table, and say what is in it",
+        _add_check_arguments,
+        _run_check,
+    ),
+    Command(
+        "run",
+        "check the bundled records and write the pipeline's outputs",
+        _add_run_arguments,
+        _run_run,
+    ),
+)
+
+
+def build_parser(commands: Sequence[Command] = _COMMANDS) -> argparse.ArgumentParser:
+    """The argument parser with one subparser per command."""
+    parser = argparse.ArgumentParser(
+        prog="gatetwin",
+        description="Control-ready digital-twin models of a canal sluice gate.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for command in commands:
+        sub_parser = sub.add_parser(command.name, help=command.help, description=command.help)
+        command.add_arguments(sub_parser)
+        sub_parser.set_defaults(run=command.run)
+    return parser
+
+
+def _one_line(message: str) -> str:
+    return " ".join(message.split()) or "failed"
+
+
+def _tolerant_streams() -> None:
+    """Never crash on printing a character the terminal's encoding lacks."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is not None:
+            reconfigure(errors="backslashreplace")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``gatetwin`` command line; returns the exit code."""
+    _tolerant_streams()
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.run(args))
+    except GatetwinError as exc:
+        print(f"gatetwin: error: {_one_line(str(exc))}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print("gatetwin: error: interrupted", file=sys.stderr)
+    return EXIT_ERROR
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

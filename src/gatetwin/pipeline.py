@@ -1,0 +1,228 @@
+"""The ``gatetwin run`` pipeline: a list of stages run in order on one context.
+
+Each stage is a plain function ``stage(ctx) -> None`` that reads what earlier stages left
+in ``ctx.results`` and adds its own; extend the pipeline by appending a
+:class:`PipelineStage` to :data:`STAGES`. Outputs are written into a temporary sibling of
+the output directory, which is renamed into place only when every stage has succeeded:
+a failed run leaves no partial output, and an existing output directory is replaced only
+after success.
+
+This module orchestrates; checking, identification and so on live in their own modules.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from gatetwin.errors import PipelineError
+from gatetwin.records import detect_table_kind, read_record, read_static_table
+
+#: File marking a directory as written by ``gatetwin run`` (only such are replaced).
+MARKER = ".gatetwin-run"
+
+
+@dataclass
+class PipelineContext:
+    """What the stages share (deliberately mutable: stages fill ``results``).
+
+    Attributes
+    ----------
+    out_dir : Path
+        Directory to write into (a temporary directory until the run succeeds).
+    records_dir : Path
+        Where the input records are read from.
+    records : list[Path]
+        The input files found (records and static tables).
+    results : dict
+        Stage outputs by name, e.g. ``results["records"]``: summaries of the checked
+        records.
+    progress : callable
+        Takes one line of progress text.
+    """
+
+    out_dir: Path
+    records_dir: Path
+    records: list[Path] = field(default_factory=list)
+    results: dict[str, Any] = field(default_factory=dict)
+    progress: Callable[[str], None] = print
+
+
+@dataclass(frozen=True)
+class PipelineStage:
+    """One stage: a title for the progress line and the function that runs it."""
+
+    title: str
+    run: Callable[[PipelineContext], None]
+
+
+def bundled_records_dir() -> Path:
+    """The package data directory of bundled records (``gatetwin/data/records``)."""
+    root = resources.files("gatetwin").joinpath("data", "records")
+    if not isinstance(root, Path):
+        raise PipelineError(f"bundled records at {root} are not on the file system")
+    return root
+
+
+# --------------------------------------------------------------------------- stages
+
+
+def find_records(ctx: PipelineContext) -> None:
+    """Collect the ``*.csv`` files of ``ctx.records_dir``."""
+    found = sorted(ctx.records_dir.glob("*.csv")) if ctx.records_dir.is_dir() else []
+    if not found:
+        raise PipelineError(
+            f"{ctx.records_dir}: no records found; expected NAME.csv files "
+            "(time-series records or static tables)"
+        )
+    ctx.records = found
+    ctx.progress(f"      found {len(found)} file(s) in {ctx.records_dir}")
+
+
+def check_records(ctx: PipelineContext) -> None:
+    """Read and check every input; results["records"] gets their summaries."""
+    summaries = []
+    for path in ctx.records:
+        if detect_table_kind(path) == "static":
+            summary = read_static_table(path).summary()
+        else:
+            summary = read_record(path).summary()
+        summary["file"] = path.name
+        summaries.append(summary)
+        ctx.progress(f"      {path.name}: ok ({summary['kind']})")
+    ctx.results["records"] = summaries
+
+
+def write_record_summary(ctx: PipelineContext) -> None:
+    """Write ``records.json`` and ``summary.md`` (a table of the checked records)."""
+    from gatetwin._io import write_json_atomic, write_text_atomic
+
+    summaries = ctx.results["records"]
+    write_json_atomic(ctx.out_dir / "records.json", summaries)
+    write_text_atomic(ctx.out_dir / "summary.md", _summary_markdown(summaries))
+
+
+def _summary_markdown(summaries: Sequence[dict[str, Any]]) -> str:
+    lines = [
+        "# gatetwin run",
+        "",
+        "## Records checked",
+        "",
+        "| file | kind | test | samples / points | gauges | steps | flow (m³/h) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for s in summaries:
+        gauges = " ".join(g["name"] for g in s["gauges"])
+        flow = s["flow_m3h"]
+        if s["kind"] == "static":
+            row = (s["file"], "static", "–", s["n_points"], gauges, "–")
+        else:
+            test = f"{s['test']} ({s['test_source']})"
+            row = (s["file"], "record", test, s["n_samples"], gauges, len(s["steps"]))
+        cells = [*map(str, row), f"{flow['min']:.4g} … {flow['max']:.4g}"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+#: The stages of ``gatetwin run``, in order. Append to extend the pipeline.
+STAGES: tuple[PipelineStage, ...] = (
+    PipelineStage("finding records", find_records),
+    PipelineStage("checking records", check_records),
+    PipelineStage("writing summary", write_record_summary),
+)
+
+
+# --------------------------------------------------------------------------- running
+
+
+def run_pipeline(
+    out_dir: str | os.PathLike[str],
+    progress: Callable[[str], None] | None = None,
+    *,
+    stages: Sequence[PipelineStage] = STAGES,
+    records_dir: str | os.PathLike[str] | None = None,
+) -> Path:
+    """Run ``stages`` and move their output to ``out_dir`` only if all succeed.
+
+    Parameters
+    ----------
+    out_dir : path
+        Output directory. An existing one is replaced after success, provided it was
+        written by an earlier run (or is empty).
+    progress : callable, optional
+        Receives progress lines such as ``"[2/3] checking records ..."``.
+    stages : sequence of PipelineStage, optional
+        The stages to run (default :data:`STAGES`).
+    records_dir : path, optional
+        Input directory (default: the bundled records, :func:`bundled_records_dir`).
+
+    Returns
+    -------
+    Path
+        ``out_dir``.
+
+    Raises
+    ------
+    GatetwinError
+        From any stage, or :class:`~gatetwin.errors.PipelineError` if ``out_dir`` cannot
+        be (re)placed. Nothing is left behind on failure.
+    """
+    target = Path(out_dir)
+    say = progress or (lambda _line: None)
+    _check_replaceable(target)
+    inputs = Path(records_dir) if records_dir is not None else bundled_records_dir()
+    target.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    try:
+        ctx = PipelineContext(out_dir=work, records_dir=inputs, progress=say)
+        for number, stage in enumerate(stages, 1):
+            say(f"[{number}/{len(stages)}] {stage.title} ...")
+            stage.run(ctx)
+        (work / MARKER).write_text("written by gatetwin run\n", encoding="utf-8")
+        _make_world_readable(work)
+        _replace_directory(work, target)
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        raise
+    return target
+
+
+def _check_replaceable(target: Path) -> None:
+    if not target.exists():
+        return
+    if not target.is_dir():
+        raise PipelineError(f"{target}: exists and is not a directory; expected an output dir")
+    if (target / MARKER).is_file() or not any(target.iterdir()):
+        return
+    raise PipelineError(
+        f"{target}: exists and was not written by 'gatetwin run'; refusing to replace it "
+        "(remove it or choose another --out)"
+    )
+
+
+def _make_world_readable(path: Path) -> None:
+    """mkdtemp makes a private directory; give it the usual permissions."""
+    umask = os.umask(0)
+    os.umask(umask)
+    path.chmod(0o777 & ~umask)
+
+
+def _replace_directory(work: Path, target: Path) -> None:
+    if not target.exists():
+        work.rename(target)
+        return
+    old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
+    old.rmdir()
+    target.rename(old)
+    try:
+        work.rename(target)
+    except OSError:
+        old.rename(target)
+        raise
+    shutil.rmtree(old, ignore_errors=True)

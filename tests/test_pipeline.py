@@ -1,0 +1,96 @@
+"""``gatetwin run``: stages, progress, and no partial output on failure."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from gatetwin.errors import GatetwinError, PipelineError, RecordError
+from gatetwin.pipeline import STAGES, PipelineContext, PipelineStage, run_pipeline
+
+DATA = Path(__file__).resolve().parent / "data"
+sys.path.insert(0, str(DATA))
+import make_malformed  # noqa: E402
+
+
+@pytest.fixture()
+def records_dir(tmp_path: Path) -> Path:
+    folder = tmp_path / "records"
+    folder.mkdir()
+    (folder / "A.csv").write_text(
+        make_malformed.to_text(make_malformed.base_rows()), encoding="utf-8"
+    )
+    (folder / "static.csv").write_text(make_malformed.static_text(), encoding="utf-8")
+    return folder
+
+
+def _siblings(path: Path) -> list[str]:
+    return sorted(p.name for p in path.parent.iterdir() if p.name != "records")
+
+
+def test_run_writes_summary_and_progress(records_dir: Path, tmp_path: Path) -> None:
+    lines: list[str] = []
+    out = run_pipeline(tmp_path / "out", progress=lines.append, records_dir=records_dir)
+    assert (out / "summary.md").read_text(encoding="utf-8").count("| A.csv | record |") == 1
+    records = json.loads((out / "records.json").read_text(encoding="utf-8"))
+    assert [r["file"] for r in records] == ["A.csv", "static.csv"]
+    assert lines[0] == f"[1/{len(STAGES)}] finding records ..."
+    assert any(line.startswith("[2/") and "checking records" in line for line in lines)
+    assert _siblings(out) == ["out"]  # no temporary directories left
+
+
+def test_failed_run_leaves_nothing_and_keeps_old_output(
+    records_dir: Path, tmp_path: Path
+) -> None:
+    out = run_pipeline(tmp_path / "out", records_dir=records_dir)
+    before = (out / "records.json").read_text(encoding="utf-8")
+    (records_dir / "bad.csv").write_text("time_s,opening_mm\n", encoding="utf-8")
+    with pytest.raises(RecordError, match="bad.csv"):
+        run_pipeline(out, records_dir=records_dir)
+    assert (out / "records.json").read_text(encoding="utf-8") == before
+    assert _siblings(out) == ["out"]
+
+
+def test_successful_run_replaces_earlier_output(records_dir: Path, tmp_path: Path) -> None:
+    out = run_pipeline(tmp_path / "out", records_dir=records_dir)
+    (out / "stale.txt").write_text("old", encoding="utf-8")
+    run_pipeline(out, records_dir=records_dir)
+    assert not (out / "stale.txt").exists()
+    assert _siblings(out) == ["out"]
+
+
+def test_refuses_to_replace_a_foreign_directory(records_dir: Path, tmp_path: Path) -> None:
+    foreign = tmp_path / "mine"
+    foreign.mkdir()
+    (foreign / "thesis.tex").write_text("precious", encoding="utf-8")
+    with pytest.raises(PipelineError, match="not written by 'gatetwin run'"):
+        run_pipeline(foreign, records_dir=records_dir)
+    assert (foreign / "thesis.tex").exists()
+
+
+def test_no_records_is_a_clear_error(tmp_path: Path) -> None:
+    empty = tmp_path / "records"
+    empty.mkdir()
+    with pytest.raises(PipelineError, match="no records found"):
+        run_pipeline(tmp_path / "out", records_dir=empty)
+    assert not (tmp_path / "out").exists()
+    assert _siblings(tmp_path / "out") == []
+
+
+def test_stages_are_extensible(records_dir: Path, tmp_path: Path) -> None:
+    def count(ctx: PipelineContext) -> None:
+        (ctx.out_dir / "count.txt").write_text(str(len(ctx.results["records"])))
+
+    def fail(ctx: PipelineContext) -> None:
+        raise GatetwinError("stage failed")
+
+    stages = (*STAGES, PipelineStage("counting", count))
+    out = run_pipeline(tmp_path / "out", stages=stages, records_dir=records_dir)
+    assert (out / "count.txt").read_text() == "2"
+    with pytest.raises(GatetwinError, match="stage failed"):
+        run_pipeline(tmp_path / "new", stages=(*stages, PipelineStage("x", fail)),
+                     records_dir=records_dir)
+    assert not (tmp_path / "new").exists()
