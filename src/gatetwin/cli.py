@@ -15,6 +15,7 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NoReturn
 
 from gatetwin import __version__
 from gatetwin._io import write_json_atomic
@@ -109,6 +110,47 @@ def _run_run(args: argparse.Namespace) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- flume
+
+
+def _add_flume_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", metavar="DIR", required=True, help="directory to write into")
+    parser.add_argument(
+        "--scenario", metavar="FILE",
+        help="run a scenario described in JSON or TOML instead of the reference suite",
+    )  # fmt: skip
+    parser.add_argument(
+        "--only", metavar="NAME", nargs="+", default=(),
+        help="reference records to write (A B C D Q40 Q50 Q60 Q85 Q55 static); default all",
+    )  # fmt: skip
+
+
+def _run_flume(args: argparse.Namespace) -> int:
+    from gatetwin.flume.experiments import (
+        load_scenario,
+        reference_scenarios,
+        run_scenario,
+        write_reference_records,
+    )
+
+    if args.scenario:
+        scn = load_scenario(args.scenario)
+        path = run_scenario(scn).write(Path(args.out) / f"{scn.name}.csv")
+        print(f"wrote {path} and its sidecar")
+        return 0
+    known = {s.name for s in reference_scenarios()} | {"static"}
+    unknown = sorted(set(args.only) - known)
+    if unknown:
+        raise GatetwinError(
+            f"--only: unknown record(s) {', '.join(unknown)}; expected some of "
+            f"{', '.join(sorted(known))}"
+        )
+    paths = write_reference_records(args.out, progress=print_to_stderr, only=tuple(args.only))
+    for path in paths:
+        print(f"wrote {path}")
+    return 0
+
+
 # --------------------------------------------------------------------------- registry
 
 #: The subcommands, in ``--help`` order. Others (flume, identify, export, validate,
@@ -121,6 +163,12 @@ _COMMANDS: tuple[Command, ...] = (
         _run_check,
     ),
     Command(
+        "flume",
+        "run the virtual flume: write the reference records or a described scenario",
+        _add_flume_arguments,
+        _run_flume,
+    ),
+    Command(
         "run",
         "check the bundled records and write the pipeline's outputs",
         _add_run_arguments,
@@ -129,14 +177,23 @@ _COMMANDS: tuple[Command, ...] = (
 )
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """Usage errors as one line ``gatetwin: error: ...`` and exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_ERROR, f"gatetwin: error: {self.prog}: {_one_line(message)}\n")
+
+
 def build_parser(commands: Sequence[Command] = _COMMANDS) -> argparse.ArgumentParser:
     """The argument parser with one subparser per command."""
-    parser = argparse.ArgumentParser(
+    parser = _OneLineParser(
         prog="gatetwin",
         description="Control-ready digital-twin models of a canal sluice gate.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    sub = parser.add_subparsers(
+        dest="command", metavar="COMMAND", required=True, parser_class=_OneLineParser
+    )
     for command in commands:
         sub_parser = sub.add_parser(command.name, help=command.help, description=command.help)
         command.add_arguments(sub_parser)

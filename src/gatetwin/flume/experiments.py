@@ -223,7 +223,7 @@ def write_reference_records(
             progress("flume: running the static rating grid")
         path = write_text_atomic(out / "static.csv", static_table())
         side = {"synthetic": True, "generator": f"gatetwin virtual flume {FLUME_VERSION}",
-                "flume_version": FLUME_VERSION, "seed": 110, "test": "static",
+                "flume_version": FLUME_VERSION, "seed": 110, "kind": "static rating table",
                 "gauges": dict(FlumeConfig().gauges_m)}  # fmt: skip
         write_text_atomic(out / "static.json", json.dumps(side, indent=2) + "\n")
         paths.append(path)
