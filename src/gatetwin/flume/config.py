@@ -79,6 +79,9 @@ class FlumeConfig:
         times L of Tables 2–3: the level starts to move with the gate and gravity waves
         cross the 3 m to gauge 1D in under 2 s, so only a slow start of the opening explains
         3σ-detection delays of 4.5–10 s.
+    actuator_delay_s : float
+        Time from the motor starting (the logger writes ``open``) to the leaf moving:
+        slack in the drive taken up before the gate lifts.
     actuator_resolution_mm : float
         Position resolution, 1 mm (paper).
     gauges_m : dict[str, float]
@@ -99,6 +102,7 @@ class FlumeConfig:
     gate: GateLaw = field(default_factory=GateLaw)
     tailwater_depth_m: float | None = None
     actuator_speed_mm_s: float = 0.2
+    actuator_delay_s: float = 0.0
     actuator_resolution_mm: float = 1.0
     gauges_m: dict[str, float] = field(default_factory=lambda: dict(PAPER_GAUGES_M))
     gauge_datum_mm: dict[str, float] = field(
@@ -115,6 +119,7 @@ class FlumeConfig:
             "cfl": 0 < self.cfl <= 1,
             "manning_n": self.manning_n >= 0,
             "actuator_speed_mm_s": self.actuator_speed_mm_s > 0,
+            "actuator_delay_s": self.actuator_delay_s >= 0,
             "sample_period_s": self.sample_period_s > 0,
         }
         bad = [k for k, ok in checks.items() if not ok]

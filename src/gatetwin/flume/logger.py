@@ -10,7 +10,7 @@ Noise model (calibrated to the standard deviations of Tables 2–3): each gauge 
 correlation time of a few seconds (surface waves), ``σ(Fr) = sigma0·exp(growth·(Fr − fr0))``
 grows with the local Froude number (the paper's SDs are 0.3–0.4 mm in calm condition A
 before the step and 1.4–2.4 mm after it, when the faster, shallower flow is rougher),
-``f_g`` a per-gauge factor, and ``w`` white sensor noise.
+``f_g`` a per-gauge factor that varies with Q, and ``w`` white sensor noise.
 """
 
 from __future__ import annotations
@@ -44,8 +44,11 @@ class LoggerConfig:
     correlation_s : float
         Correlation time of the fluctuations, s.
     gauge_factor : dict[str, float]
-        Per-gauge multiplier of the fluctuation SD: each gauge's published SD over the mean
-        of the five, averaged over the four steady windows of Tables 2–3.
+        Per-gauge multiplier of the fluctuation SD at the two flows
+        ``gauge_factor_flow_m3h`` (linear in Q between them, clamped outside): each gauge's
+        published pre-step SD over the mean of the five in Table 2 (A) and Table 3 (B).
+        The published SDs rank the gauges differently in A and B, and the paper's dead
+        times follow them (L is a 3σ detection delay), so the factor follows Q.
     sensor_sd_mm : float
         White sensor noise, mm.
     level_resolution_mm : float
@@ -62,15 +65,19 @@ class LoggerConfig:
 
     sigma0_mm: float = 0.33
     fr0: float = 0.078
-    growth: float = 28.0
+    growth: float = 31.0
     sigma_max_mm: float = 4.0
-    correlation_s: float = 3.0
-    gauge_factor: dict[str, float] = field(
-        default_factory=lambda: {"1D": 1.04, "2E": 1.03, "3F": 0.87, "4G": 1.10, "5H": 0.95}
-    )
+    correlation_s: float = 1.5
+    gauge_factor_flow_m3h: tuple[float, float] = (29.5, 72.5)
+    gauge_factor: dict[str, tuple[float, float]] = field(
+        default_factory=lambda: {
+            "1D": (0.91, 1.19), "2E": (0.94, 1.15), "3F": (1.00, 0.63),
+            "4G": (1.11, 1.36), "5H": (1.09, 0.67),
+        }
+    )  # fmt: skip
     sensor_sd_mm: float = 0.1
     level_resolution_mm: float = 0.1
-    spike_probability: float = 0.001
+    spike_probability: float = 0.0005
     spike_mm: tuple[float, float] = (5.0, 15.0)
     flow_sd_fraction: float = 0.0016
     flow_resolution_m3h: float = 0.1
@@ -132,7 +139,7 @@ def _ar1(rng: np.random.Generator, n: int, phi: float) -> np.ndarray:
 
 
 def _gauge_reading(
-    rng: np.random.Generator, depth: np.ndarray, fr: np.ndarray, factor: float,
+    rng: np.random.Generator, depth: np.ndarray, fr: np.ndarray, factor: np.ndarray,
     datum: float, lc: LoggerConfig, dt: float,
 ) -> np.ndarray:  # fmt: skip
     sigma = np.minimum(lc.sigma0_mm * np.exp(lc.growth * (fr - lc.fr0)), lc.sigma_max_mm)
@@ -143,6 +150,13 @@ def _gauge_reading(
     mags = rng.uniform(*lc.spike_mm, size=depth.size) * rng.choice([-1.0, 1.0], size=depth.size)
     level = np.where(spikes, level + mags, level)
     return np.round(level / lc.level_resolution_mm) * lc.level_resolution_mm
+
+
+def _factor(lc: LoggerConfig, gauge: str, flow_m3h: np.ndarray) -> np.ndarray:
+    f0, f1 = lc.gauge_factor.get(gauge, (1.0, 1.0))
+    q0, q1 = lc.gauge_factor_flow_m3h
+    w = np.clip((flow_m3h - q0) / (q1 - q0), 0.0, 1.0)
+    return f0 + w * (f1 - f0)
 
 
 def log_run(
@@ -163,7 +177,7 @@ def log_run(
     for g, depth in run.depth_mm.items():
         fr = froude(depth, run.flow_m3h, cfg.width_m)
         levels[g] = _gauge_reading(
-            rng, depth, fr, lc.gauge_factor.get(g, 1.0), cfg.gauge_datum_mm.get(g, 0.0), lc,
+            rng, depth, fr, _factor(lc, g, run.flow_m3h), cfg.gauge_datum_mm.get(g, 0.0), lc,
             cfg.sample_period_s,
         )  # fmt: skip
     flow = run.flow_m3h * (1.0 + lc.flow_sd_fraction * rng.standard_normal(run.flow_m3h.size))

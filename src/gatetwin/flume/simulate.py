@@ -131,7 +131,9 @@ def run_flume(
     h, q = st.depth_m.copy(), st.unit_discharge_m2s.copy()
     start = command_mm[0] if start_position_mm is None else start_position_mm
     cmd_fine = np.repeat(command_mm[1:], n_sub)
-    pos_fine = rate_limit(cmd_fine, start, cfg.actuator_speed_mm_s * dt)
+    n_delay = min(round(cfg.actuator_delay_s / dt), cmd_fine.size)
+    leaf_cmd = np.concatenate([np.full(n_delay, start), cmd_fine[: cmd_fine.size - n_delay]])
+    pos_fine = rate_limit(leaf_cmd, start, cfg.actuator_speed_mm_s * dt)
     flow_fine = np.repeat(flow_m3h[1:], n_sub)
     names = list(cfg.gauges_m)
     probes = [grid.probe(cfg.gauges_m[g]) for g in names]
@@ -154,8 +156,9 @@ def run_flume(
     dv = (float(np.sum(h)) - v0) * grid.dx_m
     balance = abs(dv - (v_in - v_out)) / v_in
     pos = np.concatenate([[start], pos_fine[n_sub - 1 :: n_sub]])
-    moved = np.concatenate([[False], np.abs(np.diff(np.concatenate([[start], pos_fine])))
-                            .reshape(-1, n_sub).max(axis=1) > 0])  # fmt: skip
+    step_moved = np.abs(np.diff(np.concatenate([[start], pos_fine]))) > 0
+    step_moved |= np.abs(cmd_fine - pos_fine) > 0  # motor running, leaf not yet there
+    moved = np.concatenate([[False], step_moved.reshape(-1, n_sub).max(axis=1)])
     return FlumeRun(
         time_s=np.arange(n) * cfg.sample_period_s,
         command_mm=command_mm,
