@@ -17,7 +17,7 @@ from gatetwin.flume.experiments import (
     reference_scenarios,
     run_scenario,
 )
-from gatetwin.flume.solver import Grid, advance, law_of, time_step_s
+from gatetwin.flume.solver import Grid, advance, law_of, leaf_speed, time_step_s
 
 RECORDS = resources.files("gatetwin") / "data" / "records"
 
@@ -43,8 +43,10 @@ def test_lake_at_rest_stays_at_rest_over_the_sloping_bed():
     steps = 50 * n_sub
     zeros = np.zeros(steps)
     levels = np.empty((50, 1))
-    advance(h, q, grid.bed_m, grid.dx_m, dt, zeros, zeros, zeros, cfg.manning_n, -1.0,
-            law_of(cfg), np.array([0]), np.array([0.0]), n_sub, levels, np.empty(50))  # fmt: skip
+    closed = np.array([0.0, cfg.actuator_speed_mm_s / 1000, cfg.actuator_stall_depth_m])
+    advance(h, q, grid.bed_m, grid.dx_m, dt, zeros, zeros, closed, np.empty(steps), zeros,
+            cfg.manning_n, -1.0, law_of(cfg), np.array([0]), np.array([0.0]), n_sub, levels,
+            np.empty(50))  # fmt: skip
     surface = h + grid.bed_m
     assert np.ptp(surface) < 1e-12
     assert np.max(np.abs(q)) < 1e-12
@@ -79,12 +81,13 @@ def test_steady_state_does_not_drift():
     assert abs(run.outflow_m3h[-1] - 72.5) < 1e-3
 
 
-def test_actuator_moves_at_its_speed_and_logger_marks_open():
+def test_actuator_moves_at_its_loaded_speed_and_logger_marks_open():
     cfg = FlumeConfig()
     scn = Scenario("t", ((0.0, 29.5),), ((0.0, 15.0), (60.0, 20.0)), 200.0, 1, "step")
     rec = run_scenario(scn, cfg)
     open_idx = np.flatnonzero(~rec.hold)
-    travel_s = 5.0 / cfg.actuator_speed_mm_s
+    depth_m = rec.levels_mm["5H"][0] / 1000
+    travel_s = 5.0 / leaf_speed(depth_m, cfg.actuator_speed_mm_s, cfg.actuator_stall_depth_m)
     # every sample inside the motion is `open` with an empty opening
     assert abs(open_idx.size * cfg.sample_period_s - travel_s) <= 2 * cfg.sample_period_s
     assert np.all(np.isnan(rec.opening_mm[open_idx]))
@@ -151,3 +154,11 @@ def test_scenario_file_runs(tmp_path):
 def test_config_refuses_a_gauge_outside_the_pool():
     with pytest.raises(FlumeError, match="gauge"):
         replace(FlumeConfig(), gauges_m={"X": 50.0})
+
+
+def test_actuator_slows_under_a_deeper_load():
+    cfg = FlumeConfig()
+    shallow = leaf_speed(0.2, cfg.actuator_speed_mm_s, cfg.actuator_stall_depth_m)
+    deep = leaf_speed(0.35, cfg.actuator_speed_mm_s, cfg.actuator_stall_depth_m)
+    assert deep < 0.6 * shallow
+    assert leaf_speed(10.0, 1.0, 0.45) == pytest.approx(0.05)  # floored, never stalls

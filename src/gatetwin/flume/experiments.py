@@ -27,6 +27,7 @@ from gatetwin.errors import FlumeError
 from gatetwin.flume.config import FlumeConfig
 from gatetwin.flume.logger import FLUME_VERSION, LoggedRecord, LoggerConfig, log_run
 from gatetwin.flume.simulate import run_flume, spin_up, steady_gate_depth_m
+from gatetwin.flume.solver import leaf_speed
 
 Breakpoints = tuple[tuple[float, float], ...]
 
@@ -124,17 +125,20 @@ def step_scenario(
 
 def prbs_scenario(
     name: str, flow_m3h: float, base_mm: float, seed: int, *, clock_s: float, order: int = 6,
-    amplitude_mm: float = 5.0, speed_mm_s: float = 0.2, **meta: Any,
+    amplitude_mm: float = 5.0, cfg: FlumeConfig | None = None, **meta: Any,
 ) -> Scenario:  # fmt: skip
     """A PRBS test: a maximum-length sequence between base ± amplitude.
 
     Each run of equal bits holds for (run length × ``clock_s``) after the gate has arrived
-    (the actuator needs 2·amplitude/speed seconds to travel), so every hold segment is at
-    least one clock period long whatever the actuator speed.
+    (the travel time of 2·amplitude at the actuator's loaded speed at the base opening, plus
+    a 20 % margin), so every hold segment is at least one clock period long.
     """
+    cfg = cfg or FlumeConfig()
     bits = max_len_seq(order, state=np.ones(order, dtype=np.int8))[0]
     runs = np.diff(np.flatnonzero(np.diff(np.r_[-1, bits, -1]) != 0))
-    travel = 2 * amplitude_mm / speed_mm_s
+    depth = steady_gate_depth_m(cfg, flow_m3h, base_mm + amplitude_mm)
+    speed = leaf_speed(depth, cfg.actuator_speed_mm_s, cfg.actuator_stall_depth_m)
+    travel = 1.2 * 2 * amplitude_mm / speed
     t, level, bps = 0.0, float(bits[0]), []
     for run_length in runs:
         value = base_mm + (amplitude_mm if level else -amplitude_mm)

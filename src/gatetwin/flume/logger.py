@@ -40,7 +40,8 @@ class LoggerConfig:
     sigma0_mm, fr0, growth : float
         Surface-fluctuation SD ``sigma0_mm`` at Froude number ``fr0``, and its growth rate.
     sigma_max_mm : float
-        Cap on the fluctuation SD.
+        Cap on the fluctuation SD, 2.5 mm: the largest SD published (2.43 mm); beyond the
+        Froude numbers of Tables 2–3 the exponential is not extrapolated.
     correlation_s : float
         Correlation time of the fluctuations, s.
     gauge_factor : dict[str, float]
@@ -66,7 +67,7 @@ class LoggerConfig:
     sigma0_mm: float = 0.33
     fr0: float = 0.078
     growth: float = 31.0
-    sigma_max_mm: float = 4.0
+    sigma_max_mm: float = 2.5
     correlation_s: float = 1.5
     gauge_factor_flow_m3h: tuple[float, float] = (29.5, 72.5)
     gauge_factor: dict[str, tuple[float, float]] = field(

@@ -12,8 +12,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
-
 from gatetwin.errors import FlumeError
 from gatetwin.flume.config import FlumeConfig
 from gatetwin.flume.gate import G, unit_discharge
@@ -53,22 +51,6 @@ class FlumeRun:
     outflow_m3h: np.ndarray
     volume_balance_error: float
     final_state: HydraulicState
-
-
-@njit(cache=True)
-def rate_limit(command: np.ndarray, start: float, max_step: float) -> np.ndarray:
-    """Position following ``command`` with at most ``max_step`` change per solver step."""
-    pos = np.empty(command.size)
-    p = start
-    for i in range(command.size):
-        d = command[i] - p
-        if d > max_step:
-            d = max_step
-        elif d < -max_step:
-            d = -max_step
-        p += d
-        pos[i] = p
-    return pos
 
 
 def steady_gate_depth_m(cfg: FlumeConfig, flow_m3h: float, opening_mm: float) -> float:
@@ -133,7 +115,10 @@ def run_flume(
     cmd_fine = np.repeat(command_mm[1:], n_sub)
     n_delay = min(round(cfg.actuator_delay_s / dt), cmd_fine.size)
     leaf_cmd = np.concatenate([np.full(n_delay, start), cmd_fine[: cmd_fine.size - n_delay]])
-    pos_fine = rate_limit(leaf_cmd, start, cfg.actuator_speed_mm_s * dt)
+    pos_fine = np.empty(cmd_fine.size)
+    actuator = np.array(
+        [start / 1000.0, cfg.actuator_speed_mm_s / 1000.0, cfg.actuator_stall_depth_m]
+    )
     flow_fine = np.repeat(flow_m3h[1:], n_sub)
     names = list(cfg.gauges_m)
     probes = [grid.probe(cfg.gauges_m[g]) for g in names]
@@ -145,10 +130,11 @@ def run_flume(
     outflow = np.zeros(n)
     v0 = float(np.sum(h))
     advance(
-        h, q, grid.bed_m, grid.dx_m, dt, flow_fine / 3600.0 / cfg.width_m, pos_fine / 1000.0,
-        flow_fine, cfg.manning_n, tailwater_of(cfg), law_of(cfg), p_idx, p_w, n_sub,
+        h, q, grid.bed_m, grid.dx_m, dt, flow_fine / 3600.0 / cfg.width_m, leaf_cmd / 1000.0,
+        actuator, pos_fine, flow_fine, cfg.manning_n, tailwater_of(cfg), law_of(cfg), p_idx, p_w, n_sub,
         levels[1:], outflow[1:],
     )  # fmt: skip
+    pos_fine *= 1000.0
     if not np.all(np.isfinite(h)) or np.max(h) > 3 * cfg.depth_limit_m:
         raise FlumeError("flume: the run diverged or overtopped the flume (check inputs)")
     v_in = float(np.sum(flow_fine)) / 3600.0 / cfg.width_m * dt

@@ -76,6 +76,27 @@ def _hll(hl: float, ql: float, hr: float, qr: float) -> tuple[float, float]:
 
 
 @njit(cache=True)
+def leaf_speed(depth_m: float, no_load_speed: float, stall_depth_m: float) -> float:
+    """Actuator speed under the hydrostatic load of ``depth_m`` of water on the leaf.
+
+    An electric drive slows linearly with its torque; the load on the leaf grows with the
+    square of the depth, so ``v = v0 · (1 − (h / h_stall)²)``, floored at 5 % of ``v0``.
+    """
+    ratio = depth_m / stall_depth_m
+    return no_load_speed * max(0.05, 1.0 - ratio * ratio)
+
+
+@njit(cache=True)
+def leaf_step(pos: float, command: float, max_step: float) -> float:
+    d = command - pos
+    if d > max_step:
+        return pos + max_step
+    if d < -max_step:
+        return pos - max_step
+    return command
+
+
+@njit(cache=True)
 def advance(
     h: np.ndarray,
     q: np.ndarray,
@@ -83,7 +104,9 @@ def advance(
     dx: float,
     dt: float,
     inflow_m2s: np.ndarray,
-    opening_m: np.ndarray,
+    command_m: np.ndarray,
+    actuator: np.ndarray,
+    position_m: np.ndarray,
     flow_m3h: np.ndarray,
     manning_n: float,
     tailwater_m: float,
@@ -99,12 +122,16 @@ def advance(
     ``levels_out[k, j]`` receives the depth at probe ``j`` after sample ``k``'s steps;
     ``outflow_out[k]`` the volume per unit width that left through the gate during them.
     Inputs are per solver step. ``h``, ``q`` are depth (m) and unit discharge (m²/s).
+    The gate leaf follows ``command_m`` at the actuator's speed (see :func:`leaf_speed`);
+    ``actuator`` = (start position m, no-load speed m/s, stall depth m); ``position_m``
+    receives the leaf position after every step.
     """
     n = h.size
     f0 = np.empty(n + 1)
     f1l = np.empty(n + 1)  # momentum flux seen by the cell left of each face
     f1r = np.empty(n + 1)  # momentum flux seen by the cell right of each face
     n_steps = inflow_m2s.size
+    pos = actuator[0]
     k = 0
     out_acc = 0.0
     for s in range(n_steps):
@@ -122,9 +149,11 @@ def advance(
             f0[i + 1] = a0
             f1l[i + 1] = a1 + 0.5 * G * (h[i] * h[i] - hl * hl)
             f1r[i + 1] = a1 + 0.5 * G * (h[i + 1] * h[i + 1] - hr * hr)
-        # gate face
+        # gate face: the leaf moves first, at a speed set by the load on it
         hg = h[n - 1]
-        q_out = unit_discharge(hg, opening_m[s], tailwater_m, flow_m3h[s], law)
+        pos = leaf_step(pos, command_m[s], leaf_speed(hg, actuator[1], actuator[2]) * dt)
+        position_m[s] = pos
+        q_out = unit_discharge(hg, pos, tailwater_m, flow_m3h[s], law)
         f0[n] = q_out
         f1l[n] = q_out * q[n - 1] / hg + 0.5 * G * hg * hg
         r = dt / dx
