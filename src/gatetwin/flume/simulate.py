@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
 from gatetwin.errors import FlumeError
 from gatetwin.flume.config import FlumeConfig
 from gatetwin.flume.gate import G, unit_discharge
@@ -131,8 +132,8 @@ def run_flume(
     v0 = float(np.sum(h))
     advance(
         h, q, grid.bed_m, grid.dx_m, dt, flow_fine / 3600.0 / cfg.width_m, leaf_cmd / 1000.0,
-        actuator, pos_fine, flow_fine, cfg.manning_n, tailwater_of(cfg), law_of(cfg), p_idx, p_w, n_sub,
-        levels[1:], outflow[1:],
+        actuator, pos_fine, flow_fine, cfg.manning_n, tailwater_of(cfg), law_of(cfg), p_idx,
+        p_w, n_sub, levels[1:], outflow[1:],
     )  # fmt: skip
     pos_fine *= 1000.0
     if not np.all(np.isfinite(h)) or np.max(h) > 3 * cfg.depth_limit_m:

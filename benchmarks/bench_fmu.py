@@ -1,0 +1,162 @@
+"""Cost of one communication step of the C and the pythonfmu FMU of the FOPDT test plant.
+
+Two measurements, printed with their ratios (never asserted):
+
+1. A tiny C host (bench_host.c, dlopen of the FMU binary) times N doStep calls: ns per
+   doStep for the C FMU (target <= 50 ns, schedule interpolation included) and the pythonfmu
+   FMU (the host loads libpython first; found through sysconfig), and their ratio
+   (target >= 100x).
+2. The same FMUs through fmpy's FMU2Slave (setReal + doStep + getReal per step): steps per
+   second, next to fmpy's own overhead (an empty loop and a getReal-only loop).
+
+usage: python benchmarks/bench_fmu.py [--n-c 5000000] [--n-python 20000] [--n-fmpy 20000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import time
+from pathlib import Path
+
+from fmpy import extract, platform, read_model_description, sharedLibraryExtension
+from fmpy.fmi2 import FMU2Slave
+
+from gatetwin.fmu import export_fmu
+from gatetwin.plant.model import FopdtPlant, Schedule
+
+HERE = Path(__file__).parent
+STEP_S = 1.0
+
+
+def test_plant() -> FopdtPlant:
+    """The FOPDT plant of tests/test_fmu_*.py."""
+    return FopdtPlant("3F", 20.0, Schedule((30.0, 55.0, 85.0), {
+        "gain_mm_per_mm": (-15.4, -12.0, -10.5),
+        "time_constant_s": (71.0, 55.0, 42.0),
+        "dead_time_s": (4.5, 7.0, 9.5),
+        "level_ref_mm": (231.0, 300.0, 360.0),
+    }))
+
+
+def build(folder: Path) -> dict[str, Path]:
+    """Export and extract both FMUs; return backend -> extracted folder."""
+    out = {}
+    for backend in ("c", "python"):
+        fmu = export_fmu(test_plant(), folder / f"bench_{backend}.fmu", backend=backend,
+                         model_name="bench_fopdt", provenance={"purpose": "benchmark"})
+        out[backend] = Path(extract(str(fmu), str(folder / backend)))
+    return out
+
+
+def host_args(extracted: Path) -> list[str]:
+    md = read_model_description(str(extracted))
+    vr = {v.name: str(v.valueReference) for v in md.modelVariables}
+    name = md.coSimulation.modelIdentifier + sharedLibraryExtension
+    binary = extracted / "binaries" / platform / name
+    resources = (extracted / "resources").as_uri()
+    return [str(binary), md.guid, resources, vr["opening_mm"], vr["flow_m3h"], vr["level_3F_mm"]]
+
+
+def libpython() -> tuple[Path | None, str]:
+    """The shared libpython of this interpreter, or None and why not."""
+    if not sysconfig.get_config_var("Py_ENABLE_SHARED"):
+        return None, "this Python is built without --enable-shared (no libpython to load)"
+    name = sysconfig.get_config_var("INSTSONAME") or sysconfig.get_config_var("LDLIBRARY")
+    path = Path(sysconfig.get_config_var("LIBDIR")) / name
+    return (path, "") if path.is_file() else (None, f"{path} not found")
+
+
+def run_host(host: Path, args: list[str], n: int, lib: Path | None = None,
+             env: dict[str, str] | None = None) -> dict[str, float]:
+    extra = [str(lib)] if lib else []
+    done = subprocess.run([str(host), *args, str(STEP_S), str(n), *extra], capture_output=True,
+                          text=True, env=env, timeout=1800, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"bench_host failed: {done.stderr.strip()[-500:]}")
+    return {k: float(v) for k, v in (line.split() for line in done.stdout.splitlines())}
+
+
+def fmpy_loop(extracted: Path, n: int) -> dict[str, float]:
+    md = read_model_description(str(extracted))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=str(extracted),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.setReal([vr["opening_mm"], vr["flow_m3h"]], [20.0, 47.0])
+    slave.exitInitializationMode()
+    inputs, level = [vr["opening_mm"], vr["flow_m3h"]], [vr["level_3F_mm"]]
+    t = 0.0
+    start = time.perf_counter()
+    for k in range(n):
+        slave.setReal(inputs, [18.0 if (k // 7) % 2 else 23.0, 47.0])
+        slave.doStep(t, STEP_S)
+        slave.getReal(level)
+        t += STEP_S
+    loop_s = time.perf_counter() - start
+    start = time.perf_counter()
+    for _ in range(n):
+        slave.getReal(level)
+    get_s = time.perf_counter() - start
+    slave.terminate()
+    slave.freeInstance()
+    return {"steps_per_s": n / loop_s, "step_us": loop_s / n * 1e6, "get_us": get_s / n * 1e6}
+
+
+def empty_loop_ns(n: int) -> float:
+    t, start = 0.0, time.perf_counter()
+    for k in range(n):
+        _ = 18.0 if (k // 7) % 2 else 23.0
+        t += STEP_S
+    return (time.perf_counter() - start) / n * 1e9
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n-c", type=int, default=5_000_000, help="doSteps timed, C FMU")
+    parser.add_argument("--n-python", type=int, default=20_000, help="doSteps, python FMU")
+    parser.add_argument("--n-fmpy", type=int, default=20_000, help="steps through fmpy")
+    args = parser.parse_args()
+    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        fmus = build(folder)
+        host = folder / "bench_host"
+        subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
+                        "-I", str(fmus["c"] / "sources"), "-o", str(host),
+                        str(HERE / "bench_host.c"), "-ldl"], check=True)
+        print(f"FOPDT test plant, 3 knots, Q = 47 m3/h (between knots), step {STEP_S} s")
+        print(f"\n1. C host (dlopen of the FMU binary, {sys.platform})")
+        c_ns = run_host(host, host_args(fmus["c"]), args.n_c)
+        print(f"   C FMU       doStep                 {c_ns['doStep_ns']:10.1f} ns   "
+              f"(target <= 50 ns; N = {args.n_c:,})")
+        print(f"               setReal+doStep+getReal {c_ns['set_doStep_get_ns']:10.1f} ns")
+        lib, why = libpython()
+        if lib is None:
+            print(f"   python FMU  not timed from C: {why}")
+        else:
+            env = dict(os.environ, PYTHONHOME=sys.base_prefix, PYTHONNOUSERSITE="1")
+            py_ns = run_host(host, host_args(fmus["python"]), args.n_python, lib, env)
+            print(f"   python FMU  doStep                 {py_ns['doStep_ns']:10.1f} ns   "
+                  f"(N = {args.n_python:,}; libpython {lib.name})")
+            print(f"               setReal+doStep+getReal {py_ns['set_doStep_get_ns']:10.1f} ns")
+            ratio = py_ns["doStep_ns"] / c_ns["doStep_ns"]
+            print(f"   ratio python/C per doStep          {ratio:10.0f} x   (target >= 100 x)")
+        print(f"\n2. fmpy FMU2Slave loop, setReal + doStep + getReal (N = {args.n_fmpy:,})")
+        for backend in ("c", "python"):
+            r = fmpy_loop(fmus[backend], args.n_fmpy)
+            print(f"   {backend:6s} FMU  {r['steps_per_s']:12,.0f} steps/s  "
+                  f"({r['step_us']:.2f} us/step; one getReal alone {r['get_us']:.2f} us)")
+        print(f"   fmpy overhead: empty Python loop {empty_loop_ns(args.n_fmpy):.0f} ns/iter; a "
+              "step is 3 fmpy calls, so the C FMU's fmpy rate is fmpy's ctypes cost, not the model")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,125 @@
+/* Scheduled ARX(na, nb, nk) dynamics, paper's sign convention:
+ *   x(k) = sum_i a_i x(k-i) + sum_j b_j u(k-nk-j+1),
+ * stepped at the sample period; a communication step runs a whole number of samples with the
+ * input held. Mirrors PlantSimulator._arx_step in gatetwin/plant/simulate.py.
+ */
+#include <math.h>
+
+#include "plant.h"
+
+/* column of coefficient a_(i+1) / b_(j+1), i and j counted from 0 */
+#define COLUMN_A(m, i) (&(m)->real[VR_COL_A1 + (i) * GT_N_KNOTS])
+#define COLUMN_B(m, j) (&(m)->real[VR_COL_B1 + (j) * GT_N_KNOTS])
+
+PlantStatus dynamics_check_parameters(const ModelData *m, PlantMessage *msg)
+{
+    if (!(m->real[VR_SAMPLE_PERIOD_S] > 0.0)) {
+        plant_message(msg, "sample_period_s = %.17g must be > 0", m->real[VR_SAMPLE_PERIOD_S]);
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
+}
+
+static void coefficients(const ModelData *m, const KnotPosition *at, double a[GT_NA],
+                         double b[GT_NB])
+{
+    int i;
+    for (i = 0; i < GT_NA; i++) {
+        a[i] = plant_interp(at, COLUMN_A(m, i));
+    }
+    for (i = 0; i < GT_NB; i++) {
+        b[i] = plant_interp(at, COLUMN_B(m, i));
+    }
+}
+
+PlantStatus dynamics_equilibrium(const ModelData *m, double u_mm, const KnotPosition *at,
+                                 double *x0_mm, PlantMessage *msg)
+{
+    double a[GT_NA], b[GT_NB];
+    double sum_a = 0.0, sum_b = 0.0;
+    int i;
+    coefficients(m, at, a, b);
+    for (i = 0; i < GT_NA; i++) {
+        sum_a += a[i];
+    }
+    for (i = 0; i < GT_NB; i++) {
+        sum_b += b[i];
+    }
+    if (sum_a == 1.0) {
+        plant_message(msg, "arx: no equilibrium at flow_m3h = %.17g (sum of a coefficients is 1)",
+                      m->real[VR_FLOW_M3H]);
+        return PLANT_ERROR;
+    }
+    *x0_mm = sum_b / (1.0 - sum_a) * u_mm;
+    return PLANT_OK;
+}
+
+void dynamics_initialize(ModelData *m, double u_mm, double x0_mm)
+{
+    DynamicsState *d = &m->dyn;
+    int i;
+    d->x = x0_mm;
+    for (i = 0; i < GT_NA; i++) {
+        d->x_hist[i] = x0_mm;
+    }
+    for (i = 0; i < GT_ARX_U_LAGS; i++) {
+        d->u_hist[i] = u_mm;
+    }
+}
+
+/* Number of samples in the step, or -1 if the step is not a whole multiple of the period. */
+static double samples_in_step(const ModelData *m, double step_s, PlantMessage *msg)
+{
+    const double n_float = step_s / m->real[VR_SAMPLE_PERIOD_S];
+    double n;
+    if (!(n_float <= GT_ARX_MAX_SUBSTEPS)) {
+        plant_message(msg, "communication step %.17g s spans more than %.0e ARX samples", step_s,
+                      GT_ARX_MAX_SUBSTEPS);
+        return -1.0;
+    }
+    n = nearbyint(n_float); /* round half to even, as Python's round() */
+    if (n < 1.0 || fabs(n_float - n) > GT_ARX_STEP_RTOL * fmax(1.0, n_float)) {
+        plant_message(msg,
+                      "communication step %.17g s is not a whole multiple of the ARX sample "
+                      "period %.17g s",
+                      step_s, m->real[VR_SAMPLE_PERIOD_S]);
+        return -1.0;
+    }
+    return n;
+}
+
+PlantStatus dynamics_check_step(const ModelData *m, double step_s, double u_mm,
+                                PlantMessage *msg)
+{
+    (void)u_mm;
+    return samples_in_step(m, step_s, msg) < 0.0 ? PLANT_ERROR : PLANT_OK;
+}
+
+void dynamics_step(ModelData *m, double step_s, double u_mm, const KnotPosition *at)
+{
+    DynamicsState *d = &m->dyn;
+    PlantMessage unused;
+    const double n = samples_in_step(m, step_s, &unused);
+    double a[GT_NA], b[GT_NB];
+    double sample;
+    int i;
+    coefficients(m, at, a, b);
+    for (sample = 0.0; sample < n; sample += 1.0) {
+        double x_new = 0.0;
+        for (i = GT_ARX_U_LAGS - 1; i > 0; i--) {
+            d->u_hist[i] = d->u_hist[i - 1];
+        }
+        d->u_hist[0] = u_mm;
+        for (i = 0; i < GT_NA; i++) {
+            x_new += a[i] * d->x_hist[i];
+        }
+        for (i = 0; i < GT_NB; i++) {
+            x_new += b[i] * d->u_hist[GT_NK - 1 + i];
+        }
+        for (i = GT_NA - 1; i > 0; i--) {
+            d->x_hist[i] = d->x_hist[i - 1];
+        }
+        d->x_hist[0] = x_new;
+        d->x = x_new;
+    }
+}

@@ -1,0 +1,204 @@
+/* The plant pipeline shared by every family: input checks, schedule lookup, parameter checks,
+ * and u_eff = input_blocks(u) -> dynamics -> y = output_blocks(level).
+ *
+ * Mirrors gatetwin.plant.simulate.PlantSimulator (initialize, do_step, level_mm) and
+ * gatetwin.plant.model.interp_clamped operation by operation, so that results agree to the bit.
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "effects.h"
+#include "plant.h"
+
+#define GT_VARIABLE_ENTRY(name, kind, start) {name, kind, start},
+const PlantVariable plant_variables[GT_N_REAL] = {GT_VARIABLES(GT_VARIABLE_ENTRY)};
+#undef GT_VARIABLE_ENTRY
+
+void plant_message(PlantMessage *msg, const char *format, ...)
+{
+    va_list args;
+    va_start(args, format);
+    vsnprintf(msg->text, sizeof msg->text, format, args);
+    va_end(args);
+}
+
+/* --- schedule: piecewise-linear in the discharge, clamped outside the knots ---------------- */
+
+KnotPosition plant_locate(const ModelData *m, double flow_m3h)
+{
+    const double *knots = &m->real[VR_COL_FLOW_M3H];
+    KnotPosition at = {0, 0.0, 1};
+    if (GT_N_KNOTS == 1 || flow_m3h <= knots[0]) {
+        return at;
+    }
+    if (flow_m3h >= knots[GT_N_KNOTS - 1]) {
+        at.index = GT_N_KNOTS - 1;
+        return at;
+    }
+    while (flow_m3h > knots[at.index + 1]) {
+        at.index++;
+    }
+    at.weight = (flow_m3h - knots[at.index]) / (knots[at.index + 1] - knots[at.index]);
+    at.clamped = 0;
+    return at;
+}
+
+double plant_interp(const KnotPosition *at, const double *column)
+{
+    if (at->clamped) {
+        return column[at->index];
+    }
+    return column[at->index] + at->weight * (column[at->index + 1] - column[at->index]);
+}
+
+/* --- checks ---------------------------------------------------------------------------------- */
+
+static PlantStatus check_inputs(double opening_mm, double flow_m3h, PlantMessage *msg)
+{
+    if (!(GT_OPENING_MIN_MM <= opening_mm && opening_mm <= GT_OPENING_MAX_MM)) {
+        plant_message(msg, "opening_mm = %.17g is outside [%.17g, %.17g]", opening_mm,
+                      GT_OPENING_MIN_MM, GT_OPENING_MAX_MM);
+        return PLANT_ERROR;
+    }
+    if (!(GT_FLOW_MIN_M3H <= flow_m3h && flow_m3h <= GT_FLOW_MAX_M3H)) {
+        plant_message(msg, "flow_m3h = %.17g is outside [%.17g, %.17g]", flow_m3h,
+                      GT_FLOW_MIN_M3H, GT_FLOW_MAX_M3H);
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
+}
+
+/* Every parameter finite, knots strictly increasing, then the family's own rules. */
+static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
+{
+    int vr;
+    for (vr = 0; vr < GT_N_REAL; vr++) {
+        const VariableKind kind = plant_variables[vr].kind;
+        if ((kind == GT_KIND_TUNABLE || kind == GT_KIND_FIXED) && !isfinite(m->real[vr])) {
+            plant_message(msg, "parameter %s = %.17g must be finite", plant_variables[vr].name,
+                          m->real[vr]);
+            return PLANT_ERROR;
+        }
+    }
+    for (vr = VR_COL_FLOW_M3H + 1; vr < VR_COL_FLOW_M3H + GT_N_KNOTS; vr++) {
+        if (!(m->real[vr] > m->real[vr - 1])) {
+            plant_message(msg, "schedule knots must increase strictly: %s = %.17g <= %s = %.17g",
+                          plant_variables[vr].name, m->real[vr], plant_variables[vr - 1].name,
+                          m->real[vr - 1]);
+            return PLANT_ERROR;
+        }
+    }
+    return dynamics_check_parameters(m, msg);
+}
+
+static PlantStatus check_parameters_if_changed(ModelData *m, PlantMessage *msg)
+{
+    if (m->parameters_changed) {
+        if (check_parameters(m, msg) != PLANT_OK) {
+            return PLANT_ERROR;
+        }
+        m->parameters_changed = 0;
+    }
+    return PLANT_OK;
+}
+
+/* Warn once per instance when the discharge leaves the knots' range (parameters clamp). */
+static PlantStatus check_flow_range(ModelData *m, double flow_m3h, PlantMessage *msg)
+{
+    const double lo = m->real[VR_COL_FLOW_M3H];
+    const double hi = m->real[VR_COL_FLOW_M3H + GT_N_KNOTS - 1];
+    if (!(lo <= flow_m3h && flow_m3h <= hi) && !m->warned_flow_range) {
+        m->warned_flow_range = 1;
+        plant_message(msg,
+                      "flow_m3h = %.17g outside the schedule's validity range [%.17g, %.17g]; "
+                      "parameters clamped (warned once per instance)",
+                      flow_m3h, lo, hi);
+        return PLANT_WARNING;
+    }
+    return PLANT_OK;
+}
+
+/* --- the glue's entry points ----------------------------------------------------------------- */
+
+void plant_set_defaults(ModelData *m)
+{
+    int vr;
+    memset(m, 0, sizeof *m);
+    for (vr = 0; vr < GT_N_REAL; vr++) {
+        m->real[vr] = plant_variables[vr].start;
+    }
+    m->parameters_changed = 1;
+}
+
+/* Checked inputs and parameters, and the equilibrium they define (u, knot position, x0). */
+static PlantStatus equilibrium(const ModelData *m, double *u, KnotPosition *at, double *x0,
+                               PlantMessage *msg)
+{
+    const double opening_mm = m->real[VR_OPENING_MM];
+    const double flow_m3h = m->real[VR_FLOW_M3H];
+    if (check_inputs(opening_mm, flow_m3h, msg) != PLANT_OK ||
+        check_parameters(m, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    *u = input_blocks(opening_mm, 0.0) - m->real[VR_OPENING_REF_MM];
+    *at = plant_locate(m, flow_m3h);
+    return dynamics_equilibrium(m, *u, at, x0, msg);
+}
+
+PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
+{
+    KnotPosition at;
+    double u, x0;
+    if (equilibrium(m, &u, &at, &x0, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    dynamics_initialize(m, u, x0);
+    m->flow_in_force_m3h = m->real[VR_FLOW_M3H];
+    m->parameters_changed = 0;
+    m->initialized = 1;
+    return check_flow_range(m, m->flow_in_force_m3h, msg);
+}
+
+PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
+{
+    const double opening_mm = m->real[VR_OPENING_MM];
+    const double flow_m3h = m->real[VR_FLOW_M3H];
+    if (check_inputs(opening_mm, flow_m3h, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    if (!(step_s > 0.0 && step_s < INFINITY)) {
+        plant_message(msg, "communication step %.17g s must be > 0 and finite", step_s);
+        return PLANT_ERROR;
+    }
+    if (check_parameters_if_changed(m, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    /* ---- pipeline: u_eff = input_blocks(u); x = dynamics(u_eff); y = output_blocks(level) ---- */
+    const double u = input_blocks(opening_mm, step_s) - m->real[VR_OPENING_REF_MM];
+    if (dynamics_check_step(m, step_s, u, msg) != PLANT_OK) {
+        return PLANT_ERROR; /* nothing has changed: a refused step leaves the state as it was */
+    }
+    const KnotPosition at = plant_locate(m, flow_m3h);
+    dynamics_step(m, step_s, u, &at);
+    /* output_blocks are stateless today and applied when the output is read (plant_output) */
+    const PlantStatus range = check_flow_range(m, flow_m3h, msg);
+    m->flow_in_force_m3h = flow_m3h;
+    m->time_s += step_s;
+    return range;
+}
+
+PlantStatus plant_output(const ModelData *m, double *level_mm, PlantMessage *msg)
+{
+    KnotPosition at;
+    double u, x;
+    if (m->initialized) {
+        at = plant_locate(m, m->flow_in_force_m3h);
+        x = m->dyn.x;
+    } else if (equilibrium(m, &u, &at, &x, msg) != PLANT_OK) {
+        return PLANT_ERROR; /* before initialisation the output is the equilibrium level */
+    }
+    *level_mm = output_blocks(plant_interp(&at, &m->real[VR_COL_LEVEL_REF_MM]) + x);
+    return PLANT_OK;
+}

@@ -1,0 +1,125 @@
+"""Export a plant as an FMI 2.0 co-simulation FMU (C or pythonfmu backend).
+
+Both backends render the same :class:`~gatetwin.fmu.description.FmuDescription` and follow
+:class:`gatetwin.plant.simulate.PlantSimulator` operation by operation. This package builds
+FMUs; validating and simulating them is left to fmpy and to gatetwin.validate.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Any
+
+from gatetwin.errors import ExportError
+from gatetwin.fmu.description import FmuDescription, describe
+from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant, plant_to_dict
+
+BACKENDS = ("c", "python")
+
+__all__ = ["BACKENDS", "FmuDescription", "describe", "export_fmu"]
+
+
+def export_fmu(
+    plant: Plant,
+    out_path: str | os.PathLike[str],
+    *,
+    backend: str,
+    model_name: str,
+    provenance: dict[str, Any],
+) -> Path:
+    """Build an FMU of ``plant`` at ``out_path``; return its path.
+
+    Parameters
+    ----------
+    plant : FopdtPlant or ArxPlant
+        The plant to render (no effect blocks; ARX orders up to 8).
+    out_path : path
+        Target ``.fmu`` file; written atomically (built in a temporary folder next to it and
+        moved into place only on success).
+    backend : {"c", "python"}
+        ``"c"`` compiles the C templates with ``$CC``/``cc``/``gcc``; ``"python"`` builds a
+        pythonfmu FMU carrying a self-contained slave.
+    model_name : str
+        modelIdentifier and modelName: a C identifier.
+    provenance : dict
+        JSON data stored as ``resources/provenance.json``; its scalar entries are also quoted
+        in the modelDescription ``description`` attribute.
+
+    Raises
+    ------
+    ExportError
+        Unknown backend, bad model name or plant, no C compiler, build failure.
+    """
+    if backend not in BACKENDS:
+        raise ExportError(f"backend must be one of {', '.join(BACKENDS)} (got {backend!r})")
+    if not isinstance(plant, (FopdtPlant, ArxPlant)):
+        raise ExportError(f"cannot export {type(plant).__name__}: expected FopdtPlant or ArxPlant")
+    target = Path(out_path)
+    if target.suffix.lower() != ".fmu":
+        raise ExportError(f"output {target} must end in .fmu")
+    desc = describe(plant, model_name, provenance, f"{backend}:{_code_digest(backend)}")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
+        work = Path(tmp)
+        resources = _write_resources(plant, desc, backend, work / "resources")
+        built = work / target.name
+        if backend == "c":
+            _build_c(desc, work / "fmu", resources, built)
+        else:
+            from gatetwin.fmu.python_build import build_python_fmu
+
+            build_python_fmu(desc, work, resources, built)
+        os.replace(built, target)
+    return target
+
+
+def _code_digest(backend: str) -> str:
+    """sha256 (first 16 hex digits) of the code an FMU of ``backend`` is built from."""
+    if backend == "c":
+        from gatetwin.fmu.c_build import templates_dir
+
+        files = sorted(p for p in templates_dir().iterdir() if p.suffix in {".c", ".h"})
+    else:
+        files = [Path(__file__).with_name("slave_template.py")]
+    digest = hashlib.sha256()
+    for path in files:
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def _write_resources(plant: Plant, desc: FmuDescription, backend: str, folder: Path) -> list[Path]:
+    folder.mkdir()
+    try:
+        provenance = json.dumps(desc.provenance, indent=2, sort_keys=True, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise ExportError(f"provenance must be JSON data without NaN ({exc})") from None
+    fmu_facts = {
+        "model_identifier": desc.model_identifier,
+        "guid": desc.guid,
+        "backend": backend,
+        "variables": {v.name: v.vr for v in desc.variables},
+    }
+    plant_json = json.dumps({"plant": plant_to_dict(plant), "fmu": fmu_facts}, indent=2)
+    (folder / "provenance.json").write_text(provenance + "\n", encoding="utf-8")
+    (folder / "plant.json").write_text(plant_json + "\n", encoding="utf-8")
+    return [folder / "provenance.json", folder / "plant.json"]
+
+
+def _build_c(desc: FmuDescription, fmu_dir: Path, resources: list[Path], out: Path) -> None:
+    from fmpy import platform, sharedLibraryExtension
+
+    from gatetwin.fmu.c_build import build_c_fmu
+
+    build_c_fmu(desc, fmu_dir, platform, sharedLibraryExtension)
+    (fmu_dir / "resources").mkdir()
+    for path in resources:
+        (fmu_dir / "resources" / path.name).write_bytes(path.read_bytes())
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
+        for path in sorted(fmu_dir.rglob("*")):
+            if path.is_file():
+                zf.write(path, path.relative_to(fmu_dir).as_posix())

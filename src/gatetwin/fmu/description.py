@@ -1,0 +1,427 @@
+"""The one description of a plant FMU's interface, and its two renderings.
+
+:func:`describe` turns a plant into an :class:`FmuDescription`: every variable with its value
+reference, causality, variability, unit, description and start value, decided here once.
+:func:`model_config_header` renders it as the C FMU's ``model_config.h`` and
+:func:`model_description_xml` as ``modelDescription.xml`` for both backends; the pythonfmu
+slave reads the same description as JSON (:func:`slave_config`). Value references are never
+written down anywhere else.
+
+Variable names (FMI structured naming, 1-based knot index ``k``):
+
+* ``opening_mm``, ``flow_m3h`` — inputs; ``level_<gauge>_mm`` — the output (absolute level);
+* ``opening_ref_mm`` — tunable; ``sample_period_s`` (ARX only) — fixed;
+* ``schedule.flow_m3h[k]`` — the discharge knots; ``schedule.<column>[k]`` — each schedule
+  column at knot ``k`` (``gain_mm_per_mm``, ``time_constant_s``, ``dead_time_s``,
+  ``level_ref_mm`` for FOPDT; ``a1``.., ``b1``.., ``level_ref_mm`` for ARX), all tunable.
+
+This module builds nothing; see :mod:`gatetwin.fmu.c_build` and :mod:`gatetwin.fmu.python_build`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import uuid
+from dataclasses import dataclass, field
+from typing import Any
+from xml.etree import ElementTree as ET
+
+from gatetwin.errors import ExportError
+from gatetwin.plant.model import (
+    FLOW_RANGE_M3H,
+    OPENING_RANGE_MM,
+    ArxPlant,
+    FopdtPlant,
+    Plant,
+    plant_to_dict,
+)
+from gatetwin.plant.simulate import ARX_MAX_SUBSTEPS, ARX_STEP_RTOL, DELAY_HISTORY_CAPACITY
+
+#: Largest ARX orders the FMUs accept (fixed-size C state).
+MAX_ARX_ORDER = 8
+#: doStep refuses a currentCommunicationPoint further than this (relative) from the FMU's time.
+COMMUNICATION_POINT_RTOL = 1e-9
+#: Log categories both backends declare.
+LOG_CATEGORIES = {
+    "logStatusWarning": "Warnings (discharge outside the schedule's knots)",
+    "logStatusError": "Errors: refused inputs, parameters and communication steps",
+    "logAll": "Everything, including informational messages",
+}
+#: name -> (description, SI base-unit exponents, factor to SI)
+UNITS: dict[str, tuple[str, dict[str, int], float]] = {
+    "mm": ("millimetre", {"m": 1}, 0.001),
+    "m3/h": ("cubic metre per hour", {"m": 3, "s": -1}, 1.0 / 3600.0),
+    "s": ("second", {"s": 1}, 1.0),
+    "mm/mm": ("millimetre per millimetre (dimensionless)", {}, 1.0),
+}
+_FOPDT_COLUMNS = {
+    "gain_mm_per_mm": ("mm/mm", "Static gain K of level on opening"),
+    "time_constant_s": ("s", "Time constant T (> 0)"),
+    "dead_time_s": ("s", "Dead time L (>= 0; not above the largest at initialisation)"),
+    "level_ref_mm": ("mm", "Rating level at opening_ref_mm"),
+}
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
+
+
+@dataclass(frozen=True)
+class VariableSpec:
+    """One FMI Real variable. ``kind`` is ``input``, ``output``, ``tunable`` or ``fixed``."""
+
+    name: str
+    vr: int
+    causality: str
+    variability: str
+    initial: str | None
+    unit: str
+    description: str
+    start: float | None
+
+    @property
+    def kind(self) -> str:
+        if self.causality == "parameter":
+            return self.variability
+        return self.causality
+
+
+@dataclass(frozen=True)
+class FmuDescription:
+    """Everything both backends need to know about one exported plant.
+
+    ``columns`` maps each schedule column (``flow_m3h`` for the knots first) to the value
+    reference of its entry at the first knot; the entries at later knots follow it.
+    """
+
+    model_identifier: str
+    guid: str
+    family: str
+    gauge: str
+    n_knots: int
+    variables: tuple[VariableSpec, ...]
+    columns: dict[str, int]
+    arx_orders: tuple[int, int, int] | None
+    step_size_s: float
+    summary: str
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def output(self) -> VariableSpec:
+        return next(v for v in self.variables if v.causality == "output")
+
+    def vr(self, name: str) -> int:
+        return next(v.vr for v in self.variables if v.name == name)
+
+
+def describe(
+    plant: Plant, model_name: str, provenance: dict[str, Any], build_id: str
+) -> FmuDescription:
+    """The FMU description of ``plant``; raises :class:`ExportError` on what cannot be exported.
+
+    ``build_id`` names the backend and a digest of its code; with the plant, the name and the
+    provenance it determines the GUID, so a serialised FMU state only fits the build it came
+    from.
+    """
+    _check_exportable(plant, model_name)
+    specs = _variables(plant)
+    columns = {"flow_m3h": _first(specs, "schedule.flow_m3h[1]").vr}
+    for name in plant.columns:
+        columns[name] = _first(specs, f"schedule.{name}[1]").vr
+    orders = (plant.na, plant.nb, plant.nk) if isinstance(plant, ArxPlant) else None
+    summary = _summary(plant, provenance)
+    return FmuDescription(
+        model_identifier=model_name,
+        guid=_guid(plant, model_name, provenance, build_id),
+        family=plant.kind,
+        gauge=plant.gauge,
+        n_knots=len(plant.schedule.flow_m3h),
+        variables=tuple(specs),
+        columns=columns,
+        arx_orders=orders,
+        step_size_s=plant.sample_period_s if isinstance(plant, ArxPlant) else 1.0,
+        summary=summary,
+        provenance=dict(provenance),
+    )
+
+
+def _check_exportable(plant: Plant, model_name: str) -> None:
+    if not isinstance(plant, (FopdtPlant, ArxPlant)):
+        raise ExportError(f"cannot export {type(plant).__name__}: expected FopdtPlant or ArxPlant")
+    if not _IDENTIFIER.fullmatch(model_name):
+        raise ExportError(
+            f"model_name {model_name!r} must be a C identifier (letters, digits, _; <= 64 chars)"
+        )
+    if plant.effects:
+        kinds = ", ".join(str(e.get("kind", "?")) for e in plant.effects)
+        raise ExportError(f"effect blocks ({kinds}) are not supported by the FMU export yet")
+    if isinstance(plant, ArxPlant) and max(plant.na, plant.nb, plant.nk) > MAX_ARX_ORDER:
+        raise ExportError(
+            f"arx orders (na, nb, nk) = ({plant.na}, {plant.nb}, {plant.nk}) exceed "
+            f"{MAX_ARX_ORDER}, the largest the FMU supports"
+        )
+
+
+def _first(specs: list[VariableSpec], name: str) -> VariableSpec:
+    return next(v for v in specs if v.name == name)
+
+
+def output_name(gauge: str) -> str:
+    """``level_<gauge>_mm`` with characters outside [A-Za-z0-9_] replaced by ``_``."""
+    return f"level_{re.sub(r'[^A-Za-z0-9_]', '_', gauge)}_mm"
+
+
+def _variables(plant: Plant) -> list[VariableSpec]:
+    knots = plant.schedule.flow_m3h
+    rows: list[tuple[str, str, str, str | None, str, str, float | None]] = [
+        ("opening_mm", "input", "continuous", None, "mm",
+         "Gate opening, held over each communication step", plant.opening_ref_mm),
+        ("flow_m3h", "input", "continuous", None, "m3/h",
+         "Discharge Q, held over each communication step; schedules the parameters",
+         0.5 * (knots[0] + knots[-1])),
+        (output_name(plant.gauge), "output", "continuous", "calculated", "mm",
+         f"Level at gauge {plant.gauge}: level_ref_mm(Q) + dynamic deviation", None),
+        ("opening_ref_mm", "parameter", "tunable", "exact", "mm",
+         "Reference opening of the operating point; the dynamics see opening - opening_ref",
+         plant.opening_ref_mm),
+    ]
+    if isinstance(plant, ArxPlant):
+        rows.append(("sample_period_s", "parameter", "fixed", "exact", "s",
+                     "ARX sample period; communication steps must be whole multiples",
+                     plant.sample_period_s))
+    columns = [("flow_m3h", ("m3/h", "Discharge knot of the schedule (strictly increasing)"))]
+    columns += [(name, _column_meta(name)) for name in plant.columns]
+    for name, (unit, text) in columns:
+        values = knots if name == "flow_m3h" else plant.schedule.values[name]
+        for k, value in enumerate(values, start=1):
+            rows.append((f"schedule.{name}[{k}]", "parameter", "tunable", "exact", unit,
+                         f"{text}, knot {k}", float(value)))
+    return [VariableSpec(r[0], vr, *r[1:]) for vr, r in enumerate(rows)]
+
+
+def _column_meta(name: str) -> tuple[str, str]:
+    if name in _FOPDT_COLUMNS:
+        return _FOPDT_COLUMNS[name]
+    if name.startswith("a"):
+        return ("mm/mm", f"ARX coefficient {name} of x(k-{name[1:]})")
+    return ("mm/mm", f"ARX coefficient {name} of the input, lag nk+{int(name[1:]) - 1}")
+
+
+def _guid(plant: Plant, model_name: str, provenance: dict[str, Any], build_id: str) -> str:
+    try:
+        text = json.dumps(
+            [plant_to_dict(plant), model_name, provenance, build_id], sort_keys=True,
+            allow_nan=False, default=str,
+        )
+    except ValueError as exc:
+        raise ExportError(f"provenance must be JSON without NaN ({exc})") from None
+    digest = hashlib.sha256(text.encode()).digest()
+    return "{" + str(uuid.UUID(bytes=digest[:16], version=5)) + "}"
+
+
+def _summary(plant: Plant, provenance: dict[str, Any]) -> str:
+    lo, hi = plant.schedule.flow_range_m3h
+    head = (
+        f"gatetwin {plant.kind.upper()} plant of gauge {plant.gauge}, scheduled on Q over "
+        f"{len(plant.schedule.flow_m3h)} knot(s), valid for Q in [{lo:g}, {hi:g}] m3/h"
+    )
+    facts = [f"{k}={_short(v)}" for k, v in _flatten(provenance) if v is not None]
+    return head + ("; " + "; ".join(facts) if facts else "")
+
+
+def _flatten(data: dict[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
+    out: list[tuple[str, Any]] = []
+    for key, value in data.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out += _flatten(value, name + ".")
+        elif isinstance(value, (str, int, float, bool)) or value is None:
+            out.append((name, value))
+        else:
+            out.append((name, json.dumps(value, default=str)))
+    return out
+
+
+def _short(value: Any, limit: int = 80) -> str:
+    text = f"{value:.6g}" if isinstance(value, float) else str(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+# -- renderings -------------------------------------------------------------------------------
+
+
+def _c_double(value: float) -> str:
+    text = repr(float(value))
+    return text if any(c in text for c in ".en") else text + ".0"
+
+
+def _macro(name: str) -> str:
+    return "VR_COL_" + re.sub(r"[^A-Za-z0-9]", "_", name).upper()
+
+
+def model_config_header(desc: FmuDescription) -> str:
+    """``model_config.h`` of the C FMU: identity, sizes, value references, variable table."""
+    kinds = {"input": "GT_KIND_INPUT", "output": "GT_KIND_OUTPUT",
+             "tunable": "GT_KIND_TUNABLE", "fixed": "GT_KIND_FIXED"}
+    lines = [
+        f"/* Generated by gatetwin.fmu.description for {desc.model_identifier}; do not edit. */",
+        "#ifndef GATETWIN_MODEL_CONFIG_H",
+        "#define GATETWIN_MODEL_CONFIG_H",
+        "",
+        f'#define GT_MODEL_IDENTIFIER "{desc.model_identifier}"',
+        f'#define GT_GUID "{desc.guid}"',
+        f'#define GT_DYNAMICS_HEADER "model_{desc.family}.h"',
+        f"#define GT_N_KNOTS {desc.n_knots}",
+        f"#define GT_N_REAL {len(desc.variables)}",
+        f"#define GT_OPENING_MIN_MM {_c_double(OPENING_RANGE_MM[0])}",
+        f"#define GT_OPENING_MAX_MM {_c_double(OPENING_RANGE_MM[1])}",
+        f"#define GT_FLOW_MIN_M3H {_c_double(FLOW_RANGE_M3H[0])}",
+        f"#define GT_FLOW_MAX_M3H {_c_double(FLOW_RANGE_M3H[1])}",
+        f"#define GT_COMMUNICATION_POINT_RTOL {_c_double(COMMUNICATION_POINT_RTOL)}",
+        "#define GT_LOG_CATEGORIES {" + ", ".join(f'"{c}"' for c in LOG_CATEGORIES) + "}",
+    ]
+    if desc.arx_orders is None:
+        lines.append(f"#define GT_HISTORY_CAPACITY {DELAY_HISTORY_CAPACITY}")
+    else:
+        na, nb, nk = desc.arx_orders
+        lines += [f"#define GT_NA {na}", f"#define GT_NB {nb}", f"#define GT_NK {nk}",
+                  f"#define GT_ARX_STEP_RTOL {_c_double(ARX_STEP_RTOL)}",
+                  f"#define GT_ARX_MAX_SUBSTEPS {_c_double(ARX_MAX_SUBSTEPS)}"]
+    lines += ["", "/* value references (indices into ModelData.real) */",
+              f"#define VR_OPENING_MM {desc.vr('opening_mm')}",
+              f"#define VR_FLOW_M3H {desc.vr('flow_m3h')}",
+              f"#define VR_OPENING_REF_MM {desc.vr('opening_ref_mm')}"]
+    if desc.arx_orders is not None:
+        lines.append(f"#define VR_SAMPLE_PERIOD_S {desc.vr('sample_period_s')}")
+    lines.append("/* schedule column c at knot k (from 0): VR_COL_c + k */")
+    lines += [f"#define {_macro(name)} {vr}" for name, vr in desc.columns.items()]
+    lines += ["", "/* every Real variable in value-reference order: name, kind, start */",
+              "#define GT_VARIABLES(X) \\"]
+    lines += [
+        f'    X("{v.name}", {kinds[v.kind]}, {_c_double(v.start or 0.0)}) \\'
+        for v in desc.variables
+    ]
+    lines += ["", "#endif", ""]
+    return "\n".join(lines)
+
+
+def slave_config(desc: FmuDescription) -> dict[str, Any]:
+    """The description as plain JSON data for the self-contained pythonfmu slave."""
+    return {
+        "model_identifier": desc.model_identifier,
+        "guid": desc.guid,
+        "summary": desc.summary,
+        "family": desc.family,
+        "n_knots": desc.n_knots,
+        "arx_orders": list(desc.arx_orders) if desc.arx_orders else None,
+        "columns": desc.columns,
+        "opening_range_mm": list(OPENING_RANGE_MM),
+        "flow_range_m3h": list(FLOW_RANGE_M3H),
+        "history_capacity": DELAY_HISTORY_CAPACITY,
+        "arx_step_rtol": ARX_STEP_RTOL,
+        "arx_max_substeps": ARX_MAX_SUBSTEPS,
+        "communication_point_rtol": COMMUNICATION_POINT_RTOL,
+        "variables": [
+            {"name": v.name, "vr": v.vr, "causality": v.causality,
+             "variability": v.variability, "initial": v.initial, "kind": v.kind,
+             "description": v.description, "start": v.start}
+            for v in desc.variables
+        ],
+    }
+
+
+@dataclass(frozen=True)
+class CoSimulationFlags:
+    """The ``CoSimulation`` element's capability flags of one backend."""
+
+    needs_execution_tool: bool
+    can_serialize_fmu_state: bool
+    can_not_use_memory_management_functions: bool
+    source_files: tuple[str, ...] = ()
+
+
+def model_description_xml(desc: FmuDescription, flags: CoSimulationFlags, tool: str) -> bytes:
+    """``modelDescription.xml`` (FMI 2.0, co-simulation) for either backend."""
+    root = ET.Element("fmiModelDescription", {
+        "fmiVersion": "2.0",
+        "modelName": desc.model_identifier,
+        "guid": desc.guid,
+        "description": desc.summary,
+        "generationTool": tool,
+        "variableNamingConvention": "structured",
+        "numberOfEventIndicators": "0",
+    })
+    cs = ET.SubElement(root, "CoSimulation", {
+        "modelIdentifier": desc.model_identifier,
+        "needsExecutionTool": _xml_bool(flags.needs_execution_tool),
+        "canHandleVariableCommunicationStepSize": "true",
+        "canInterpolateInputs": "false",
+        "maxOutputDerivativeOrder": "0",
+        "canRunAsynchronuously": "false",
+        "canBeInstantiatedOnlyOncePerProcess": "false",
+        "canNotUseMemoryManagementFunctions": _xml_bool(
+            flags.can_not_use_memory_management_functions),
+        "canGetAndSetFMUstate": "true",
+        "canSerializeFMUstate": _xml_bool(flags.can_serialize_fmu_state),
+        "providesDirectionalDerivative": "false",
+    })
+    if flags.source_files:
+        files = ET.SubElement(cs, "SourceFiles")
+        for name in flags.source_files:
+            ET.SubElement(files, "File", {"name": name})
+    _unit_definitions(root)
+    categories = ET.SubElement(root, "LogCategories")
+    for name, text in LOG_CATEGORIES.items():
+        ET.SubElement(categories, "Category", {"name": name, "description": text})
+    ET.SubElement(root, "DefaultExperiment", {"startTime": "0.0",
+                                              "stepSize": repr(desc.step_size_s)})
+    _model_variables(root, desc)
+    _model_structure(root, desc)
+    ET.indent(root)
+    return ET.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
+
+
+def _xml_bool(value: bool) -> str:
+    return "true" if value else "false"
+
+
+def _unit_definitions(root: ET.Element) -> None:
+    units = ET.SubElement(root, "UnitDefinitions")
+    for name, (_, exponents, factor) in UNITS.items():
+        unit = ET.SubElement(units, "Unit", {"name": name})
+        base = {k: str(v) for k, v in exponents.items()}
+        if factor != 1.0:
+            base["factor"] = repr(factor)
+        ET.SubElement(unit, "BaseUnit", base)
+
+
+def _model_variables(root: ET.Element, desc: FmuDescription) -> None:
+    variables = ET.SubElement(root, "ModelVariables")
+    for v in desc.variables:
+        attrs = {"name": v.name, "valueReference": str(v.vr), "description": v.description,
+                 "causality": v.causality, "variability": v.variability}
+        if v.initial is not None:
+            attrs["initial"] = v.initial
+        sv = ET.SubElement(variables, "ScalarVariable", attrs)
+        real = {"unit": v.unit}
+        if v.start is not None:
+            real["start"] = repr(float(v.start))
+        ET.SubElement(sv, "Real", real)
+
+
+def _model_structure(root: ET.Element, desc: FmuDescription) -> None:
+    """The output has no direct feedthrough; initially it is the equilibrium of the inputs."""
+    index = {v.name: i for i, v in enumerate(desc.variables, start=1)}
+    dynamic_only = {"time_constant_s", "dead_time_s", "sample_period_s"}
+    initial_deps = [
+        index[v.name] for v in desc.variables
+        if v.causality in ("input", "parameter")
+        and not any(v.name.startswith(f"schedule.{c}[") or v.name == c for c in dynamic_only)
+    ]
+    structure = ET.SubElement(root, "ModelStructure")
+    out = index[desc.output.name]
+    outputs = ET.SubElement(structure, "Outputs")
+    ET.SubElement(outputs, "Unknown", {"index": str(out), "dependencies": ""})
+    initial = ET.SubElement(structure, "InitialUnknowns")
+    ET.SubElement(initial, "Unknown", {
+        "index": str(out), "dependencies": " ".join(map(str, initial_deps)),
+    })

@@ -1,0 +1,94 @@
+"""Build the pythonfmu backend of a plant FMU.
+
+The slave is ``slave_template.py`` with the description embedded as JSON, so the FMU carries
+its own code and needs neither gatetwin nor numpy where it runs (only a Python with the
+pythonfmu runtime that pythonfmu bundles into the FMU). pythonfmu's own modelDescription.xml
+lacks ModelStructure/InitialUnknowns, units and descriptions; it is replaced by the one
+rendered from the same description as the C FMU's, keeping pythonfmu's modelIdentifier (the
+name of the binary it ships).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+from gatetwin.errors import ExportError
+from gatetwin.fmu.description import (
+    CoSimulationFlags,
+    FmuDescription,
+    model_description_xml,
+    slave_config,
+)
+
+TEMPLATE = Path(__file__).with_name("slave_template.py")
+_CONFIG_LINE = 'CONFIG_JSON = "{}"  # replaced at export by gatetwin.fmu.python_build'
+#: pythonfmu 0.7.0 serialises FMU states through ``Fmi2Slave._fmu_state_to_bytes`` (JSON);
+#: the FMU needs a Python interpreter, hence needsExecutionTool.
+FLAGS = CoSimulationFlags(
+    needs_execution_tool=True,
+    can_serialize_fmu_state=True,
+    can_not_use_memory_management_functions=True,
+)
+
+
+def slave_source(desc: FmuDescription) -> str:
+    """The slave module with the description embedded."""
+    text = TEMPLATE.read_text(encoding="utf-8")
+    if text.count(_CONFIG_LINE) != 1:
+        raise ExportError(f"{TEMPLATE.name}: CONFIG_JSON marker line missing")
+    config = json.dumps(slave_config(desc), sort_keys=True, allow_nan=False)
+    return text.replace(_CONFIG_LINE, f"CONFIG_JSON = {config!r}")
+
+
+def module_name(desc: FmuDescription) -> str:
+    """A module name unique per model: pythonfmu imports every slave into one interpreter."""
+    return "gatetwin_slave_" + desc.guid.strip("{}").replace("-", "")[:16]
+
+
+def build_python_fmu(
+    desc: FmuDescription, work_dir: Path, resources: list[Path], out: Path
+) -> None:
+    """Build the pythonfmu FMU ``out`` (a zip) from ``desc``; ``resources`` go to resources/."""
+    try:
+        from pythonfmu import FmuBuilder
+    except ImportError as exc:
+        raise ExportError(f"the python backend needs pythonfmu ({exc})") from None
+    script = work_dir / f"{module_name(desc)}.py"
+    script.write_text(slave_source(desc), encoding="utf-8")
+    built = work_dir / "pythonfmu" / f"{desc.model_identifier}.fmu"
+    built.parent.mkdir()
+    saved_path = list(sys.path)
+    try:
+        FmuBuilder.build_FMU(
+            script, dest=built, project_files=resources,
+            needsExecutionTool=FLAGS.needs_execution_tool,
+            canGetAndSetFMUstate=True,
+            canSerializeFMUstate=FLAGS.can_serialize_fmu_state,
+        )
+    except Exception as exc:  # pythonfmu raises plain exceptions of many kinds
+        raise ExportError(f"pythonfmu build failed: {exc}") from None
+    finally:  # the builder imports the script and leaves it on sys.path / in sys.modules
+        sys.path[:] = saved_path
+        sys.modules.pop(script.stem, None)
+    _replace_model_description(built, out, desc)
+
+
+def _replace_model_description(built: Path, out: Path, desc: FmuDescription) -> None:
+    with zipfile.ZipFile(built) as src:
+        theirs = ET.fromstring(src.read("modelDescription.xml"))
+        identifier = theirs.find("CoSimulation").get("modelIdentifier")
+        if identifier != desc.model_identifier:
+            raise ExportError(
+                f"pythonfmu named the model {identifier!r}, expected {desc.model_identifier!r}"
+            )
+        tool = f"gatetwin via {theirs.get('generationTool')}"
+        ours = model_description_xml(desc, FLAGS, tool=tool)
+        with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as dst:
+            dst.writestr("modelDescription.xml", ours)
+            for item in src.infolist():
+                if item.filename != "modelDescription.xml":
+                    dst.writestr(item, src.read(item.filename))

@@ -1,0 +1,204 @@
+"""Shared helpers of tests/test_fmu_*.py: test plants, an fmpy FMU2Slave driver, runs."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from fmpy import calloc, extract, free, read_model_description
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+)
+
+from gatetwin.fmu import export_fmu
+from gatetwin.plant.model import ArxPlant, FopdtPlant, Schedule
+from gatetwin.plant.simulate import PlantSimulator
+
+TESTS = Path(__file__).parent
+BACKENDS = ("c", "python")
+FAMILIES = ("fopdt", "arx")
+PROVENANCE = {
+    "model_file_sha256": "9f2c4e0d5b7a",
+    "fit": {"nrmse": 0.031, "r2": 0.987},
+    "flow_validity_m3h": [30.0, 85.0],
+}
+
+
+def fopdt_plant() -> FopdtPlant:
+    return FopdtPlant(
+        gauge="3F",
+        opening_ref_mm=20.0,
+        schedule=Schedule(
+            (30.0, 55.0, 85.0),
+            {
+                "gain_mm_per_mm": (-15.4, -12.0, -10.5),
+                "time_constant_s": (71.0, 55.0, 42.0),
+                "dead_time_s": (4.5, 7.0, 9.5),
+                "level_ref_mm": (231.0, 300.0, 360.0),
+            },
+        ),
+    )
+
+
+def arx_plant() -> ArxPlant:
+    return ArxPlant(
+        gauge="3F",
+        opening_ref_mm=20.0,
+        sample_period_s=1.2,
+        na=2,
+        nb=2,
+        nk=1,
+        schedule=Schedule(
+            (30.0, 85.0),
+            {
+                "a1": (0.713, 0.575),
+                "a2": (0.248, 0.148),
+                "b1": (-1.93, -2.53),
+                "b2": (1.17, -0.51),
+                "level_ref_mm": (231.0, 360.0),
+            },
+        ),
+    )
+
+
+PLANTS = {"fopdt": fopdt_plant, "arx": arx_plant}
+
+
+def export_all(folder: Path) -> dict[tuple[str, str], Path]:
+    """Every (backend, family) FMU of the test plants."""
+    return {
+        (backend, family): export_fmu(
+            PLANTS[family](),
+            folder / f"gate_3F_{family}_{backend}.fmu",
+            backend=backend,
+            model_name=f"gate_3F_{family}",
+            provenance=PROVENANCE,
+        )
+        for backend in BACKENDS
+        for family in FAMILIES
+    }
+
+
+@dataclass
+class Driver:
+    """One FMU instance driven through fmpy's FMU2Slave, with its log messages."""
+
+    slave: FMU2Slave
+    vr: dict[str, int]
+    output: str
+    messages: list[tuple[int, str]] = field(default_factory=list)
+    time_s: float = 0.0
+    _callbacks: fmi2CallbackFunctions | None = None
+
+    def start(self, opening_mm: float, flow_m3h: float, start_s: float = 0.0) -> None:
+        self.slave.setupExperiment(startTime=start_s)
+        self.slave.enterInitializationMode()
+        self.set_inputs(opening_mm, flow_m3h)
+        self.slave.exitInitializationMode()
+        self.time_s = start_s
+
+    def set_inputs(self, opening_mm: float, flow_m3h: float) -> None:
+        self.slave.setReal([self.vr["opening_mm"], self.vr["flow_m3h"]], [opening_mm, flow_m3h])
+
+    def level(self) -> float:
+        return self.slave.getReal([self.vr[self.output]])[0]
+
+    def step(self, h: float, opening_mm: float, flow_m3h: float) -> float:
+        self.set_inputs(opening_mm, flow_m3h)
+        self.slave.doStep(self.time_s, h)
+        self.time_s += h
+        return self.level()
+
+    def close(self) -> None:
+        self.slave.freeInstance()
+
+
+def open_fmu(extracted: Path, name: str = "instance", logging_on: bool = True) -> Driver:
+    md = read_model_description(str(extracted))
+    slave = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=str(extracted),
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName=name,
+    )
+    output = next(v.name for v in md.modelVariables if v.causality == "output")
+    driver = Driver(slave, {v.name: v.valueReference for v in md.modelVariables}, output)
+
+    def log(env, instance, status, category, message):
+        driver.messages.append((status, message.decode()))
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(log)
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    driver._callbacks = callbacks
+    slave.instantiate(callbacks=callbacks, loggingOn=logging_on)
+    return driver
+
+
+def extract_all(fmus: dict[tuple[str, str], Path], folder: Path) -> dict[tuple[str, str], Path]:
+    return {
+        key: Path(extract(str(path), str(folder / f"{key[0]}_{key[1]}")))
+        for key, path in fmus.items()
+    }
+
+
+def driven_inputs(
+    family: str, n: int, seed: int = 0, step_s: float | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Times, openings and flows of a long run: steps and PRBS-like opening changes, and a
+    discharge that crosses the knots and leaves their range on both sides."""
+    rng = np.random.default_rng(seed)
+    if family == "arx":
+        steps = 1.2 * rng.integers(1, 4, n - 1)
+    else:
+        steps = rng.uniform(0.05, 4.0, n - 1) if step_s is None else np.full(n - 1, step_s)
+    times = np.concatenate([[0.0], np.cumsum(steps)])
+    hold = rng.integers(1, 12, n)
+    levels = 20.0 + 6.0 * np.sign(rng.standard_normal(n))
+    opening = np.repeat(levels, hold)[:n]
+    opening[n // 4 : n // 4 + 40] = 35.0  # a long step
+    flow = np.interp(np.arange(n), [0, n / 4, n / 2, 3 * n / 4, n], [20.0, 95.0, 55.0, 10.0, 60.0])
+    return times, opening, flow
+
+
+def reference_run(plant, times, opening, flow) -> np.ndarray:
+    sim = PlantSimulator(plant)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # flow outside the knots, on purpose
+        sim.initialize(float(opening[0]), float(flow[0]), float(times[0]))
+        out = [sim.level_mm]
+        for i in range(1, len(times)):
+            h = float(times[i] - times[i - 1])
+            out.append(sim.do_step(h, float(opening[i - 1]), float(flow[i - 1])))
+    return np.array(out)
+
+
+def fmu_run(driver: Driver, times, opening, flow) -> np.ndarray:
+    driver.start(float(opening[0]), float(flow[0]), float(times[0]))
+    out = [driver.level()]
+    for i in range(1, len(times)):
+        h = float(times[i] - times[i - 1])
+        out.append(driver.step(h, float(opening[i - 1]), float(flow[i - 1])))
+    return np.array(out)
+
+
+def compiler() -> str | None:
+    return shutil.which("cc") or shutil.which("gcc")
+
+
+def compile_host(sources: Path, out: Path, extra: tuple[str, ...] = ()) -> None:
+    """Build tests/fmu_host.c against the FMI headers in an FMU's sources/ folder."""
+    subprocess.run(
+        [compiler(), "-std=c99", "-O1", "-g", "-Wall", "-Wextra", "-Werror", *extra,
+         "-I", str(sources), "-o", str(out), str(TESTS / "fmu_host.c"), "-ldl", "-lm"],
+        check=True, capture_output=True, text=True,
+    )
