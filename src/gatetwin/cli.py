@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from gatetwin import __version__
+from gatetwin import _commands_model as _model_cmds
 from gatetwin._io import write_json_atomic
 from gatetwin._sidecar import TEST_TYPES
 from gatetwin._summary import format_record_summary, format_static_summary
@@ -167,6 +168,24 @@ _COMMANDS: tuple[Command, ...] = (
         "run the virtual flume: write the reference records or a described scenario",
         _add_flume_arguments,
         _run_flume,
+    ),
+    Command(
+        "identify",
+        "identify FOPDT (step records) or ARX (PRBS records) models of one record",
+        _model_cmds.add_identify_arguments,
+        _model_cmds.run_identify,
+    ),
+    Command(
+        "models",
+        "identify every model of a records folder and write the model files",
+        _model_cmds.add_models_arguments,
+        _model_cmds.run_models,
+    ),
+    Command(
+        "export",
+        "export a model file as an FMI 2.0 co-simulation FMU (C or pythonfmu)",
+        _model_cmds.add_export_arguments,
+        _model_cmds.run_export,
     ),
     Command(
         "run",

@@ -1,0 +1,129 @@
+"""Model files: the versioned JSON form of an identified, scheduled plant.
+
+A model file holds the plant (parameters with units, schedule on Q, operating point,
+validity range), the per-condition identifications it was built from, the rating relation,
+and provenance (records with their hashes, method, metrics). Its JSON Schema is
+``models/schema.json`` in the repository (and :data:`SCHEMA` here); :func:`read_model_file`
+checks a file against the parts of it that the exporters rely on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from gatetwin import __version__
+from gatetwin._io import write_json_atomic
+from gatetwin.errors import ModelFileError
+from gatetwin.plant.model import Plant, plant_from_dict, plant_to_dict
+
+SCHEMA_ID = "https://gatetwin.invalid/schema/model-1.json"
+SCHEMA_VERSION = "1.0"
+
+UNITS = {
+    "opening": "mm",
+    "flow": "m3/h",
+    "level": "mm",
+    "time": "s",
+    "gain_mm_per_mm": "mm/mm",
+    "time_constant_s": "s",
+    "dead_time_s": "s",
+    "level_ref_mm": "mm",
+    "a_i, b_j": "dimensionless (ARX, deviations in mm and mm)",
+}
+
+
+@dataclass(frozen=True)
+class ModelFile:
+    """A read model file.
+
+    Attributes
+    ----------
+    name : str
+        Model name (also the FMU's name).
+    plant : Plant
+        The scheduled plant.
+    content : dict
+        The whole file (conditions, rating, provenance, ...).
+    sha256 : str
+        Hash of the file's bytes (for an FMU's provenance).
+    path : str
+        Where it was read from.
+    """
+
+    name: str
+    plant: Plant
+    content: dict[str, Any]
+    sha256: str
+    path: str = ""
+
+    @property
+    def validity_flow_m3h(self) -> tuple[float, float]:
+        lo, hi = self.content["validity"]["flow_m3h"]
+        return float(lo), float(hi)
+
+
+def model_document(
+    name: str, plant: Plant, *, description: str, conditions: list[dict[str, Any]],
+    rating: dict[str, Any], provenance: dict[str, Any], extra: dict[str, Any] | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """Assemble a model file's content (no timestamps: identical inputs, identical file)."""
+    lo, hi = plant.schedule.flow_range_m3h
+    doc: dict[str, Any] = {
+        "$schema": SCHEMA_ID,
+        "schema_version": SCHEMA_VERSION,
+        "name": name,
+        "description": description,
+        "gauge": plant.gauge,
+        "units": UNITS,
+        "plant": plant_to_dict(plant),
+        "operating_point": {
+            "opening_ref_mm": plant.opening_ref_mm,
+            "level_ref_mm": list(plant.schedule.values["level_ref_mm"]),
+            "flow_m3h": list(plant.schedule.flow_m3h),
+        },
+        "validity": {
+            "flow_m3h": [lo, hi],
+            "outside": "parameters clamped to the nearest knot; a warning is logged once",
+        },
+        "conditions": conditions,
+        "rating": rating,
+        "provenance": {"gatetwin_version": __version__, **provenance},
+    }
+    doc.update(extra or {})
+    return doc
+
+
+def write_model_file(path: str | Path, content: dict[str, Any]) -> Path:
+    return write_json_atomic(path, content)
+
+
+def read_model_file(path: str | Path) -> ModelFile:
+    """Read and check a model file; :class:`ModelFileError` names the file and the fault."""
+    p = Path(path)
+    try:
+        raw = p.read_bytes()
+        content = json.loads(raw.decode("utf-8"))
+    except OSError as exc:
+        raise ModelFileError(f"{p}: cannot read ({exc.strerror or exc})") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ModelFileError(f"{p}: not a JSON model file ({exc})") from None
+    if not isinstance(content, dict):
+        raise ModelFileError(f"{p}: a model file is a JSON object")
+    version = str(content.get("schema_version", ""))
+    if version.split(".")[0] != SCHEMA_VERSION.split(".")[0]:
+        raise ModelFileError(
+            f"{p}: schema_version {version or '(missing)'}; this gatetwin reads {SCHEMA_VERSION}"
+        )
+    for key in ("name", "plant", "validity", "provenance"):
+        if key not in content:
+            raise ModelFileError(f"{p}: key {key!r} missing")
+    try:
+        plant = plant_from_dict(content["plant"])
+    except ModelFileError as exc:
+        raise ModelFileError(f"{p}: {exc}") from None
+    return ModelFile(str(content["name"]), plant, content, hashlib.sha256(raw).hexdigest(),
+                     str(p))  # fmt: skip
