@@ -11,6 +11,9 @@ import pytest
 from gatetwin.errors import GatetwinError, PipelineError, RecordError
 from gatetwin.pipeline import STAGES, PipelineContext, PipelineStage, run_pipeline
 
+#: The record-checking stages: the small test folder here cannot support identification.
+CHECKING = STAGES[:3]
+
 DATA = Path(__file__).resolve().parent / "data"
 sys.path.insert(0, str(DATA))
 import make_malformed  # noqa: E402
@@ -33,11 +36,13 @@ def _siblings(path: Path) -> list[str]:
 
 def test_run_writes_summary_and_progress(records_dir: Path, tmp_path: Path) -> None:
     lines: list[str] = []
-    out = run_pipeline(tmp_path / "out", progress=lines.append, records_dir=records_dir)
+    out = run_pipeline(
+        tmp_path / "out", progress=lines.append, records_dir=records_dir, stages=CHECKING
+    )
     assert (out / "summary.md").read_text(encoding="utf-8").count("| A.csv | record |") == 1
     records = json.loads((out / "records.json").read_text(encoding="utf-8"))
     assert [r["file"] for r in records] == ["A.csv", "static.csv"]
-    assert lines[0] == f"[1/{len(STAGES)}] finding records ..."
+    assert lines[0] == f"[1/{len(CHECKING)}] finding records ..."
     assert any(line.startswith("[2/") and "checking records" in line for line in lines)
     assert _siblings(out) == ["out"]  # no temporary directories left
 
@@ -45,19 +50,19 @@ def test_run_writes_summary_and_progress(records_dir: Path, tmp_path: Path) -> N
 def test_failed_run_leaves_nothing_and_keeps_old_output(
     records_dir: Path, tmp_path: Path
 ) -> None:
-    out = run_pipeline(tmp_path / "out", records_dir=records_dir)
+    out = run_pipeline(tmp_path / "out", records_dir=records_dir, stages=CHECKING)
     before = (out / "records.json").read_text(encoding="utf-8")
     (records_dir / "bad.csv").write_text("time_s,opening_mm\n", encoding="utf-8")
     with pytest.raises(RecordError, match="bad.csv"):
-        run_pipeline(out, records_dir=records_dir)
+        run_pipeline(out, records_dir=records_dir, stages=CHECKING)
     assert (out / "records.json").read_text(encoding="utf-8") == before
     assert _siblings(out) == ["out"]
 
 
 def test_successful_run_replaces_earlier_output(records_dir: Path, tmp_path: Path) -> None:
-    out = run_pipeline(tmp_path / "out", records_dir=records_dir)
+    out = run_pipeline(tmp_path / "out", records_dir=records_dir, stages=CHECKING)
     (out / "stale.txt").write_text("old", encoding="utf-8")
-    run_pipeline(out, records_dir=records_dir)
+    run_pipeline(out, records_dir=records_dir, stages=CHECKING)
     assert not (out / "stale.txt").exists()
     assert _siblings(out) == ["out"]
 
@@ -67,7 +72,7 @@ def test_refuses_to_replace_a_foreign_directory(records_dir: Path, tmp_path: Pat
     foreign.mkdir()
     (foreign / "thesis.tex").write_text("precious", encoding="utf-8")
     with pytest.raises(PipelineError, match="not written by 'gatetwin run'"):
-        run_pipeline(foreign, records_dir=records_dir)
+        run_pipeline(foreign, records_dir=records_dir, stages=CHECKING)
     assert (foreign / "thesis.tex").exists()
 
 
@@ -87,10 +92,23 @@ def test_stages_are_extensible(records_dir: Path, tmp_path: Path) -> None:
     def fail(ctx: PipelineContext) -> None:
         raise GatetwinError("stage failed")
 
-    stages = (*STAGES, PipelineStage("counting", count))
+    stages = (*CHECKING, PipelineStage("counting", count))
     out = run_pipeline(tmp_path / "out", stages=stages, records_dir=records_dir)
     assert (out / "count.txt").read_text() == "2"
     with pytest.raises(GatetwinError, match="stage failed"):
         run_pipeline(tmp_path / "new", stages=(*stages, PipelineStage("x", fail)),
                      records_dir=records_dir)
     assert not (tmp_path / "new").exists()
+
+
+def test_run_writes_models_fmus_figures_and_summary(tmp_path):
+    from gatetwin.pipeline import run_pipeline
+
+    out = run_pipeline(tmp_path / "out")
+    models = sorted(p.stem for p in (out / "models").glob("*.json") if p.stem != "schema")
+    assert "fopdt_3F" in models and "arx_3F" in models
+    for backend in ("c", "python"):
+        assert sorted(p.stem for p in (out / "fmus" / backend).glob("*.fmu")) == models
+    assert len(list((out / "figures").glob("*.png"))) >= 11
+    summary = (out / "summary.md").read_text(encoding="utf-8")
+    assert "Table 2" in summary and "Published vs ours" in summary

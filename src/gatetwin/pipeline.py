@@ -130,11 +130,78 @@ def _summary_markdown(summaries: Sequence[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def identify_models(ctx: PipelineContext) -> None:
+    """Identify every record; write ``models/*.json`` (and the schema)."""
+    from gatetwin._commands_model import write_models
+    from gatetwin.identify.suite import identify_folder
+
+    ident = identify_folder(ctx.records_dir, ctx.progress)
+    ctx.results["ident"] = ident
+    ctx.results["model_paths"] = [
+        p for p in write_models(ident.models, ctx.out_dir / "models") if p.name != "schema.json"
+    ]
+    ctx.progress(f"      {len(ident.models)} model(s): {', '.join(sorted(ident.models))}")
+
+
+def export_fmus(ctx: PipelineContext) -> None:
+    """Export every model with both backends: ``fmus/c/NAME.fmu``, ``fmus/python/NAME.fmu``."""
+    from gatetwin._commands_model import fmu_provenance
+    from gatetwin.fmu import export_fmu
+    from gatetwin.modelfile import read_model_file
+
+    fmus: dict[str, list[Path]] = {"c": [], "python": []}
+    for path in ctx.results["model_paths"]:
+        model = read_model_file(path)
+        for backend, paths in fmus.items():
+            out = ctx.out_dir / "fmus" / backend / f"{model.name}.fmu"
+            ctx.progress(f"      exporting {model.name} ({backend})")
+            paths.append(export_fmu(model.plant, out, backend=backend, model_name=model.name,
+                                    provenance=fmu_provenance(model)))  # fmt: skip
+    ctx.results["fmus"] = fmus
+
+
+def tables_and_figures(ctx: PipelineContext) -> None:
+    """Published-vs-ours tables (``tables.md``) and the figures (``figures/*.png``)."""
+    from gatetwin._io import write_text_atomic
+    from gatetwin.figures import write_all
+    from gatetwin.tables import all_tables
+
+    ident = ctx.results["ident"]
+    tables = all_tables(ident)
+    ctx.results["tables"] = tables
+    write_text_atomic(ctx.out_dir / "tables.md", "\n".join(t.markdown() for t in tables))
+    ctx.results["figures"] = write_all(ident, ctx.out_dir / "figures")
+    ctx.progress(f"      {len(tables)} table(s), {len(ctx.results['figures'])} figure(s)")
+
+
+def write_summary(ctx: PipelineContext) -> None:
+    """``summary.md``: records, published-vs-ours tables, and what later stages found."""
+    from gatetwin._io import write_text_atomic
+    from gatetwin.tables import worst_deviation
+
+    parts = [_summary_markdown(ctx.results["records"])]
+    ident = ctx.results.get("ident")
+    if ident is not None and {"A", "B"} <= set(ident.steps):
+        worst = worst_deviation(ident)
+        parts.append(
+            "## Published vs ours\n\nLargest deviation over the five gauges of A and B "
+            f"(paper's method): levels {worst['level_mm']} mm, K {worst['K_percent']} %, "
+            f"L {worst['L_s']} s, T {worst['T_percent']} %.\n"
+        )
+    parts += [t.markdown() for t in ctx.results.get("tables", [])]
+    parts += ctx.results.get("summary_sections", [])
+    write_text_atomic(ctx.out_dir / "summary.md", "\n".join(parts))
+
+
 #: The stages of ``gatetwin run``, in order. Append to extend the pipeline.
 STAGES: tuple[PipelineStage, ...] = (
     PipelineStage("finding records", find_records),
     PipelineStage("checking records", check_records),
-    PipelineStage("writing summary", write_record_summary),
+    PipelineStage("writing the record summary", write_record_summary),
+    PipelineStage("identifying models", identify_models),
+    PipelineStage("exporting FMUs (C and python)", export_fmus),
+    PipelineStage("tables and figures", tables_and_figures),
+    PipelineStage("writing summary.md", write_summary),
 )
 
 
