@@ -152,6 +152,59 @@ def _run_flume(args: argparse.Namespace) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- validate
+
+
+def _add_validate_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("fmu", metavar="FMU", help="FMI 2.0 co-simulation FMU to validate")
+    parser.add_argument("records", metavar="RECORD", nargs="+", help="measured record(s) (CSV)")
+    parser.add_argument("--gauge", metavar="G", help="compare output level_<G>_mm (default: "
+                        "the FMU's only level output)")  # fmt: skip
+    parser.add_argument(
+        "--fail-under", metavar="METRIC=VALUE", action="append", default=[],
+        help="fail a record whose METRIC is below VALUE; for fit_percent, r2, ljung_box_p "
+        "(repeatable)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--fail-over", metavar="METRIC=VALUE", action="append", default=[],
+        help="fail a record whose METRIC is above VALUE; for rmse_mm, mae_mm, "
+        "max_abs_error_mm, abs_bias_mm, gain_abs_diff_mm_per_mm, time_constant_abs_diff_s, "
+        "dead_time_abs_diff_s (repeatable)",
+    )  # fmt: skip
+    parser.add_argument("--json", metavar="OUT.json", required=True, help="findings as JSON")
+    parser.add_argument("--junit", metavar="OUT.xml", help="findings as JUnit XML for CI")
+    parser.add_argument("--plots", metavar="DIR", help="write measured-vs-FMU plots (PNG)")
+    parser.epilog = (
+        "exit status: 0 when everything passed, 1 when a threshold or fmpy's static "
+        "validation failed, 2 for input that cannot be validated"
+    )
+
+
+def _run_validate(args: argparse.Namespace) -> int:
+    from gatetwin.validate import (
+        EXIT_FAILED,
+        OutputPaths,
+        matrix_cells,
+        matrix_markdown,
+        parse_thresholds,
+        validate_fmu,
+        write_outputs,
+    )
+
+    thresholds = parse_thresholds(args.fail_under, args.fail_over)
+    result = validate_fmu(args.fmu, args.records, gauge=args.gauge, thresholds=thresholds)
+    plots = Path(args.plots) if args.plots else None
+    junit = Path(args.junit) if args.junit else None
+    written = write_outputs(result, OutputPaths(Path(args.json), junit, plots))
+    print(matrix_markdown(matrix_cells(result)), end="")
+    for finding in result.static_findings:
+        print(f"fmpy static validation: {finding}")
+    for path in written:
+        print_to_stderr(f"wrote {path}")
+    print("passed" if result.passed else "FAILED")
+    return 0 if result.passed else EXIT_FAILED
+
+
 # --------------------------------------------------------------------------- registry
 
 #: The subcommands, in ``--help`` order. Others (flume, identify, export, validate,
@@ -186,6 +239,12 @@ _COMMANDS: tuple[Command, ...] = (
         "export a model file as an FMI 2.0 co-simulation FMU (C or pythonfmu)",
         _model_cmds.add_export_arguments,
         _model_cmds.run_export,
+    ),
+    Command(
+        "validate",
+        "simulate an FMU on measured records with fmpy and score it (JSON, JUnit, plots)",
+        _add_validate_arguments,
+        _run_validate,
     ),
     Command(
         "run",

@@ -98,9 +98,11 @@ def compile_shared(
         raise ExportError(f"C compiler {cmd[0]} could not run: {exc}") from None
     if done.returncode != 0:
         lines = done.stderr.splitlines()
-        errors = [ln for ln in lines if "error" in ln] or lines
+        # the linker's own line says why (collect2's summary line does not)
+        errors = [ln for ln in lines if "error" in ln and "collect2" not in ln]
+        errors = errors or [ln for ln in lines if " ld:" in ln or ln.startswith("ld:")] or lines
         first = errors[0] if errors else f"exit status {done.returncode}"
-        raise ExportError(f"C compiler {cmd[0]} failed: {first}")
+        raise ExportError(f"C compiler {cmd[0]} failed: {first.strip()}")
 
 
 def build_c_fmu(desc: FmuDescription, fmu_dir: Path, platform: str, extension: str) -> None:

@@ -31,6 +31,10 @@ from gatetwin.identify.rating import RatingFit
 from gatetwin.plant.model import ArxPlant, FopdtPlant, Schedule
 
 FOPDT_PARAMETERS = ("gain_mm_per_mm", "time_constant_s", "dead_time_s")
+#: Decimals kept in a schedule: far below each parameter's standard error (K ±0.05 mm/mm,
+#: T ±0.5 s, L ±0.5 s, levels ±0.1 mm), so model files do not carry optimiser round-off.
+DIGITS = {"gain_mm_per_mm": 4, "time_constant_s": 3, "dead_time_s": 3, "level_ref_mm": 3,
+          "arx": 6}
 
 
 @dataclass(frozen=True)
@@ -51,7 +55,9 @@ class StepCondition:
     record_sha256: str = ""
 
     def to_dict(self) -> dict[str, Any]:
-        return dict(self.__dict__)
+        """As JSON, floats to 6 decimals (far below the standard errors)."""
+        return {k: round(v, 6) + 0.0 if isinstance(v, float) else v
+                for k, v in self.__dict__.items()}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -112,8 +118,8 @@ def fopdt_schedule(
     h_rating = rating.level_mm(q, e_op)
     level_ref = h_rating + smoothed["gain_mm_per_mm"] * (e_ref - e_op)
     report["rating_minus_measured_mm"] = (h_rating - [c.pre_mean_mm for c in cond]).tolist()
-    values = {k: tuple(float(v) for v in smoothed[k]) for k in FOPDT_PARAMETERS}
-    values["level_ref_mm"] = tuple(float(v) for v in level_ref)
+    values = {k: _rounded(smoothed[k], DIGITS[k]) for k in FOPDT_PARAMETERS}
+    values["level_ref_mm"] = _rounded(level_ref, DIGITS["level_ref_mm"])
     plant = FopdtPlant(gauge, e_ref, Schedule(_knots(q), values))
     return plant, report
 
@@ -135,10 +141,10 @@ def arx_schedule(
     level_ref = rating.level_mm(q, e_op) + gains * (e_ref - e_op)
     values: dict[str, tuple[float, ...]] = {}
     for i in range(len(first.a)):
-        values[f"a{i + 1}"] = tuple(float(c.a[i]) for c in cond)
+        values[f"a{i + 1}"] = _rounded([c.a[i] for c in cond], DIGITS["arx"])
     for j in range(len(first.b)):
-        values[f"b{j + 1}"] = tuple(float(c.b[j]) for c in cond)
-    values["level_ref_mm"] = tuple(float(v) for v in level_ref)
+        values[f"b{j + 1}"] = _rounded([c.b[j] for c in cond], DIGITS["arx"])
+    values["level_ref_mm"] = _rounded(level_ref, DIGITS["level_ref_mm"])
     plant = ArxPlant(gauge, e_ref, first.sample_period_s, len(first.a), len(first.b), first.nk,
                      Schedule(_knots(q), values))  # fmt: skip
     grid = np.linspace(q[0], q[-1], 41)
@@ -152,6 +158,10 @@ def arx_schedule(
               "rating_minus_measured_mm": (rating.level_mm(q, e_op)
                                            - [c.level_mm for c in cond]).tolist()}  # fmt: skip
     return plant, report
+
+
+def _rounded(values: Any, digits: int) -> tuple[float, ...]:
+    return tuple(round(float(v), digits) + 0.0 for v in values)
 
 
 def _knots(flow_m3h: np.ndarray) -> tuple[float, ...]:

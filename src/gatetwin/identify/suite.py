@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from gatetwin.errors import IdentificationError
+from gatetwin.identify.fopdt_driven import fit_fopdt_driven
 from gatetwin.identify.prbs import PrbsIdentification, identify_prbs
 from gatetwin.identify.preprocess import reconstructed_opening
 from gatetwin.identify.rating import RatingFit, fit_static_table
@@ -75,12 +76,17 @@ def load_folder(folder: Path, progress: Any = None) -> Identified:
 
 
 def _step_conditions(ident: Identified, gauge: str, role: str) -> list[StepCondition]:
+    """Per-condition FOPDTs fitted with the reconstructed opening as input (the input an
+    FMU, the harness and the MPC give the model; see :mod:`gatetwin.identify.fopdt_driven`)."""
     conds = []
     for name, step in ident.steps.items():
         rec = ident.records[name]
         if role_of(rec) != role or gauge not in step.gauges:
             continue
-        fit, paper = step.gauges[gauge].fit, step.gauges[gauge].paper
+        paper, onset = step.gauges[gauge].paper, step.gauges[gauge].fit
+        opening = reconstructed_opening(rec.time_s, rec.opening_mm, rec.hold)
+        fit = fit_fopdt_driven(rec.time_s, opening, rec.levels_mm[gauge],
+                               initial=(onset.gain_mm_per_mm, onset.time_constant_s, 0.5))
         conds.append(StepCondition(
             name, step.flow_m3h, step.opening_before_mm, step.delta_e_mm, paper.pre_mean_mm,
             fit.gain_mm_per_mm, fit.time_constant_s, fit.dead_time_s,
@@ -131,7 +137,8 @@ def fopdt_model(ident: Identified, gauge: str) -> dict[str, Any]:
         conditions=[c.to_dict() for c in sorted(conds, key=lambda c: c.flow_m3h)],
         rating=ident.ratings[gauge].to_dict(),
         provenance={
-            "method": "FOPDT least squares per step condition; K, T, L smoothed by a "
+            "method": "FOPDT least squares per step condition, driven by the opening "
+            "reconstructed during gate motion; K, T, L smoothed by a "
             f"degree-{report['degree']} polynomial in Q; level from the rating relation",
             "records": _records_provenance(ident, [c.name for c in conds] + list(held)),
             "metrics": {"free_run_fit": fits, "held_out": held, "smoothing": report},

@@ -1,0 +1,79 @@
+"""Validation of plant FMUs against measured records (the fmpy harness).
+
+Drive an FMI 2.0 co-simulation FMU with a record's measured gate opening and discharge,
+compare its free-running level output with the measured level, apply the caller's
+thresholds, and render the findings as JSON, JUnit XML and plots.
+
+* :mod:`~gatetwin.validate.fmu_runner` -- open, check and run an FMU through fmpy;
+* :mod:`~gatetwin.validate.compare` -- free-run metrics and FOPDT step comparison;
+* :mod:`~gatetwin.validate.thresholds` -- ``--fail-under`` / ``--fail-over`` limits;
+* :mod:`~gatetwin.validate.harness` -- one FMU on many records, and the FMU × record matrix;
+* :mod:`~gatetwin.validate.outputs` -- JSON, JUnit and PNG rendering, atomic writing.
+
+Exit-code policy of ``gatetwin validate``: 0 when everything passed, :data:`EXIT_FAILED`
+(1) when a threshold or fmpy's static validation failed, 2 for input it cannot validate.
+"""
+
+from gatetwin.validate.compare import FreeRunMetrics, StepComparison, free_run_metrics
+from gatetwin.validate.errors import ValidationError
+from gatetwin.validate.fmu_runner import (
+    CommunicationGrid,
+    FmuInfo,
+    communication_grid,
+    inspect_fmu,
+    static_findings,
+)
+from gatetwin.validate.harness import (
+    FmuValidation,
+    RecordValidation,
+    matrix_cells,
+    matrix_markdown,
+    validate_fmu,
+    validate_matrix,
+)
+from gatetwin.validate.outputs import (
+    OutputPaths,
+    junit_xml,
+    plot_record,
+    validation_document,
+    write_outputs,
+)
+from gatetwin.validate.thresholds import (
+    HIGHER_IS_BETTER,
+    LOWER_IS_BETTER,
+    Check,
+    Threshold,
+    parse_thresholds,
+)
+
+#: Exit code of ``gatetwin validate`` when a threshold or the static validation failed.
+EXIT_FAILED = 1
+
+__all__ = [
+    "EXIT_FAILED",
+    "HIGHER_IS_BETTER",
+    "LOWER_IS_BETTER",
+    "Check",
+    "CommunicationGrid",
+    "FmuInfo",
+    "FmuValidation",
+    "FreeRunMetrics",
+    "OutputPaths",
+    "RecordValidation",
+    "StepComparison",
+    "Threshold",
+    "ValidationError",
+    "communication_grid",
+    "free_run_metrics",
+    "inspect_fmu",
+    "junit_xml",
+    "matrix_cells",
+    "matrix_markdown",
+    "parse_thresholds",
+    "plot_record",
+    "static_findings",
+    "validate_fmu",
+    "validate_matrix",
+    "validation_document",
+    "write_outputs",
+]

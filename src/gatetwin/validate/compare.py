@@ -1,0 +1,246 @@
+"""Compare a free-running FMU output with a measured level: the validation metrics.
+
+* :func:`free_run_metrics` -- R², NRMSE fit %, MAE, RMSE, largest error and bias;
+* :func:`compare_steps` -- least-squares FOPDT fits (K, T, L) of the measured and the
+  simulated step responses of a step record, and their differences;
+* residual whiteness comes from :func:`gatetwin.identify.residual_whiteness`.
+
+Pure functions on arrays and records; thresholds and pass/fail live in
+:mod:`gatetwin.validate.thresholds`.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from gatetwin.errors import IdentificationError
+from gatetwin.identify import identify_step
+from gatetwin.identify.serial import finite_or_none
+from gatetwin.records import Record
+from gatetwin.validate.errors import ValidationError
+
+
+@dataclass(frozen=True)
+class FreeRunMetrics:
+    """How well a free-run simulation ``y_hat`` follows the measurement ``y``.
+
+    Computed over the samples where the measured level is finite. A simulation that is not
+    finite there (a model that blew up) scores ``fit_percent = r2 = -inf`` and infinite
+    errors.
+
+    Attributes
+    ----------
+    n : int
+        Samples compared.
+    fit_percent : float
+        NRMSE fit ``100 (1 - ||y - y_hat|| / ||y - mean(y)||)``, %: 100 is perfect, 0 is
+        no better than the measured mean, negative is worse.
+    r2 : float
+        ``1 - SSE / SST`` (free run, not one-step-ahead).
+    mae_mm, rmse_mm, max_abs_error_mm : float
+        Mean absolute, root-mean-square and largest absolute error, mm.
+    bias_mm : float
+        ``mean(y_hat - y)``, mm: positive when the model sits above the measurement.
+    """
+
+    n: int
+    fit_percent: float
+    r2: float
+    mae_mm: float
+    rmse_mm: float
+    max_abs_error_mm: float
+    bias_mm: float
+
+    @property
+    def abs_bias_mm(self) -> float:
+        return abs(self.bias_mm)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "n": self.n,
+            "fit_percent": finite_or_none(self.fit_percent),
+            "r2": finite_or_none(self.r2),
+            "mae_mm": finite_or_none(self.mae_mm),
+            "rmse_mm": finite_or_none(self.rmse_mm),
+            "max_abs_error_mm": finite_or_none(self.max_abs_error_mm),
+            "bias_mm": finite_or_none(self.bias_mm),
+        }
+
+
+def free_run_metrics(measured_mm: np.ndarray, simulated_mm: np.ndarray) -> FreeRunMetrics:
+    """Metrics of a free-run simulation against a measured level.
+
+    Parameters
+    ----------
+    measured_mm : ndarray
+        Measured level, mm; NaN samples are skipped.
+    simulated_mm : ndarray
+        Simulated level on the same samples, mm.
+
+    Raises
+    ------
+    ValidationError
+        Fewer than 2 finite measured samples, or arrays of different shapes.
+    """
+    y = np.asarray(measured_mm, dtype=float)
+    y_hat = np.asarray(simulated_mm, dtype=float)
+    if y.shape != y_hat.shape:
+        raise ValidationError(f"measured {y.shape} and simulated {y_hat.shape} differ in shape")
+    ok = np.isfinite(y)
+    n = int(np.count_nonzero(ok))
+    if n < 2:
+        raise ValidationError("fewer than 2 measured levels to compare the FMU output with")
+    y, y_hat = y[ok], y_hat[ok]
+    if not np.all(np.isfinite(y_hat)):
+        inf = math.inf
+        return FreeRunMetrics(n, -inf, -inf, inf, inf, inf, math.nan)
+    err = y_hat - y
+    sse = float(err @ err)
+    sst = float((y - y.mean()) @ (y - y.mean()))
+    fit = 100.0 * (1.0 - math.sqrt(sse / sst)) if sst > 0 else math.nan
+    return FreeRunMetrics(
+        n=n,
+        fit_percent=fit,
+        r2=1.0 - sse / sst if sst > 0 else math.nan,
+        mae_mm=float(np.mean(np.abs(err))),
+        rmse_mm=math.sqrt(sse / n),
+        max_abs_error_mm=float(np.max(np.abs(err))),
+        bias_mm=float(np.mean(err)),
+    )
+
+
+@dataclass(frozen=True)
+class StepComparison:
+    """FOPDT parameters of the measured and the simulated response to one step.
+
+    Both are least-squares FOPDT fits (:func:`gatetwin.identify.fit_fopdt` through
+    :func:`gatetwin.identify.identify_step`) over the same samples, so the gate's motion
+    (reconstructed as a ramp) affects both alike. A fit that cannot be made leaves its
+    parameters NaN and says why in ``note``.
+
+    Attributes
+    ----------
+    step_index : int
+        Which step of the record.
+    onset_time_s : float
+        Step onset, s.
+    delta_e_mm : float
+        Opening step, mm.
+    measured, simulated : dict[str, float]
+        ``gain_mm_per_mm`` (K), ``time_constant_s`` (T), ``dead_time_s`` (L).
+    note : str
+        Why a fit is missing ("" when both exist).
+    """
+
+    step_index: int
+    onset_time_s: float
+    delta_e_mm: float
+    measured: dict[str, float]
+    simulated: dict[str, float]
+    note: str = ""
+
+    @property
+    def differences(self) -> dict[str, float]:
+        """Simulated minus measured, per parameter (NaN where a fit is missing)."""
+        return {k: self.simulated[k] - self.measured[k] for k in _PARAMETERS}
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "step_index": self.step_index,
+            "onset_time_s": self.onset_time_s,
+            "delta_e_mm": self.delta_e_mm,
+            "measured": {k: finite_or_none(v) for k, v in self.measured.items()},
+            "fmu": {k: finite_or_none(v) for k, v in self.simulated.items()},
+            "difference": {k: finite_or_none(v) for k, v in self.differences.items()},
+            "note": self.note,
+        }
+
+
+_PARAMETERS = ("gain_mm_per_mm", "time_constant_s", "dead_time_s")
+_NAN_PARAMETERS = dict.fromkeys(_PARAMETERS, math.nan)
+
+
+def _fopdt_parameters(record: Record, gauge: str, step_index: int) -> tuple[dict[str, float], str]:
+    """K, T, L of one step's least-squares FOPDT fit, and a note on what went wrong.
+
+    Numerical warnings of the fit (e.g. an ill-conditioned Jacobian on the output of a
+    model that blew up) are caught and returned in the note, not printed.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            fit = identify_step(record, gauge, step_index).gauges[gauge].fit
+        except IdentificationError as exc:
+            return dict(_NAN_PARAMETERS), " ".join(str(exc).split())
+    note = "; ".join(sorted({" ".join(str(w.message).split()) for w in caught}))
+    return {
+        "gain_mm_per_mm": fit.gain_mm_per_mm,
+        "time_constant_s": fit.time_constant_s,
+        "dead_time_s": fit.dead_time_s,
+    }, (f"fit warning: {note}" if note else "")
+
+
+def compare_steps(
+    record: Record, gauge: str, simulated_mm: np.ndarray
+) -> tuple[StepComparison, ...]:
+    """FOPDT fits of measured and simulated responses to every step of a step record.
+
+    Parameters
+    ----------
+    record : Record
+        The record (its ``test`` must be ``"step"``; other records give ``()``).
+    gauge : str
+        The gauge compared.
+    simulated_mm : ndarray
+        The FMU's output at every sample of the record, mm.
+
+    Returns
+    -------
+    tuple of StepComparison
+        One per step; empty for PRBS and free records.
+    """
+    if record.test != "step":
+        return ()
+    simulated = np.array(simulated_mm, dtype=float)
+    simulated.flags.writeable = False
+    as_simulated = replace(record, levels_mm={gauge: simulated})
+    out = []
+    for k, step in enumerate(record.steps):
+        measured, why_measured = _fopdt_parameters(record, gauge, k)
+        fmu, why_fmu = _fopdt_parameters(as_simulated, gauge, k)
+        notes = [f"measured: {why_measured}" if why_measured else "",
+                 f"FMU: {why_fmu}" if why_fmu else ""]  # fmt: skip
+        out.append(
+            StepComparison(
+                step_index=k,
+                onset_time_s=float(step.time_s),
+                delta_e_mm=float(step.delta_e_mm),
+                measured=measured,
+                simulated=fmu,
+                note="; ".join(n for n in notes if n),
+            )
+        )
+    return tuple(out)
+
+
+def worst_step_differences(steps: tuple[StepComparison, ...]) -> dict[str, float]:
+    """Largest absolute difference of each FOPDT parameter over the steps.
+
+    Keys ``gain_abs_diff_mm_per_mm``, ``time_constant_abs_diff_s``, ``dead_time_abs_diff_s``;
+    NaN when no step has both fits (and always NaN without steps).
+    """
+    out = {}
+    for param, key in zip(_PARAMETERS, STEP_METRICS, strict=True):
+        values = [abs(s.differences[param]) for s in steps]
+        finite = [v for v in values if math.isfinite(v)]
+        out[key] = max(finite) if finite else math.nan
+    return out
+
+
+#: Threshold-able step metrics, in the order of the FOPDT parameters.
+STEP_METRICS = ("gain_abs_diff_mm_per_mm", "time_constant_abs_diff_s", "dead_time_abs_diff_s")

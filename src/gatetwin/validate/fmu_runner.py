@@ -1,0 +1,431 @@
+"""Open an FMI 2.0 co-simulation FMU with fmpy and drive it with a record's inputs.
+
+* :func:`inspect_fmu` checks that a file is an FMU this harness can run (a zip with a
+  readable ``modelDescription.xml``, FMI 2.0 co-simulation, a binary for this platform,
+  Real inputs ``opening_mm`` and ``flow_m3h``) and returns its :class:`FmuInfo`;
+* :func:`static_findings` runs fmpy's static validator;
+* :func:`communication_grid` lays the record's samples on the FMU's communication grid;
+* :func:`run_fmu` simulates the FMU freely over that grid and returns its output at every
+  sample.
+
+Every failure is a :class:`~gatetwin.validate.errors.ValidationError` with a one-line
+message; an FMI call that fails is named with its status and the FMU's last log line.
+This module runs FMUs; it computes no metrics and decides nothing.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import tempfile
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gatetwin.records import GAP_FACTOR, gauge_of_column
+from gatetwin.validate.errors import ValidationError
+
+#: The inputs every gatetwin plant FMU has, in the order they are set.
+INPUTS = ("opening_mm", "flow_m3h")
+#: FMI 2.0 status names, by value.
+STATUS_NAMES = ("ok", "warning", "discard", "error", "fatal", "pending")
+
+
+@dataclass(frozen=True)
+class FmuInfo:
+    """What the harness needs to know about an FMU (read from its model description).
+
+    Attributes
+    ----------
+    path : str
+        The ``.fmu`` file.
+    model_identifier : str
+        The co-simulation ``modelIdentifier`` (names the binary).
+    guid : str
+        The FMU's GUID.
+    generation_tool : str
+        ``generationTool`` of the model description ("" if absent).
+    description : str
+        The model description's ``description`` attribute ("" if absent).
+    inputs, outputs : tuple of str
+        Names of the input and output variables.
+    value_references : dict[str, int]
+        Value reference of every variable, by name.
+    sha256 : str
+        Hash of the ``.fmu`` file, for provenance.
+    """
+
+    path: str
+    model_identifier: str
+    guid: str
+    generation_tool: str
+    description: str
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    value_references: dict[str, int] = field(repr=False)
+    sha256: str = ""
+
+    @property
+    def name(self) -> str:
+        """The FMU's file name."""
+        return Path(self.path).name
+
+    @property
+    def gauges(self) -> tuple[str, ...]:
+        """Gauges of the ``level_<G>_mm`` outputs."""
+        found = (gauge_of_column(name) for name in self.outputs)
+        return tuple(g for g in found if g is not None)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "file": self.name,
+            "sha256": self.sha256,
+            "model_identifier": self.model_identifier,
+            "guid": self.guid,
+            "generation_tool": self.generation_tool,
+            "inputs": list(self.inputs),
+            "outputs": list(self.outputs),
+        }
+
+
+def _archive_names(fmu: Path) -> set[str]:
+    if not fmu.is_file():
+        raise ValidationError(f"{fmu}: no such file; expected an FMI 2.0 co-simulation FMU")
+    try:
+        with zipfile.ZipFile(fmu) as archive:
+            return set(archive.namelist())
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise ValidationError(f"{fmu}: not an FMU (not a readable zip archive: {exc})") from None
+
+
+def _model_description(fmu: Path) -> Any:
+    from fmpy import read_model_description
+
+    try:
+        return read_model_description(str(fmu), validate=False)
+    except Exception as exc:  # fmpy and lxml raise many kinds; all mean "unreadable"
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        raise ValidationError(f"{fmu}: modelDescription.xml cannot be read ({text})") from None
+
+
+def _check_binary(fmu: Path, names: set[str], identifier: str) -> None:
+    from fmpy import platform, sharedLibraryExtension
+
+    if f"binaries/{platform}/{identifier}{sharedLibraryExtension}" in names:
+        return
+    found = sorted(
+        {n.split("/")[1] for n in names if n.startswith("binaries/") and n.count("/") > 1}
+    )
+    raise ValidationError(
+        f"{fmu}: no binary for this platform (expected binaries/{platform}/{identifier}"
+        f"{sharedLibraryExtension}; the FMU has binaries for: {', '.join(found) or 'none'})"
+    )
+
+
+def _check_inputs(fmu: Path, md: Any) -> None:
+    inputs = {v.name: v.type for v in md.modelVariables if v.causality == "input"}
+    for name in INPUTS:
+        if inputs.get(name) != "Real":
+            raise ValidationError(
+                f"{fmu}: no Real input '{name}'; expected inputs {', '.join(INPUTS)} "
+                f"(found: {', '.join(sorted(inputs)) or 'none'})"
+            )
+
+
+def inspect_fmu(path: str | Path) -> FmuInfo:
+    """Check that ``path`` is an FMU the harness can run, and describe it.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.fmu`` file.
+
+    Returns
+    -------
+    FmuInfo
+
+    Raises
+    ------
+    ValidationError
+        Missing file, not a zip archive, no or unreadable ``modelDescription.xml``, not
+        FMI 2.0 co-simulation, no binary for this platform, no Real inputs ``opening_mm``
+        and ``flow_m3h``.
+    """
+    fmu = Path(path)
+    names = _archive_names(fmu)
+    if "modelDescription.xml" not in names:
+        raise ValidationError(f"{fmu}: not an FMU (the archive has no modelDescription.xml)")
+    md = _model_description(fmu)
+    if md.fmiVersion != "2.0" or md.coSimulation is None:
+        raise ValidationError(
+            f"{fmu}: FMI {md.fmiVersion} without co-simulation; expected an FMI 2.0 "
+            "co-simulation FMU"
+        )
+    identifier = md.coSimulation.modelIdentifier
+    _check_binary(fmu, names, identifier)
+    _check_inputs(fmu, md)
+    return FmuInfo(
+        path=str(fmu),
+        model_identifier=identifier,
+        guid=md.guid,
+        generation_tool=md.generationTool or "",
+        description=md.description or "",
+        inputs=tuple(v.name for v in md.modelVariables if v.causality == "input"),
+        outputs=tuple(v.name for v in md.modelVariables if v.causality == "output"),
+        value_references={v.name: v.valueReference for v in md.modelVariables},
+        sha256=hashlib.sha256(fmu.read_bytes()).hexdigest(),
+    )
+
+
+def static_findings(path: str | Path) -> tuple[str, ...]:
+    """Problems fmpy's static validator finds in the FMU (empty when none).
+
+    Runs :func:`fmpy.validation.validate_fmu`: the model description against the XML
+    schema, variable names, model structure, start values, causality/variability
+    combinations and units. Call :func:`inspect_fmu` first: this expects a zip archive.
+    """
+    from fmpy.validation import validate_fmu
+
+    return tuple(" ".join(str(p).split()) for p in validate_fmu(str(path)))
+
+
+def output_for_gauge(info: FmuInfo, gauge: str | None) -> str:
+    """The output variable to compare: ``level_<gauge>_mm``, or the FMU's only level output.
+
+    Raises
+    ------
+    ValidationError
+        The FMU has no such output, no level output, or several and ``gauge`` is None.
+    """
+    levels = info.gauges
+    if gauge is not None:
+        if gauge not in levels:
+            raise ValidationError(
+                f"{info.path}: no output level_{gauge}_mm (its level outputs: "
+                f"{', '.join(f'level_{g}_mm' for g in levels) or 'none'})"
+            )
+        return f"level_{gauge}_mm"
+    if len(levels) == 1:
+        return f"level_{levels[0]}_mm"
+    if not levels:
+        raise ValidationError(
+            f"{info.path}: no level_<G>_mm output (outputs: {', '.join(info.outputs) or 'none'})"
+        )
+    raise ValidationError(
+        f"{info.path}: several level outputs ({', '.join(levels)}); choose one with --gauge"
+    )
+
+
+@dataclass(frozen=True)
+class CommunicationGrid:
+    """A record's samples on the FMU's communication grid.
+
+    Sample ``k`` of the record is communication point ``index[k]`` of the FMU, at FMU time
+    ``start_time_s + index[k] * step_s``. Between consecutive samples the FMU makes
+    ``steps[k]`` steps of ``step_s``: one normally, several across a logging gap.
+
+    Attributes
+    ----------
+    start_time_s : float
+        FMU start time, s (the record's first time stamp).
+    step_s : float
+        Communication step, s (the record's nominal sample period).
+    steps : ndarray of int
+        Steps from sample ``k`` to sample ``k + 1``, length ``n - 1``.
+    """
+
+    start_time_s: float
+    step_s: float
+    steps: np.ndarray
+
+    @property
+    def index(self) -> np.ndarray:
+        """Communication-point index of every sample."""
+        return np.concatenate(([0], np.cumsum(self.steps)))
+
+    @property
+    def n_steps(self) -> int:
+        """FMU steps in the whole run."""
+        return int(np.sum(self.steps))
+
+    @property
+    def gaps(self) -> int:
+        """Sample intervals that span more than one step (logging gaps)."""
+        return int(np.count_nonzero(self.steps > 1))
+
+
+def communication_grid(time_s: np.ndarray, sample_period_s: float) -> CommunicationGrid:
+    """Lay samples on a grid of the nominal sample period.
+
+    A time step up to ``GAP_FACTOR`` (1.5) nominal periods is one step: the time stamps'
+    jitter of a few milliseconds is not passed on to the FMU (an ARX FMU only accepts whole
+    multiples of its period). A longer step is a logging gap and becomes
+    ``round(dt / Ts)`` steps (at least 2).
+
+    Parameters
+    ----------
+    time_s : ndarray
+        Sample times, s, strictly increasing.
+    sample_period_s : float
+        Nominal sample period, s (> 0).
+    """
+    t = np.asarray(time_s, dtype=float)
+    if not (sample_period_s > 0 and np.isfinite(sample_period_s)):
+        raise ValidationError(f"sample period {sample_period_s} s must be finite and > 0")
+    ratio = np.diff(t) / sample_period_s
+    steps = np.where(ratio > GAP_FACTOR, np.maximum(2, np.rint(ratio)), 1).astype(np.int64)
+    return CommunicationGrid(float(t[0]), float(sample_period_s), steps)
+
+
+@dataclass
+class _Session:
+    """One instantiated FMU, its log and where the run is (for error messages)."""
+
+    info: FmuInfo
+    slave: Any
+    callbacks: Any = None
+    messages: list[tuple[int, str]] = field(default_factory=list)
+
+    def log(self, _env: Any, _instance: Any, status: int, _category: Any, message: bytes) -> None:
+        self.messages.append((int(status), message.decode("utf-8", "replace")))
+
+    def last_problem(self) -> str:
+        """The FMU's last logged message of status warning or worse ("" if none)."""
+        bad = [text for status, text in self.messages if status >= 1]
+        return " ".join(bad[-1].split()) if bad else ""
+
+    def set_inputs(self, opening_mm: float, flow_m3h: float) -> None:
+        vrs = [self.info.value_references[name] for name in INPUTS]
+        self.slave.setReal(vrs, [float(opening_mm), float(flow_m3h)])
+
+
+def _open_session(info: FmuInfo, unzip_dir: str) -> _Session:
+    from fmpy import calloc, free
+    from fmpy.fmi2 import (
+        FMU2Slave,
+        fmi2CallbackAllocateMemoryTYPE,
+        fmi2CallbackFreeMemoryTYPE,
+        fmi2CallbackFunctions,
+        fmi2CallbackLoggerTYPE,
+    )
+
+    try:
+        slave = FMU2Slave(
+            guid=info.guid,
+            unzipDirectory=unzip_dir,
+            modelIdentifier=info.model_identifier,
+            instanceName="gatetwin_validate",
+        )
+    except OSError as exc:
+        raise ValidationError(f"{info.path}: the FMU's binary cannot be loaded ({exc})") from None
+    session = _Session(info, slave)
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = fmi2CallbackLoggerTYPE(session.log)
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+    session.callbacks = callbacks  # keep the ctypes callbacks alive as long as the instance
+    try:
+        slave.instantiate(callbacks=callbacks, loggingOn=True)
+    except Exception:  # fmpy raises a bare Exception when fmi2Instantiate fails
+        slave.freeLibrary()
+        detail = session.last_problem()
+        raise ValidationError(
+            f"{info.path}: fmi2Instantiate failed" + (f"; FMU log: {detail}" if detail else "")
+        ) from None
+    return session
+
+
+def _simulate(
+    session: _Session, output: str, grid: CommunicationGrid, opening: np.ndarray, flow: np.ndarray
+) -> np.ndarray:
+    """Run the session over the grid; ``where`` tracks the sample and time for messages."""
+    from fmpy.fmi1 import FMICallException
+
+    slave, vr = session.slave, [session.info.value_references[output]]
+    where = {"sample": 0.0, "time_s": grid.start_time_s}
+    out = np.empty(opening.size)
+    try:
+        slave.setupExperiment(startTime=grid.start_time_s)
+        slave.enterInitializationMode()
+        session.set_inputs(opening[0], flow[0])
+        slave.exitInitializationMode()
+        out[0] = slave.getReal(vr)[0]
+        t = grid.start_time_s
+        for k in range(opening.size - 1):
+            where["sample"] = k + 1
+            session.set_inputs(opening[k], flow[k])
+            for _ in range(int(grid.steps[k])):
+                where["time_s"] = t
+                slave.doStep(t, grid.step_s)
+                t += grid.step_s
+            out[k + 1] = slave.getReal(vr)[0]
+        slave.terminate()
+    except FMICallException as exc:
+        raise _call_error(session, exc, where) from None
+    return out
+
+
+def _call_error(session: _Session, exc: Any, where: dict[str, float]) -> ValidationError:
+    status = STATUS_NAMES[exc.status] if 0 <= exc.status < len(STATUS_NAMES) else "illegal"
+    detail = session.last_problem()
+    return ValidationError(
+        f"{session.info.path}: {exc.function} returned status {exc.status} ({status}) at FMU "
+        f"time {where['time_s']:.6g} s, record sample {int(where['sample'])}"
+        + (f"; FMU log: {detail}" if detail else "")
+    )
+
+
+def run_fmu(
+    info: FmuInfo,
+    output: str,
+    grid: CommunicationGrid,
+    opening_mm: np.ndarray,
+    flow_m3h: np.ndarray,
+) -> np.ndarray:
+    """Simulate the FMU freely over ``grid`` and return ``output`` at every sample.
+
+    Protocol (FMI 2.0 co-simulation through :class:`fmpy.fmi2.FMU2Slave`): instantiate,
+    ``setupExperiment(startTime=grid.start_time_s)``, enter initialization mode, set the
+    first sample's inputs, exit initialization mode, read the output; then for every
+    sample ``k`` set its inputs and hold them for the ``grid.steps[k]`` steps of
+    ``grid.step_s`` to the next sample (``doStep``), and read the output there. No measured
+    output is ever fed back (free run).
+
+    Parameters
+    ----------
+    info : FmuInfo
+        From :func:`inspect_fmu`.
+    output : str
+        Output variable to read, e.g. ``"level_3F_mm"``.
+    grid : CommunicationGrid
+        From :func:`communication_grid`.
+    opening_mm : ndarray
+        Gate opening at every sample, mm (finite).
+    flow_m3h : ndarray
+        Discharge at every sample, m³/h (finite).
+
+    Returns
+    -------
+    ndarray
+        The output at every sample, mm.
+
+    Raises
+    ------
+    ValidationError
+        The binary cannot be loaded, or an FMI call fails (named, with its status, the
+        FMU time, the record sample and the FMU's last warning or error message).
+    """
+    from fmpy import extract
+
+    opening = np.asarray(opening_mm, dtype=float)
+    flow = np.asarray(flow_m3h, dtype=float)
+    with tempfile.TemporaryDirectory(prefix="gatetwin-validate-") as tmp:
+        unzip_dir = extract(info.path, tmp)
+        session = _open_session(info, unzip_dir)
+        try:
+            out = _simulate(session, output, grid, opening, flow)
+        finally:
+            session.slave.freeInstance()
+    return out
