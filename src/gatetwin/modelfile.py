@@ -68,9 +68,14 @@ class ModelFile:
 
 def model_document(
     name: str, plant: Plant, *, description: str, conditions: list[dict[str, Any]],
-    rating: dict[str, Any], provenance: dict[str, Any], extra: dict[str, Any] | None = None,
+    rating: dict[str, Any], provenance: dict[str, Any], operating_openings_mm: list[float],
+    opening_band_mm: float, extra: dict[str, Any] | None = None,
 ) -> dict[str, Any]:  # fmt: skip
-    """Assemble a model file's content (no timestamps: identical inputs, identical file)."""
+    """Assemble a model file's content (no timestamps: identical inputs, identical file).
+
+    ``operating_openings_mm`` are the openings the conditions were identified around (one a
+    knot); the model is valid within ``opening_band_mm`` of them (interpolated in Q).
+    """
     lo, hi = plant.schedule.flow_range_m3h
     doc: dict[str, Any] = {
         "$schema": SCHEMA_ID,
@@ -87,7 +92,11 @@ def model_document(
         },
         "validity": {
             "flow_m3h": [lo, hi],
-            "outside": "parameters clamped to the nearest knot; a warning is logged once",
+            "opening_mm_at_knots": [round(float(e), 3) for e in operating_openings_mm],
+            "opening_band_mm": opening_band_mm,
+            "outside": "parameters clamped to the nearest knot; a warning is logged once. "
+            "Openings farther than opening_band_mm from the operating opening at the record's "
+            "Q are extrapolation: the model is linear around its operating line",
         },
         "conditions": conditions,
         "rating": rating,
@@ -127,3 +136,23 @@ def read_model_file(path: str | Path) -> ModelFile:
         raise ModelFileError(f"{p}: {exc}") from None
     return ModelFile(str(content["name"]), plant, content, hashlib.sha256(raw).hexdigest(),
                      str(p))  # fmt: skip
+
+
+def applies_to(content: dict[str, Any], flow_m3h: float, openings_mm: Any) -> tuple[bool, str]:
+    """Whether a model is valid for a record at ``flow_m3h`` with hold ``openings_mm``."""
+    import numpy as np
+
+    validity = content["validity"]
+    lo, hi = validity["flow_m3h"]
+    if not lo - 1.0 <= flow_m3h <= hi + 1.0:  # 1 m³/h: the flow meter's accuracy
+        return False, f"Q {flow_m3h:.1f} m³/h outside [{lo}, {hi}]"
+    knots = content["plant"]["schedule"]["flow_m3h"]
+    centre = float(np.interp(flow_m3h, knots, validity["opening_mm_at_knots"]))
+    band = float(validity["opening_band_mm"])
+    e = np.asarray(openings_mm, dtype=float)
+    e = e[np.isfinite(e)]
+    worst = float(np.max(np.abs(e - centre))) if e.size else 0.0
+    if worst > band:
+        return False, (f"openings up to {worst:.0f} mm from the operating opening "
+                       f"{centre:.1f} mm at this Q (band ±{band:g} mm)")  # fmt: skip
+    return True, "within validity"

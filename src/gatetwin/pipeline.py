@@ -21,6 +21,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from gatetwin import _stages
 from gatetwin.errors import PipelineError
 from gatetwin.records import detect_table_kind, read_record, read_static_table
 
@@ -201,7 +202,9 @@ STAGES: tuple[PipelineStage, ...] = (
     PipelineStage("identifying models", identify_models),
     PipelineStage("exporting FMUs (C and python)", export_fmus),
     PipelineStage("tables and figures", tables_and_figures),
+    PipelineStage("validating every FMU against every record (fmpy)", _stages.validate_all),
     PipelineStage("writing summary.md", write_summary),
+    PipelineStage("writing report.html", _stages.write_report),
 )
 
 

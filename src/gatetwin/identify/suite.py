@@ -33,6 +33,9 @@ from gatetwin.plant.simulate import simulate
 from gatetwin.records import Record, detect_table_kind, read_record, read_static_table
 
 ARX_GAUGE = "3F"
+#: Validity band around the operating opening: the step (5 mm) or the PRBS amplitude
+#: (±5 mm) the conditions were identified over, plus 5 mm.
+OPENING_BAND_MM = 10.0
 ARX_ORDERS = (2, 2, 1)
 
 
@@ -136,6 +139,8 @@ def fopdt_model(ident: Identified, gauge: str) -> dict[str, Any]:
         f"{len(conds)} step conditions (least-squares fit, continuous dead time)",
         conditions=[c.to_dict() for c in sorted(conds, key=lambda c: c.flow_m3h)],
         rating=ident.ratings[gauge].to_dict(),
+        operating_openings_mm=[c.opening_mm for c in sorted(conds, key=lambda c: c.flow_m3h)],
+        opening_band_mm=OPENING_BAND_MM,
         provenance={
             "method": "FOPDT least squares per step condition, driven by the opening "
             "reconstructed during gate motion; K, T, L smoothed by a "
@@ -165,6 +170,8 @@ def arx_model(ident: Identified, gauge: str = ARX_GAUGE) -> dict[str, Any]:
         f"interpolated over {len(conds)} PRBS conditions",
         conditions=[c.to_dict() for c in sorted(conds, key=lambda c: c.flow_m3h)],
         rating=ident.ratings[gauge].to_dict(),
+        operating_openings_mm=[c.opening_mm for c in sorted(conds, key=lambda c: c.flow_m3h)],
+        opening_band_mm=OPENING_BAND_MM,
         provenance={"method": f"ARX{ARX_ORDERS} least squares ({_rows(ident)} rows)",
                     "records": _records_provenance(ident, list(ident.prbs)),
                     "metrics": {"per_condition": metrics, "schedule": report}},
