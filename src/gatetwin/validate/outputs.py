@@ -8,8 +8,6 @@ failure while rendering leaves no output file. This module computes no metrics.
 from __future__ import annotations
 
 import io
-import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +17,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from gatetwin import __version__
-from gatetwin._io import write_json_atomic, write_text_atomic
+from gatetwin._io import write_bytes_atomic, write_json_atomic, write_text_atomic
 from gatetwin.validate.errors import ValidationError
 from gatetwin.validate.harness import FmuValidation, RecordValidation
 from gatetwin.validate.thresholds import FAILED, NOT_APPLICABLE
@@ -155,22 +153,6 @@ def plot_name(result: FmuValidation, rec: RecordValidation) -> str:
 
 
 # --------------------------------------------------------------------------- writing
-
-
-def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file renamed into place."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return target
 
 
 @dataclass(frozen=True)
