@@ -1,7 +1,8 @@
 /* Scheduled ARX(na, nb, nk) dynamics, paper's sign convention:
  *   x(k) = sum_i a_i x(k-i) + sum_j b_j u(k-nk-j+1),
- * stepped at the sample period; a communication step runs a whole number of samples with the
- * input held. Mirrors PlantSimulator._arx_step in gatetwin/plant/simulate.py.
+ * stepped at the sample period; a communication step runs a whole number of samples, the input
+ * blocks sampled at the start of each. Mirrors PlantSimulator._arx_sample / _arx_pieces in
+ * gatetwin/plant/simulate.py.
  */
 #include <math.h>
 
@@ -88,38 +89,58 @@ static double samples_in_step(const ModelData *m, double step_s, PlantMessage *m
     return n;
 }
 
-PlantStatus dynamics_check_step(const ModelData *m, double step_s, double u_mm,
+PlantStatus dynamics_check_step(const ModelData *m, double step_s, double command_mm,
                                 PlantMessage *msg)
 {
-    (void)u_mm;
+    (void)command_mm;
     return samples_in_step(m, step_s, msg) < 0.0 ? PLANT_ERROR : PLANT_OK;
 }
 
-void dynamics_step(ModelData *m, double step_s, double u_mm, const KnotPosition *at)
+/* One ARX sample with the input u; returns x(k+1). */
+static double sample_step(DynamicsState *d, const double a[GT_NA], const double b[GT_NB],
+                          double u_mm)
 {
-    DynamicsState *d = &m->dyn;
+    double x_new = 0.0;
+    int i;
+    for (i = GT_ARX_U_LAGS - 1; i > 0; i--) {
+        d->u_hist[i] = d->u_hist[i - 1];
+    }
+    d->u_hist[0] = u_mm;
+    for (i = 0; i < GT_NA; i++) {
+        x_new += a[i] * d->x_hist[i];
+    }
+    for (i = 0; i < GT_NB; i++) {
+        x_new += b[i] * d->u_hist[GT_NK - 1 + i];
+    }
+    for (i = GT_NA - 1; i > 0; i--) {
+        d->x_hist[i] = d->x_hist[i - 1];
+    }
+    d->x_hist[0] = x_new;
+    d->x = x_new;
+    return x_new;
+}
+
+/* The input blocks are sampled at the start of every ARX sample (see effects.h). */
+void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPosition *at)
+{
     PlantMessage unused;
     const double n = samples_in_step(m, step_s, &unused);
+    const double ts = m->real[VR_SAMPLE_PERIOD_S];
+    const double level_ref = plant_interp(at, &m->real[VR_COL_LEVEL_REF_MM]);
     double a[GT_NA], b[GT_NB];
     double sample;
-    int i;
+    double duration = GT_HAS_RATE_LIMIT ? 0.0 : ts;
     coefficients(m, at, a, b);
     for (sample = 0.0; sample < n; sample += 1.0) {
-        double x_new = 0.0;
-        for (i = GT_ARX_U_LAGS - 1; i > 0; i--) {
-            d->u_hist[i] = d->u_hist[i - 1];
-        }
-        d->u_hist[0] = u_mm;
-        for (i = 0; i < GT_NA; i++) {
-            x_new += a[i] * d->x_hist[i];
-        }
-        for (i = 0; i < GT_NB; i++) {
-            x_new += b[i] * d->u_hist[GT_NK - 1 + i];
-        }
-        for (i = GT_NA - 1; i > 0; i--) {
-            d->x_hist[i] = d->x_hist[i - 1];
-        }
-        d->x_hist[0] = x_new;
-        d->x = x_new;
+        double x_new;
+        effects_actuate(m, &m->fx, command_mm, duration);
+        m->fx.held_gate_mm = m->fx.gate_mm;
+        x_new = sample_step(&m->dyn, a, b, effects_input(m, m->fx.gate_mm));
+        effects_lag_sample(m, level_ref + x_new, ts);
+        effects_seiche_piece(m, ts, m->fx.gate_mm);
+        duration = ts;
+    }
+    if (GT_HAS_RATE_LIMIT) {
+        effects_actuate(m, &m->fx, command_mm, ts);
     }
 }

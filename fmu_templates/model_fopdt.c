@@ -1,4 +1,6 @@
 /* Scheduled FOPDT dynamics: T dx/dt = K u(t - L) - x, exact for piecewise-constant input.
+ * A step is one piece, or the pieces of the actuator's grid when a rate limit moves the gate
+ * (see effects.h); the sensor lag is integrated with x over every interval.
  *
  * The dead time is served from a history of input change points; mirrors
  * PlantSimulator._fopdt_step / _prune_history / _last_arrived_index in
@@ -49,8 +51,11 @@ PlantStatus dynamics_check_parameters(const ModelData *m, PlantMessage *msg)
 PlantStatus dynamics_equilibrium(const ModelData *m, double u_mm, const KnotPosition *at,
                                  double *x0_mm, PlantMessage *msg)
 {
+    double k = plant_interp(at, GAIN(m));
+    double tau = plant_interp(at, TIME_CONSTANT(m));
     (void)msg;
-    *x0_mm = plant_interp(at, GAIN(m)) * u_mm;
+    effects_fopdt_parameters(m, m->real[VR_FLOW_M3H], &k, &tau);
+    *x0_mm = k * u_mm;
     return PLANT_OK;
 }
 
@@ -71,17 +76,39 @@ void dynamics_initialize(ModelData *m, double u_mm, double x0_mm)
     }
 }
 
-PlantStatus dynamics_check_step(const ModelData *m, double step_s, double u_mm,
+/* Refuse a step whose input changes would overflow the history, before anything changes. */
+PlantStatus dynamics_check_step(const ModelData *m, double step_s, double command_mm,
                                 PlantMessage *msg)
 {
     const DynamicsState *d = &m->dyn;
-    (void)step_s;
+#if GT_HAS_RATE_LIMIT
+    const double delta = m->real[VR_FX_RATE_LIMIT_SUBSTEP_S];
+    const double origin = m->fx.grid_origin_s;
+    const double t0 = m->time_s;
+    const double k0 = grid_index_at_or_after(t0, origin, delta);
+    const double k1 = grid_index_at_or_after(t0 + step_s, origin, delta);
+    const double pieces = k1 - k0 + (origin + k0 * delta == t0 ? 0.0 : 1.0);
+    (void)command_mm;
+    if (d->count + pieces > GT_HISTORY_CAPACITY) {
+        plant_message(msg,
+                      "communication step %.17g s spans %.0f actuator sub-steps; with the %d "
+                      "input changes held for the dead time they exceed the dead-time history "
+                      "(%d)",
+                      step_s, pieces, d->count, GT_HISTORY_CAPACITY);
+        return PLANT_ERROR;
+    }
+#else
+    EffectState probe = m->fx;
+    double u_mm;
+    effects_actuate(m, &probe, command_mm, step_s);
+    u_mm = effects_input(m, probe.gate_mm);
     if (u_mm != d->change_u[slot(d, d->count - 1)] && d->count >= GT_HISTORY_CAPACITY) {
         plant_message(msg, "input changes faster than the dead-time history can hold "
                            "(%d change points within the longest dead time)",
                       GT_HISTORY_CAPACITY);
         return PLANT_ERROR;
     }
+#endif
     return PLANT_OK;
 }
 
@@ -104,33 +131,84 @@ static void prune(DynamicsState *d, double t_now)
     }
 }
 
-void dynamics_step(ModelData *m, double step_s, double u_mm, const KnotPosition *at)
+/* Parameters of one step: K and T (flow-dependent gain applied), L, and level_ref. */
+typedef struct {
+    double gain;
+    double tau_s;
+    double delay_s;
+    double level_ref_mm;
+} StepParameters;
+
+/* The dynamics over [t_start, t_end) with the input u held (one piece of a step). */
+static void piece(ModelData *m, double t_start, double t_end, double u_mm,
+                  const StepParameters *p)
 {
     DynamicsState *d = &m->dyn;
-    const double k = plant_interp(at, GAIN(m));
-    const double tau = plant_interp(at, TIME_CONSTANT(m));
-    const double delay = plant_interp(at, DEAD_TIME(m));
-    const double t0 = m->time_s;
-    const double t1 = t0 + step_s;
-    double t = t0;
+    double t = t_start;
     if (u_mm != d->change_u[slot(d, d->count - 1)]) {
-        d->change_t[slot(d, d->count)] = t0;
+        d->change_t[slot(d, d->count)] = t_start;
         d->change_u[slot(d, d->count)] = u_mm;
         d->count++;
     }
-    while (t < t1) {
-        const int j = last_arrived(d, delay, t);
-        double t_next = t1;
+    while (t < t_end) {
+        const int j = last_arrived(d, p->delay_s, t);
+        double t_next = t_end;
         double target;
         if (j + 1 < d->count) {
-            const double arrival = d->change_t[slot(d, j + 1)] + delay;
+            const double arrival = d->change_t[slot(d, j + 1)] + p->delay_s;
             if (arrival < t_next) {
                 t_next = arrival;
             }
         }
-        target = k * d->change_u[slot(d, j)];
-        d->x = target + (d->x - target) * exp(-(t_next - t) / tau);
+        target = p->gain * d->change_u[slot(d, j)];
+        effects_lag_interval(m, p->level_ref_mm + target, d->x - target, t_next - t, p->tau_s);
+        d->x = target + (d->x - target) * exp(-(t_next - t) / p->tau_s);
         t = t_next;
     }
-    prune(d, t1);
+    prune(d, t_end);
+}
+
+void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPosition *at)
+{
+    EffectState *fx = &m->fx;
+    StepParameters p;
+    const double t0 = m->time_s;
+    const double t1 = t0 + step_s;
+    p.gain = plant_interp(at, GAIN(m));
+    p.tau_s = plant_interp(at, TIME_CONSTANT(m));
+    p.delay_s = plant_interp(at, DEAD_TIME(m));
+    p.level_ref_mm = plant_interp(at, &m->real[VR_COL_LEVEL_REF_MM]);
+    effects_fopdt_parameters(m, m->real[VR_FLOW_M3H], &p.gain, &p.tau_s);
+#if GT_HAS_RATE_LIMIT
+    {
+        /* the gate moves; the dynamics see it sampled on the grid origin + k * substep */
+        const double delta = m->real[VR_FX_RATE_LIMIT_SUBSTEP_S];
+        const double origin = fx->grid_origin_s;
+        double k = grid_index_at_or_after(t0, origin, delta);
+        double tk = origin + k * delta;
+        double t_start = t0, t_act = t0;
+        for (;;) {
+            if (tk > t_start) {
+                const double t_end = tk < t1 ? tk : t1;
+                piece(m, t_start, t_end, effects_input(m, fx->held_gate_mm), &p);
+                effects_seiche_piece(m, t_end - t_start, fx->held_gate_mm);
+                if (!(tk < t1)) {
+                    break;
+                }
+                t_start = tk;
+            }
+            effects_actuate(m, fx, command_mm, tk - t_act);
+            fx->held_gate_mm = fx->gate_mm;
+            t_act = tk;
+            k += 1.0;
+            tk = origin + k * delta;
+        }
+        effects_actuate(m, fx, command_mm, t1 - t_act);
+    }
+#else
+    effects_actuate(m, fx, command_mm, step_s);
+    fx->held_gate_mm = fx->gate_mm;
+    piece(m, t0, t1, effects_input(m, fx->gate_mm), &p);
+    effects_seiche_piece(m, t1 - t0, fx->gate_mm);
+#endif
 }

@@ -1,5 +1,6 @@
 /* The plant pipeline shared by every family: input checks, schedule lookup, parameter checks,
- * and u_eff = input_blocks(u) -> dynamics -> y = output_blocks(level).
+ * and command -> input blocks -> dynamics -> output blocks (effects.h; the family runs the
+ * input blocks over its pieces of a step, model_fopdt.c / model_arx.c).
  *
  * Mirrors gatetwin.plant.simulate.PlantSimulator (initialize, do_step, level_mm) and
  * gatetwin.plant.model.interp_clamped operation by operation, so that results agree to the bit.
@@ -90,7 +91,10 @@ static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
             return PLANT_ERROR;
         }
     }
-    return dynamics_check_parameters(m, msg);
+    if (dynamics_check_parameters(m, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    return effects_check_parameters(m, msg);
 }
 
 static PlantStatus check_parameters_if_changed(ModelData *m, PlantMessage *msg)
@@ -142,7 +146,7 @@ static PlantStatus equilibrium(const ModelData *m, double *u, KnotPosition *at, 
         check_parameters(m, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
-    *u = input_blocks(opening_mm, 0.0) - m->real[VR_OPENING_REF_MM];
+    *u = effects_input(m, opening_mm); /* at rest the gate is where it is commanded */
     *at = plant_locate(m, flow_m3h);
     return dynamics_equilibrium(m, *u, at, x0, msg);
 }
@@ -155,6 +159,8 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
         return PLANT_ERROR;
     }
     dynamics_initialize(m, u, x0);
+    effects_initialize(m, m->real[VR_OPENING_MM], m->real[VR_FLOW_M3H],
+                       plant_interp(&at, &m->real[VR_COL_LEVEL_REF_MM]) + x0);
     m->flow_in_force_m3h = m->real[VR_FLOW_M3H];
     m->parameters_changed = 0;
     m->initialized = 1;
@@ -175,14 +181,13 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     if (check_parameters_if_changed(m, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
-    /* ---- pipeline: u_eff = input_blocks(u); x = dynamics(u_eff); y = output_blocks(level) ---- */
-    const double u = input_blocks(opening_mm, step_s) - m->real[VR_OPENING_REF_MM];
-    if (dynamics_check_step(m, step_s, u, msg) != PLANT_OK) {
+    /* ---- pipeline: input blocks and dynamics over the family's pieces, then output blocks ---- */
+    if (dynamics_check_step(m, step_s, opening_mm, msg) != PLANT_OK) {
         return PLANT_ERROR; /* nothing has changed: a refused step leaves the state as it was */
     }
     const KnotPosition at = plant_locate(m, flow_m3h);
-    dynamics_step(m, step_s, u, &at);
-    /* output_blocks are stateless today and applied when the output is read (plant_output) */
+    dynamics_step(m, step_s, opening_mm, &at);
+    effects_step_end(m, step_s, flow_m3h);
     const PlantStatus range = check_flow_range(m, flow_m3h, msg);
     m->flow_in_force_m3h = flow_m3h;
     m->time_s += step_s;
@@ -196,9 +201,13 @@ PlantStatus plant_output(const ModelData *m, double *level_mm, PlantMessage *msg
     if (m->initialized) {
         at = plant_locate(m, m->flow_in_force_m3h);
         x = m->dyn.x;
-    } else if (equilibrium(m, &u, &at, &x, msg) != PLANT_OK) {
+        *level_mm = effects_output(m, plant_interp(&at, &m->real[VR_COL_LEVEL_REF_MM]) + x);
+        return PLANT_OK;
+    }
+    if (equilibrium(m, &u, &at, &x, msg) != PLANT_OK) {
         return PLANT_ERROR; /* before initialisation the output is the equilibrium level */
     }
-    *level_mm = output_blocks(plant_interp(&at, &m->real[VR_COL_LEVEL_REF_MM]) + x);
+    *level_mm = effects_output_at_rest(m, plant_interp(&at, &m->real[VR_COL_LEVEL_REF_MM]) + x,
+                                       m->real[VR_FLOW_M3H]);
     return PLANT_OK;
 }

@@ -13,6 +13,7 @@
 
 #include "model_config.h"
 #include GT_DYNAMICS_HEADER /* DynamicsState of the family: model_fopdt.h or model_arx.h */
+#include "effects.h"        /* EffectState */
 
 typedef enum { PLANT_OK = 0, PLANT_WARNING = 1, PLANT_ERROR = 2 } PlantStatus;
 
@@ -41,6 +42,7 @@ typedef struct {
     int warned_flow_range;    /* the out-of-range discharge warning was given */
     int parameters_changed;   /* parameters were set since they were last checked */
     DynamicsState dyn;        /* the family's state; dyn.x is the deviation from level_ref, mm */
+    EffectState fx;           /* the effect blocks' state */
 } ModelData;
 
 /* Where a discharge falls among the schedule knots (shared by every column). */
@@ -64,13 +66,31 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg);
 PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg);
 PlantStatus plant_output(const ModelData *m, double *level_mm, PlantMessage *msg);
 
-/* Implemented once per family (model_fopdt.c, model_arx.c); called by plant.c only. */
+/* Implemented once per family (model_fopdt.c, model_arx.c); called by plant.c only.
+ * dynamics_check_step and dynamics_step get the commanded opening: the family runs the input
+ * blocks over its own pieces of the step (see effects.c). */
 PlantStatus dynamics_check_parameters(const ModelData *m, PlantMessage *msg);
 PlantStatus dynamics_equilibrium(const ModelData *m, double u_mm, const KnotPosition *at,
                                  double *x0_mm, PlantMessage *msg);
 void dynamics_initialize(ModelData *m, double u_mm, double x0_mm);
-PlantStatus dynamics_check_step(const ModelData *m, double step_s, double u_mm,
+PlantStatus dynamics_check_step(const ModelData *m, double step_s, double command_mm,
                                 PlantMessage *msg);
-void dynamics_step(ModelData *m, double step_s, double u_mm, const KnotPosition *at);
+void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPosition *at);
+
+/* Implemented in effects.c (identity or no-op for the blocks a model does not carry). */
+PlantStatus effects_check_parameters(const ModelData *m, PlantMessage *msg);
+double effects_input(const ModelData *m, double gate_mm);
+void effects_actuate(const ModelData *m, EffectState *fx, double command_mm, double duration_s);
+void effects_fopdt_parameters(const ModelData *m, double flow_m3h, double *gain,
+                              double *time_constant_s);
+double grid_index_at_or_after(double time_s, double origin_s, double step_s);
+void effects_initialize(ModelData *m, double opening_mm, double flow_m3h, double level_mm);
+void effects_seiche_piece(ModelData *m, double duration_s, double gate_mm);
+void effects_lag_interval(ModelData *m, double level_target_mm, double level_excess_mm,
+                          double duration_s, double level_time_constant_s);
+void effects_lag_sample(ModelData *m, double level_mm, double duration_s);
+void effects_step_end(ModelData *m, double step_s, double flow_m3h);
+double effects_output(const ModelData *m, double level_mm);
+double effects_output_at_rest(const ModelData *m, double level_mm, double flow_m3h);
 
 #endif

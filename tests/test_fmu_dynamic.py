@@ -30,6 +30,7 @@ from fmu_support import (
     reference_run,
 )
 from gatetwin.fmu import export_fmu
+from gatetwin.fmu.c_build import source_files
 from gatetwin.plant.model import ArxPlant, FopdtPlant, Schedule
 from gatetwin.plant.simulate import PlantSimulator
 
@@ -366,7 +367,7 @@ def test_lifecycle_is_clean_under_address_sanitizer(fmus, tmp_path, family):
     subprocess.run(
         [compiler(), "-std=c99", "-O1", "-g", "-fPIC", "-shared", "-fvisibility=hidden",
          "-ffp-contract=off", "-Wall", "-Wextra", "-Werror", *flags, "-o", str(fmu),
-         "fmi2_glue.c", "plant.c", f"model_{family}.c", "-lm"],
+         *source_files(family), "-lm"],
         cwd=sources, check=True, capture_output=True,
     )
     host = tmp_path / "host_asan"

@@ -102,7 +102,7 @@ def test_c_fmu_ships_sources_that_rebuild(fmus, tmp_path):
     with zipfile.ZipFile(path) as zf:
         zf.extractall(tmp_path)
     listed = [f.get("name") for f in _xml(path).iter("File")]
-    assert listed == ["fmi2_glue.c", "plant.c", "model_arx.c"]
+    assert listed == ["fmi2_glue.c", "plant.c", "effects.c", "model_arx.c"]
     build_line = (tmp_path / "sources" / "BUILD.txt").read_text().splitlines()[2].split()
     assert "-Werror" in build_line and "-fvisibility=hidden" in build_line
     build_line[0] = compiler()
@@ -152,7 +152,6 @@ def test_failing_compiler_leaves_the_previous_fmu_in_place(tmp_path, monkeypatch
         ({"model_name": "3-gauge"}, "must be a C identifier"),
         ({"provenance": {"r2": float("nan")}}, "provenance must be JSON"),
         ({"out": "model.zip"}, "must end in .fmu"),
-        ({"plant": "effects"}, "effect blocks .* not supported"),
         ({"plant": "arx9"}, r"orders \(na, nb, nk\) = \(9, 2, 1\) exceed 8"),
         ({"plant": "not a plant"}, "expected FopdtPlant or ArxPlant"),
     ],
@@ -161,8 +160,6 @@ def test_bad_requests_raise_export_error(tmp_path, change, message):
     args = {"backend": "python", "model_name": "m", "provenance": {}, "out": "m.fmu",
             "plant": PLANTS["fopdt"]()}
     args.update(change)
-    if args["plant"] == "effects":
-        args["plant"] = replace(PLANTS["fopdt"](), effects=({"kind": "rate_limit"},))
     if args["plant"] == "arx9":
         arx = PLANTS["arx"]()
         columns = {**arx.schedule.values, **{f"a{i}": (0.01, 0.01) for i in range(3, 10)}}

@@ -111,4 +111,4 @@ def test_run_writes_models_fmus_figures_and_summary(tmp_path):
         assert sorted(p.stem for p in (out / "fmus" / backend).glob("*.fmu")) == models
     assert len(list((out / "figures").glob("*.png"))) >= 11
     summary = (out / "summary.md").read_text(encoding="utf-8")
-    assert "Table 2" in summary and "Published vs ours" in summary
+    assert "Paper's Table 2" in summary and "Published vs ours" in summary

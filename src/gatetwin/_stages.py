@@ -6,7 +6,6 @@ Each stage is a plain ``stage(ctx)`` on the pipeline's context (see
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 #: The run's pass criterion for the validation matrix: a free-running linear model of a
@@ -68,10 +67,6 @@ def applicable_pairs(ctx: Any) -> tuple[dict[str, list[str]], list[dict[str, str
     return pairs, outside
 
 
-def _figure(path: Path, caption: str) -> tuple[Path, str]:
-    return (path, caption)
-
-
 def write_report(ctx: Any) -> None:
     """``report.html``: tables, figures, validation matrix (and later sections)."""
     from gatetwin.report import Report, Table
@@ -84,7 +79,9 @@ def write_report(ctx: Any) -> None:
         "(virtual-flume) records; see README for why each difference exists.",
         *(Table(t.header, t.rows, caption=t.title) for t in tables),
     )
-    figures = [_figure(p, p.stem.replace("_", " ")) for p in ctx.results.get("figures", [])]
+    from gatetwin.figures import caption
+
+    figures = [(p, caption(p)) for p in ctx.results.get("figures", [])]
     report.add_section("Identification figures", figures=figures)
     cells = ctx.results.get("validation", [])
     if cells:

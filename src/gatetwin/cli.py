@@ -205,6 +205,38 @@ def _run_validate(args: argparse.Namespace) -> int:
     return 0 if result.passed else EXIT_FAILED
 
 
+# --------------------------------------------------------------------------- mpc-demo
+
+
+def _add_mpc_demo_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--plant", choices=("fmu", "flume"), default="fmu",
+        help="plant in the loop: the exported C FMU through fmpy, or the virtual flume "
+        "(default: fmu)",
+    )  # fmt: skip
+    parser.add_argument("--json", metavar="OUT.json", required=True, help="metrics (JSON)")
+    parser.add_argument("--plots", metavar="DIR", required=True, help="one PNG per scenario")
+    parser.add_argument(
+        "--minutes", type=float, default=30.0, help="simulated minutes per scenario (default 30)"
+    )
+    parser.add_argument(
+        "--model", metavar="MODEL.json",
+        help="FOPDT model file to control (default: the built-in 3F demo plant)",
+    )  # fmt: skip
+
+
+def _run_mpc_demo(args: argparse.Namespace) -> int:
+    from gatetwin.mpc.demo import load_demo_plant, run_mpc_demo
+
+    result = run_mpc_demo(
+        load_demo_plant(args.model), plant_kind=args.plant, minutes=args.minutes,
+        out_plots_dir=args.plots, progress=print_to_stderr,
+    )  # fmt: skip
+    _write_json(args.json, result)
+    print(f"wrote {args.json} and the plots in {args.plots}")
+    return 0
+
+
 # --------------------------------------------------------------------------- registry
 
 #: The subcommands, in ``--help`` order. Others (flume, identify, export, validate,
@@ -245,6 +277,12 @@ _COMMANDS: tuple[Command, ...] = (
         "simulate an FMU on measured records with fmpy and score it (JSON, JUnit, plots)",
         _add_validate_arguments,
         _run_validate,
+    ),
+    Command(
+        "mpc-demo",
+        "MPC vs SIMC PI on the exported FMU or the virtual flume: metrics JSON and plots",
+        _add_mpc_demo_arguments,
+        _run_mpc_demo,
     ),
     Command(
         "run",

@@ -201,6 +201,27 @@ def _jobs(ident: Identified) -> list[tuple[str, Callable[[Path], Path]]]:
     return jobs
 
 
+CAPTIONS = {
+    "fig02": "Step responses ΔH at the five gauges, condition A (as the paper's Figure 2)",
+    "fig03": "Measured ΔH and the least-squares FOPDT at 3F, A and B (Figure 3)",
+    "fig04": "Step responses ΔH at the five gauges, condition B (Figure 4)",
+    "fig05": "ΔH at 3F, condition A against B (Figure 5)",
+    "fig06": "PRBS opening and the level at 3F, condition C (Figure 6)",
+    "fig07": "PRBS opening and the level at 3F, condition D (Figure 7)",
+    "fig08": "Measured vs one-step-ahead ARX prediction, C (Figure 8)",
+    "fig09": "Measured vs one-step-ahead ARX prediction, D (Figure 9)",
+    "fig10": "One-step ARX residuals, C and D (Figure 10)",
+    "fig11": "Rating relation: level at 3F against the opening (Figure 11)",
+    "fig12": "Rating relation: level at 3F against the discharge (Figure 12)",
+    "schedule": "K, T, L of the step conditions and the schedule on Q, with the held-out Q55",
+}
+
+
+def caption(path: Path) -> str:
+    """The caption of a figure written by :func:`write_all`."""
+    return CAPTIONS.get(path.stem.split("_")[0], path.stem.replace("_", " "))
+
+
 def write_all(ident: Identified, folder: Path) -> list[Path]:
     """Write every figure the identified records support into ``folder``."""
     return [draw(folder / name) for name, draw in _jobs(ident)]

@@ -57,7 +57,7 @@ def step_table(ident: Identified, condition: str) -> Table:
         ))  # fmt: skip
     number = {"A": 2, "B": 3}[condition]
     return Table(
-        f"Table {number}, condition {condition} (Q ≈ {tab.flow_m3h} m³/h, "
+        f"Paper's Table {number}, condition {condition} (Q ≈ {tab.flow_m3h} m³/h, "
         f"{tab.opening_before_mm:g} → {tab.opening_after_mm:g} mm): published / ours",
         ("gauge", "pre mean", "pre SD", "post mean", "post SD", "K", "L (s)", "T (s)",
          "LS fit K", "LS fit L (s)", "LS fit T (s)"),
@@ -85,7 +85,7 @@ def arx_table(ident: Identified) -> Table:
             f"{d['dc_gain']:.2f}", f"{d['time_constant_s']:.1f}",
         ))  # fmt: skip
     return Table(
-        "Table 4, ARX(2,2,1) at 3F: published / ours",
+        "Paper's Table 4, ARX(2,2,1) at 3F: published / ours",
         ("cond", "a1", "a2", "b1", "b2", "R² (1-step)", "MAE (mm)", "RMSE (mm)",
          "free-run fit %", "free-run RMSE (mm)", "DC gain", "dominant T (s)"),
         tuple(rows),
@@ -118,7 +118,7 @@ def consistency_table(ident: Identified, gauge: str = "3F") -> Table:
             f"e {e0:.1f})", "–", "–", "–", "–", f"{res.dc_gain_mm_per_mm:.2f}",
         ))  # fmt: skip
     return Table(
-        f"Table 5 extended, gains at {gauge} (mm/mm): static vs step vs ARX",
+        f"Paper's Table 5 extended, gains at {gauge} (mm/mm): static vs step vs ARX",
         ("cond", "published static", "our static (step's Q)", "our static (Table 5's Q)",
          "published step K", "our step K (paper)", "our step K (LS)", "our ARX DC gain"),
         tuple(rows),

@@ -37,7 +37,9 @@ def export_fmu(
     Parameters
     ----------
     plant : FopdtPlant or ArxPlant
-        The plant to render (no effect blocks; ARX orders up to 8).
+        The plant to render, with its effect blocks (:mod:`gatetwin.plant.effects`; their
+        parameters become tunable FMI parameters ``effect.<kind>.<parameter>``); ARX orders
+        up to 8.
     out_path : path
         Target ``.fmu`` file; written atomically (built in a temporary folder next to it and
         moved into place only on success).

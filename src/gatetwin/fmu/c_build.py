@@ -29,7 +29,7 @@ CFLAGS = (
     "-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-ffp-contract=off",
     "-Wall", "-Wextra", "-Werror",
 )
-COMMON_SOURCES = ("fmi2_glue.c", "plant.c")
+COMMON_SOURCES = ("fmi2_glue.c", "plant.c", "effects.c")
 COMMON_HEADERS = (
     "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h", "plant.h", "effects.h",
 )

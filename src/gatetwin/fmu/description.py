@@ -13,7 +13,10 @@ Variable names (FMI structured naming, 1-based knot index ``k``):
 * ``opening_ref_mm`` — tunable; ``sample_period_s`` (ARX only) — fixed;
 * ``schedule.flow_m3h[k]`` — the discharge knots; ``schedule.<column>[k]`` — each schedule
   column at knot ``k`` (``gain_mm_per_mm``, ``time_constant_s``, ``dead_time_s``,
-  ``level_ref_mm`` for FOPDT; ``a1``.., ``b1``.., ``level_ref_mm`` for ARX), all tunable.
+  ``level_ref_mm`` for FOPDT; ``a1``.., ``b1``.., ``level_ref_mm`` for ARX), all tunable;
+* ``effect.<kind>.<parameter>`` — each effect block's parameters
+  (:mod:`gatetwin.plant.effects`), tunable (the rate limit's ``substep_s`` fixed), with the
+  block's limits checked by both backends.
 
 This module builds nothing; see :mod:`gatetwin.fmu.c_build` and :mod:`gatetwin.fmu.python_build`.
 """
@@ -22,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import re
 import uuid
 from dataclasses import dataclass, field
@@ -29,6 +33,7 @@ from typing import Any
 from xml.etree import ElementTree as ET
 
 from gatetwin.errors import ExportError
+from gatetwin.plant.effects import BLOCK_FIELDS, KINDS, parameter_specs
 from gatetwin.plant.model import (
     FLOW_RANGE_M3H,
     OPENING_RANGE_MM,
@@ -55,6 +60,10 @@ UNITS: dict[str, tuple[str, dict[str, int], float]] = {
     "m3/h": ("cubic metre per hour", {"m": 3, "s": -1}, 1.0 / 3600.0),
     "s": ("second", {"s": 1}, 1.0),
     "mm/mm": ("millimetre per millimetre (dimensionless)", {}, 1.0),
+    "mm/s": ("millimetre per second", {"m": 1, "s": -1}, 0.001),
+    "1/mm": ("per millimetre", {"m": -1}, 1000.0),
+    "h/m3": ("per cubic metre per hour", {"m": -3, "s": 1}, 3600.0),
+    "mm/(m3/h)": ("millimetre per cubic metre per hour", {"m": -2, "s": 1}, 3.6),
 }
 _FOPDT_COLUMNS = {
     "gain_mm_per_mm": ("mm/mm", "Static gain K of level on opening"),
@@ -77,6 +86,7 @@ class VariableSpec:
     unit: str
     description: str
     start: float | None
+    initial_dependency: bool = True
 
     @property
     def kind(self) -> str:
@@ -91,6 +101,7 @@ class FmuDescription:
 
     ``columns`` maps each schedule column (``flow_m3h`` for the knots first) to the value
     reference of its entry at the first knot; the entries at later knots follow it.
+    ``effects`` maps each effect block's kind to ``{parameter: value reference}``.
     """
 
     model_identifier: str
@@ -104,6 +115,7 @@ class FmuDescription:
     step_size_s: float
     summary: str
     provenance: dict[str, Any] = field(default_factory=dict)
+    effects: dict[str, dict[str, int]] = field(default_factory=dict)
 
     @property
     def output(self) -> VariableSpec:
@@ -129,6 +141,11 @@ def describe(
         columns[name] = _first(specs, f"schedule.{name}[1]").vr
     orders = (plant.na, plant.nb, plant.nk) if isinstance(plant, ArxPlant) else None
     summary = _summary(plant, provenance)
+    effects = {
+        e["kind"]: {p.name: _first(specs, f"effect.{e['kind']}.{p.name}").vr
+                    for p in parameter_specs(e["kind"])}
+        for e in plant.effects
+    }  # fmt: skip
     return FmuDescription(
         model_identifier=model_name,
         guid=_guid(plant, model_name, provenance, build_id),
@@ -141,6 +158,7 @@ def describe(
         step_size_s=plant.sample_period_s if isinstance(plant, ArxPlant) else 1.0,
         summary=summary,
         provenance=dict(provenance),
+        effects=effects,
     )
 
 
@@ -151,9 +169,6 @@ def _check_exportable(plant: Plant, model_name: str) -> None:
         raise ExportError(
             f"model_name {model_name!r} must be a C identifier (letters, digits, _; <= 64 chars)"
         )
-    if plant.effects:
-        kinds = ", ".join(str(e.get("kind", "?")) for e in plant.effects)
-        raise ExportError(f"effect blocks ({kinds}) are not supported by the FMU export yet")
     if isinstance(plant, ArxPlant) and max(plant.na, plant.nb, plant.nk) > MAX_ARX_ORDER:
         raise ExportError(
             f"arx orders (na, nb, nk) = ({plant.na}, {plant.nb}, {plant.nk}) exceed "
@@ -195,7 +210,16 @@ def _variables(plant: Plant) -> list[VariableSpec]:
         for k, value in enumerate(values, start=1):
             rows.append((f"schedule.{name}[{k}]", "parameter", "tunable", "exact", unit,
                          f"{text}, knot {k}", float(value)))
-    return [VariableSpec(r[0], vr, *r[1:]) for vr, r in enumerate(rows)]
+    specs = [VariableSpec(r[0], vr, *r[1:]) for vr, r in enumerate(rows)]
+    for effect in plant.effects:
+        for p in parameter_specs(effect["kind"]):
+            specs.append(VariableSpec(
+                f"effect.{effect['kind']}.{p.name}", len(specs), "parameter",
+                "fixed" if p.fixed else "tunable", "exact", p.unit,
+                f"{effect['kind']}: {p.description}", float(effect[p.name]),
+                initial_dependency=p.equilibrium,
+            ))  # fmt: skip
+    return specs
 
 
 def _column_meta(name: str) -> tuple[str, str]:
@@ -294,6 +318,7 @@ def model_config_header(desc: FmuDescription) -> str:
         lines.append(f"#define VR_SAMPLE_PERIOD_S {desc.vr('sample_period_s')}")
     lines.append("/* schedule column c at knot k (from 0): VR_COL_c + k */")
     lines += [f"#define {_macro(name)} {vr}" for name, vr in desc.columns.items()]
+    lines += _effect_config_lines(desc)
     lines += ["", "/* every Real variable in value-reference order: name, kind, start */",
               "#define GT_VARIABLES(X) \\"]
     lines += [
@@ -302,6 +327,32 @@ def model_config_header(desc: FmuDescription) -> str:
     ]
     lines += ["", "#endif", ""]
     return "\n".join(lines)
+
+
+def _effect_limits(desc: FmuDescription) -> list[tuple[int, float, float, bool]]:
+    """``(vr, minimum, maximum, minimum_exclusive)`` of every effect parameter."""
+    out = []
+    for kind, vrs in desc.effects.items():
+        for p in parameter_specs(kind):
+            if not (math.isfinite(p.minimum) and math.isfinite(p.maximum)):
+                raise ExportError(f"effect {kind}: {p.name} needs finite limits for the FMU")
+            out.append((vrs[p.name], p.minimum, p.maximum, p.minimum_exclusive))
+    return out
+
+
+def _effect_config_lines(desc: FmuDescription) -> list[str]:
+    lines = ["", "/* effect blocks (gatetwin.plant.effects): 1 when the model carries one */"]
+    for kind in KINDS:
+        stem = BLOCK_FIELDS[kind].upper()
+        lines.append(f"#define GT_HAS_{stem} {int(kind in desc.effects)}")
+        for name, vr in desc.effects.get(kind, {}).items():
+            lines.append(f"#define VR_FX_{stem}_{name.upper()} {vr}")
+    lines.append("/* effect parameter limits: vr, minimum, maximum, minimum exclusive */")
+    lines.append("#define GT_EFFECT_LIMITS(X) \\")
+    lines += [f"    X({vr}, {_c_double(lo)}, {_c_double(hi)}, {int(excl)}) \\"
+              for vr, lo, hi, excl in _effect_limits(desc)]  # fmt: skip
+    lines.append("")
+    return lines
 
 
 def slave_config(desc: FmuDescription) -> dict[str, Any]:
@@ -320,6 +371,8 @@ def slave_config(desc: FmuDescription) -> dict[str, Any]:
         "arx_step_rtol": ARX_STEP_RTOL,
         "arx_max_substeps": ARX_MAX_SUBSTEPS,
         "communication_point_rtol": COMMUNICATION_POINT_RTOL,
+        "effects": desc.effects,
+        "effect_limits": [list(row) for row in _effect_limits(desc)],
         "variables": [
             {"name": v.name, "vr": v.vr, "causality": v.causality,
              "variability": v.variability, "initial": v.initial, "kind": v.kind,
@@ -414,7 +467,7 @@ def _model_structure(root: ET.Element, desc: FmuDescription) -> None:
     dynamic_only = {"time_constant_s", "dead_time_s", "sample_period_s"}
     initial_deps = [
         index[v.name] for v in desc.variables
-        if v.causality in ("input", "parameter")
+        if v.causality in ("input", "parameter") and v.initial_dependency
         and not any(v.name.startswith(f"schedule.{c}[") or v.name == c for c in dynamic_only)
     ]
     structure = ET.SubElement(root, "ModelStructure")

@@ -25,7 +25,10 @@ from gatetwin.fmu.description import (
 )
 
 TEMPLATE = Path(__file__).with_name("slave_template.py")
+BLOCKS = Path(__file__).resolve().parents[1] / "plant" / "blocks.py"
 _CONFIG_LINE = 'CONFIG_JSON = "{}"  # replaced at export by gatetwin.fmu.python_build'
+_BLOCKS_BEGIN = "# BEGIN gatetwin.plant.blocks\n"
+_BLOCKS_END = "# END gatetwin.plant.blocks\n"
 #: pythonfmu 0.7.0 serialises FMU states through ``Fmi2Slave._fmu_state_to_bytes`` (JSON);
 #: the FMU needs a Python interpreter, hence needsExecutionTool.
 FLAGS = CoSimulationFlags(
@@ -35,11 +38,24 @@ FLAGS = CoSimulationFlags(
 )
 
 
+def blocks_source() -> str:
+    """gatetwin/plant/blocks.py without its docstring and ``__future__`` import (the slave
+    has its own); it uses the standard library only."""
+    text = BLOCKS.read_text(encoding="utf-8")
+    body = text.split("from __future__ import annotations\n", 1)[-1]
+    return "# gatetwin/plant/blocks.py, embedded at export\n" + body.strip() + "\n"
+
+
 def slave_source(desc: FmuDescription) -> str:
-    """The slave module with the description embedded."""
+    """The slave module with the description and the effect-block kernels embedded."""
     text = TEMPLATE.read_text(encoding="utf-8")
     if text.count(_CONFIG_LINE) != 1:
         raise ExportError(f"{TEMPLATE.name}: CONFIG_JSON marker line missing")
+    head, sep, rest = text.partition(_BLOCKS_BEGIN)
+    _, sep_end, tail = rest.partition(_BLOCKS_END)
+    if not (sep and sep_end):
+        raise ExportError(f"{TEMPLATE.name}: gatetwin.plant.blocks markers missing")
+    text = head + blocks_source() + tail
     config = json.dumps(slave_config(desc), sort_keys=True, allow_nan=False)
     return text.replace(_CONFIG_LINE, f"CONFIG_JSON = {config!r}")
 

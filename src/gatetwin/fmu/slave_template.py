@@ -2,7 +2,9 @@
 
 Self-contained on purpose: the FMU runs where gatetwin is not installed, so this file uses the
 standard library and pythonfmu only. It mirrors gatetwin.plant.simulate.PlantSimulator and the
-C FMU (fmu_templates/plant.c, model_fopdt.c, model_arx.c) operation by operation.
+C FMU (fmu_templates/plant.c, model_fopdt.c, model_arx.c, effects.c) operation by operation.
+The effect blocks' arithmetic is gatetwin/plant/blocks.py itself: at export its source replaces
+the import between the BEGIN/END markers below, so the FMU carries it.
 
 pythonfmu 0.7.0 maps ``do_step() -> False`` to fmi2Discard and any exception to fmi2Fatal, and
 forwards log messages only when the importer turned logging on; refused steps therefore return
@@ -17,6 +19,21 @@ from typing import Any
 
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
+
+# BEGIN gatetwin.plant.blocks
+from gatetwin.plant.blocks import (  # replaced by the module's source at export
+    first_order,
+    gain_map,
+    grid_index_at_or_after,
+    lag_interval,
+    move_toward,
+    play,
+    seiche_advance,
+    seiche_equilibrium,
+    seiche_output,
+)
+
+# END gatetwin.plant.blocks
 
 CONFIG_JSON = "{}"  # replaced at export by gatetwin.fmu.python_build
 CONFIG: dict[str, Any] = json.loads(CONFIG_JSON)
@@ -68,6 +85,7 @@ class GatetwinPlant(Fmi2Slave):
         self.warned_flow_range = False
         self.parameters_changed = True
         self.dyn: dict[str, Any] = {"x": 0.0}
+        self.fx: dict[str, float] = {}
         for v in self.variables:
             self._register(v)
 
@@ -166,6 +184,7 @@ class GatetwinPlant(Fmi2Slave):
         self.warned_flow_range = state["warned_flow_range"]
         self.parameters_changed = state["parameters_changed"]
         self.dyn = state["dyn"]
+        self.fx = state["fx"]
 
     def _state(self) -> dict[str, Any]:
         return {
@@ -176,6 +195,7 @@ class GatetwinPlant(Fmi2Slave):
             "warned_flow_range": self.warned_flow_range,
             "parameters_changed": self.parameters_changed,
             "dyn": self.dyn,
+            "fx": self.fx,
         }
 
     # -- the plant (plant.c) --------------------------------------------------------------------
@@ -203,6 +223,7 @@ class GatetwinPlant(Fmi2Slave):
             self._fopdt_check_parameters()
         else:
             self._arx_check_parameters()
+        self._effects_check_parameters()
 
     def _check_flow_range(self, flow_m3h: float) -> tuple[int, str]:
         knots = self._column("flow_m3h")
@@ -217,19 +238,20 @@ class GatetwinPlant(Fmi2Slave):
 
     def _equilibrium(self, u: float, q: float) -> float:
         if CONFIG["family"] == "fopdt":
-            return self._at("gain_mm_per_mm", q) * u
+            return self._fopdt_parameters(q)[0] * u
         return self._arx_equilibrium(u, q)
 
     def _initialize(self) -> tuple[int, str]:
         opening_mm, flow_m3h = self.real[self.vr_opening], self.real[self.vr_flow]
         self._check_inputs(opening_mm, flow_m3h)
         self._check_parameters()
-        u = opening_mm - self.real[self.vr_opening_ref]
+        u = self._effective_input(opening_mm)
         x0 = self._equilibrium(u, flow_m3h)
         if CONFIG["family"] == "fopdt":
             self._fopdt_initialize(u, x0)
         else:
             self._arx_initialize(u, x0)
+        self._effects_initialize(opening_mm, flow_m3h, self._at("level_ref_mm", flow_m3h) + x0)
         self.flow_in_force_m3h = flow_m3h
         self.parameters_changed = False
         self.initialized = True
@@ -243,14 +265,14 @@ class GatetwinPlant(Fmi2Slave):
         if self.parameters_changed:
             self._check_parameters()
             self.parameters_changed = False
-        # ---- pipeline: u_eff = input_blocks(u); x = dynamics(u_eff); y = output_blocks(level)
-        u = opening_mm - self.real[self.vr_opening_ref]
+        # ---- pipeline: input blocks and dynamics over the family's pieces, then output blocks
         if CONFIG["family"] == "fopdt":
-            self._fopdt_check_step(u)
-            self._fopdt_step(h, u, flow_m3h)
+            self._fopdt_check_step(h, opening_mm)
+            self._fopdt_step(h, opening_mm, flow_m3h)
         else:
             n = self._arx_samples(h)
-            self._arx_step(n, u, flow_m3h)
+            self._arx_step(n, opening_mm, flow_m3h)
+        self._effects_step_end(h, flow_m3h)
         status = self._check_flow_range(flow_m3h)
         self.flow_in_force_m3h = flow_m3h
         self.time_s += h
@@ -258,12 +280,19 @@ class GatetwinPlant(Fmi2Slave):
 
     def _output(self) -> float:
         if self.initialized:
-            return self._at("level_ref_mm", self.flow_in_force_m3h) + self.dyn["x"]
+            return self._effects_output(
+                self._at("level_ref_mm", self.flow_in_force_m3h) + self.dyn["x"]
+            )
         opening_mm, flow_m3h = self.real[self.vr_opening], self.real[self.vr_flow]
         self._check_inputs(opening_mm, flow_m3h)
         self._check_parameters()
-        x0 = self._equilibrium(opening_mm - self.real[self.vr_opening_ref], flow_m3h)
-        return self._at("level_ref_mm", flow_m3h) + x0
+        x0 = self._equilibrium(self._effective_input(opening_mm), flow_m3h)
+        level = self._at("level_ref_mm", flow_m3h) + x0
+        if self._has("inflow_disturbance"):
+            level += self._p("inflow_disturbance", "gain_mm_per_m3h") * (
+                flow_m3h - self._p("inflow_disturbance", "flow_ref_m3h")
+            )
+        return level
 
     # -- FOPDT (model_fopdt.c) ------------------------------------------------------------------
     def _fopdt_check_parameters(self) -> None:
@@ -291,22 +320,80 @@ class GatetwinPlant(Fmi2Slave):
             "max_dead_time_s": max(self._column("dead_time_s")),
         }
 
-    def _fopdt_check_step(self, u: float) -> None:
+    def _fopdt_parameters(self, q: float) -> tuple[float, float]:
+        k = self._at("gain_mm_per_mm", q)
+        tau = self._at("time_constant_s", q)
+        if self._has("flow_dependent_gain"):
+            dq = q - self._p("flow_dependent_gain", "flow_ref_m3h")
+            k = k * math.exp(self._p("flow_dependent_gain", "gain_slope_per_m3h") * dq)
+            tau = tau * math.exp(self._p("flow_dependent_gain", "time_constant_slope_per_m3h") * dq)
+        return k, tau
+
+    def _fopdt_check_step(self, h: float, command: float) -> None:
         capacity = CONFIG["history_capacity"]
-        if u != self.dyn["change_u"][-1] and len(self.dyn["change_u"]) >= capacity:
+        count = len(self.dyn["change_u"])
+        if self._has("actuator_rate_limit"):
+            delta = self._p("actuator_rate_limit", "substep_s")
+            origin, t0 = self.fx["grid_origin_s"], self.time_s
+            k0 = grid_index_at_or_after(t0, origin, delta)
+            k1 = grid_index_at_or_after(t0 + h, origin, delta)
+            pieces = k1 - k0 + (0 if origin + k0 * delta == t0 else 1)
+            if count + pieces > capacity:
+                raise PlantError(
+                    f"communication step {_g(h)} s spans {pieces} actuator sub-steps; with the "
+                    f"{count} input changes held for the dead time they exceed the dead-time "
+                    f"history ({capacity})"
+                )
+            return
+        probe = dict(self.fx)
+        self._actuate(probe, command, h)
+        u = self._effective_input(probe["gate_mm"])
+        if u != self.dyn["change_u"][-1] and count >= capacity:
             raise PlantError(
                 "input changes faster than the dead-time history can hold "
                 f"({capacity} change points within the longest dead time)"
             )
 
-    def _fopdt_step(self, h: float, u: float, q: float) -> None:
+    def _fopdt_step(self, h: float, command: float, q: float) -> None:
+        k, tau = self._fopdt_parameters(q)
+        delay = self._at("dead_time_s", q)
+        level_ref = self._at("level_ref_mm", q)
+        for t_start, t_end, gate in self._fopdt_pieces(h, command):
+            self._fopdt_piece(t_start, t_end, self._effective_input(gate), (k, tau, delay),
+                              level_ref)  # fmt: skip
+            self._seiche_piece(t_end - t_start, gate)
+
+    def _fopdt_pieces(self, h: float, command: float) -> Any:
+        fx, t0 = self.fx, self.time_s
+        t1 = t0 + h
+        if not self._has("actuator_rate_limit"):
+            self._actuate(fx, command, h)
+            fx["held_gate_mm"] = fx["gate_mm"]
+            yield t0, t1, fx["gate_mm"]
+            return
+        delta, origin = self._p("actuator_rate_limit", "substep_s"), fx["grid_origin_s"]
+        k = grid_index_at_or_after(t0, origin, delta)
+        tk, t_start, t_act = origin + k * delta, t0, t0
+        while True:
+            if tk > t_start:
+                t_end = tk if tk < t1 else t1
+                yield t_start, t_end, fx["held_gate_mm"]
+                if not tk < t1:
+                    break
+                t_start = tk
+            self._actuate(fx, command, tk - t_act)
+            fx["held_gate_mm"], t_act = fx["gate_mm"], tk
+            k += 1
+            tk = origin + k * delta
+        self._actuate(fx, command, t1 - t_act)
+
+    def _fopdt_piece(
+        self, t0: float, t1: float, u: float, params: tuple[float, float, float], level_ref: float
+    ) -> None:
         d = self.dyn
         times, inputs = d["change_t"], d["change_u"]
-        k = self._at("gain_mm_per_mm", q)
-        tau = self._at("time_constant_s", q)
-        delay = self._at("dead_time_s", q)
-        t0 = self.time_s
-        t1 = t0 + h
+        k, tau, delay = params
+        lag = self._has("sensor_lag")
         if u != inputs[-1]:
             times.append(t0)
             inputs.append(u)
@@ -319,6 +406,11 @@ class GatetwinPlant(Fmi2Slave):
             if j + 1 < len(times):
                 t_next = min(t1, times[j + 1] + delay)
             target = k * inputs[j]
+            if lag:
+                self.fx["sensed_mm"] = lag_interval(
+                    self.fx["sensed_mm"], level_ref + target, d["x"] - target, t_next - t, tau,
+                    self._p("sensor_lag", "time_constant_s"),
+                )
             d["x"] = target + (d["x"] - target) * math.exp(-(t_next - t) / tau)
             t = t_next
         while len(times) > 1 and times[1] + d["max_dead_time_s"] <= t1:
@@ -372,11 +464,18 @@ class GatetwinPlant(Fmi2Slave):
             )
         return n
 
-    def _arx_step(self, n: int, u: float, q: float) -> None:
+    def _arx_step(self, n: int, command: float, q: float) -> None:
         _, _, nk = CONFIG["arx_orders"]
         a, b = self._arx_coefficients(q)
-        d = self.dyn
+        d, fx = self.dyn, self.fx
+        ts = self.real[self._vr("sample_period_s")]
+        level_ref = self._at("level_ref_mm", q)
+        rate_limited = self._has("actuator_rate_limit")
+        duration = 0.0 if rate_limited else ts
         for _ in range(n):
+            self._actuate(fx, command, duration)
+            fx["held_gate_mm"] = fx["gate_mm"]
+            u = self._effective_input(fx["gate_mm"])
             d["u_hist"] = [u, *d["u_hist"][:-1]]
             x_new = 0.0
             for i, a_i in enumerate(a):
@@ -385,3 +484,91 @@ class GatetwinPlant(Fmi2Slave):
                 x_new += b_j * d["u_hist"][nk - 1 + j]
             d["x_hist"] = [x_new, *d["x_hist"][:-1]]
             d["x"] = x_new
+            if self._has("sensor_lag"):
+                fx["sensed_mm"] = first_order(fx["sensed_mm"], level_ref + x_new, ts,
+                                              self._p("sensor_lag", "time_constant_s"))  # fmt: skip
+            self._seiche_piece(ts, fx["gate_mm"])
+            duration = ts
+        if rate_limited:
+            self._actuate(fx, command, ts)
+
+    # -- effect blocks (effects.c) --------------------------------------------------------------
+    def _has(self, kind: str) -> bool:
+        return kind in CONFIG["effects"]
+
+    def _p(self, kind: str, name: str) -> float:
+        return self.real[CONFIG["effects"][kind][name]]
+
+    def _effects_check_parameters(self) -> None:
+        for vr, lo, hi, exclusive in CONFIG["effect_limits"]:
+            value, name = self.real[vr], self.variables[vr]["name"]
+            if exclusive and not value > lo:
+                raise PlantError(f"{name} = {_g(value)} must be > {lo:g}")
+            if not exclusive and not value >= lo:
+                raise PlantError(f"{name} = {_g(value)} must be >= {lo:g}")
+            if not value <= hi:
+                raise PlantError(f"{name} = {_g(value)} must be <= {hi:g}")
+
+    def _effective_input(self, gate_mm: float) -> float:
+        v = gate_mm - self.real[self.vr_opening_ref]
+        if self._has("opening_nonlinearity"):
+            return gain_map(v, self._p("opening_nonlinearity", "gain_slope_per_mm"))
+        return v
+
+    def _actuate(self, fx: dict[str, float], command: float, duration: float) -> None:
+        if self._has("actuator_rate_limit"):
+            travel = self._p("actuator_rate_limit", "rate_mm_per_s") * duration
+            fx["actuator_mm"] = move_toward(fx["actuator_mm"], command, travel)
+        else:
+            fx["actuator_mm"] = command
+        if self._has("actuator_backlash"):
+            band = self._p("actuator_backlash", "deadband_mm")
+            fx["gate_mm"] = play(fx["gate_mm"], fx["actuator_mm"], band)
+        else:
+            fx["gate_mm"] = fx["actuator_mm"]
+
+    def _effects_initialize(self, opening_mm: float, flow_m3h: float, level_mm: float) -> None:
+        fx = dict.fromkeys(("seiche_x1", "seiche_x2", "inflow_mm", "drift_mm"), 0.0)
+        fx.update(actuator_mm=opening_mm, gate_mm=opening_mm, held_gate_mm=opening_mm,
+                  grid_origin_s=self.time_s, sensed_mm=level_mm)  # fmt: skip
+        if self._has("seiche"):
+            fx["seiche_x1"] = seiche_equilibrium(
+                opening_mm - self.real[self.vr_opening_ref], self._p("seiche", "period_s"),
+                self._p("seiche", "decay_time_s"),
+            )
+        if self._has("inflow_disturbance"):
+            fx["inflow_mm"] = self._p("inflow_disturbance", "gain_mm_per_m3h") * (
+                flow_m3h - self._p("inflow_disturbance", "flow_ref_m3h")
+            )
+        self.fx = fx
+
+    def _seiche_piece(self, duration: float, gate_mm: float) -> None:
+        if self._has("seiche"):
+            fx = self.fx
+            fx["seiche_x1"], fx["seiche_x2"] = seiche_advance(
+                fx["seiche_x1"], fx["seiche_x2"], gate_mm - self.real[self.vr_opening_ref],
+                duration, self._p("seiche", "period_s"), self._p("seiche", "decay_time_s"),
+            )
+
+    def _effects_step_end(self, h: float, q: float) -> None:
+        fx = self.fx
+        if self._has("inflow_disturbance"):
+            target = self._p("inflow_disturbance", "gain_mm_per_m3h") * (
+                q - self._p("inflow_disturbance", "flow_ref_m3h")
+            )
+            tau = self._p("inflow_disturbance", "time_constant_s")
+            fx["inflow_mm"] = first_order(fx["inflow_mm"], target, h, tau)
+        if self._has("sensor_drift"):
+            fx["drift_mm"] += self._p("sensor_drift", "rate_mm_per_s") * h
+
+    def _effects_output(self, level_mm: float) -> float:
+        fx = self.fx
+        y = fx["sensed_mm"] if self._has("sensor_lag") else level_mm
+        if self._has("seiche"):
+            y += seiche_output(fx["seiche_x2"], self._p("seiche", "period_s"),
+                               self._p("seiche", "amplitude_mm_per_mm"))  # fmt: skip
+        if self._has("inflow_disturbance"):
+            y += fx["inflow_mm"]
+        if self._has("sensor_drift"):
+            y += fx["drift_mm"]
+        return y

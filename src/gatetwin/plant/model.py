@@ -14,6 +14,9 @@ Semantics shared by every rendering (Python simulator, C FMU, pythonfmu FMU, MPC
   ``x(k) = sum_i a_i x(k-i) + sum_j b_j u(k-nk-j+1)``, stepped at ``sample_period_s``; ``u(k)``
   is the input in force at communication point ``k``.
 * The initial state is the equilibrium for the first inputs.
+* ``effects``: optional effect blocks (actuator, nonlinearity, seiche, inflow, sensor), as
+  model-file dictionaries; their semantics are in :mod:`gatetwin.plant.effects`. They are
+  checked and put in the blocks' evaluation order (defaults filled in) on construction.
 
 This module holds data only; simulation is in :mod:`gatetwin.plant.simulate`.
 """
@@ -26,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from gatetwin.errors import ModelFileError
+from gatetwin.plant.effects import EffectSet, parse_effects
 
 #: Inputs outside these bounds are physically impossible for any gate we model.
 OPENING_RANGE_MM = (0.0, 2000.0)
@@ -100,6 +104,7 @@ class FopdtPlant:
 
     def __post_init__(self) -> None:
         _check_columns(self, self.columns)
+        _normalise_effects(self)
         if min(self.schedule.values["time_constant_s"]) <= 0:
             raise ModelFileError("fopdt: time_constant_s must be > 0 at every knot")
         if min(self.schedule.values["dead_time_s"]) < 0:
@@ -108,6 +113,11 @@ class FopdtPlant:
     @property
     def max_dead_time_s(self) -> float:
         return float(max(self.schedule.values["dead_time_s"]))
+
+    @property
+    def effect_set(self) -> EffectSet:
+        """The checked effect blocks."""
+        return parse_effects(self.effects, self.kind)
 
 
 @dataclass(frozen=True)
@@ -137,6 +147,12 @@ class ArxPlant:
         if not self.sample_period_s > 0:
             raise ModelFileError("arx: sample_period_s must be > 0")
         _check_columns(self, self.columns)
+        _normalise_effects(self)
+
+    @property
+    def effect_set(self) -> EffectSet:
+        """The checked effect blocks."""
+        return parse_effects(self.effects, self.kind)
 
     @property
     def columns(self) -> tuple[str, ...]:  # type: ignore[override]
@@ -151,6 +167,14 @@ class ArxPlant:
 
 
 Plant = FopdtPlant | ArxPlant
+
+
+def _normalise_effects(plant: Any) -> None:
+    """Check the effect dictionaries; store them in evaluation order with defaults filled."""
+    if isinstance(plant.effects, (str, bytes, dict)) or not hasattr(plant.effects, "__iter__"):
+        raise ModelFileError(f"{plant.kind}: effects must be a list of effect objects")
+    blocks = parse_effects(tuple(plant.effects), plant.kind).blocks
+    object.__setattr__(plant, "effects", tuple(b.to_dict() for b in blocks))
 
 
 def _check_columns(plant: Any, columns: tuple[str, ...]) -> None:

@@ -9,11 +9,14 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from gatetwin.errors import GatetwinError
+from gatetwin.plant import blocks
+from gatetwin.plant.effects import EffectSet
 from gatetwin.plant.model import (
     FLOW_RANGE_M3H,
     OPENING_RANGE_MM,
@@ -47,11 +50,47 @@ def check_inputs(opening_mm: float, flow_m3h: float) -> None:
 
 
 @dataclass
+class EffectState:
+    """State of the effect blocks (see :mod:`gatetwin.plant.effects`); unused fields stay 0.
+
+    Attributes
+    ----------
+    actuator_mm, gate_mm : float
+        Actuator position ``a`` and gate position ``g``, mm.
+    held_gate_mm : float
+        The gate position the FOPDT dynamics see (sampled on the actuator's grid), mm.
+    grid_origin_s : float
+        Origin of the actuator's sub-step grid (the initialisation time), s.
+    seiche_x1, seiche_x2 : float
+        Seiche oscillator states.
+    inflow_mm, drift_mm : float
+        Inflow term and accumulated drift, mm.
+    sensed_mm : float
+        Sensor-lag output, mm.
+    """
+
+    actuator_mm: float = 0.0
+    gate_mm: float = 0.0
+    held_gate_mm: float = 0.0
+    grid_origin_s: float = 0.0
+    seiche_x1: float = 0.0
+    seiche_x2: float = 0.0
+    inflow_mm: float = 0.0
+    drift_mm: float = 0.0
+    sensed_mm: float = 0.0
+
+
+@dataclass
 class PlantSimulator:
     """Stepwise simulation of one plant.
 
     Use ``initialize(opening_mm, flow_m3h, time_s)``, then ``do_step(h, opening_mm,
     flow_m3h)`` per communication step; ``level_mm`` is the output at the current time.
+
+    Pipeline of a step (the FMUs follow it): the command is turned into pieces of constant
+    gate position by the input blocks (one piece per step without a rate limit; pieces on the
+    actuator's grid with one; one piece per sample for ARX), the dynamics and the seiche run
+    over the pieces, then the inflow term and the drift over the whole step.
     """
 
     plant: Plant
@@ -63,16 +102,20 @@ class PlantSimulator:
     u_hist: list[float] = field(default_factory=list)
     flow_m3h: float = 0.0
     warned_range: bool = False
+    fx: EffectSet = field(default_factory=EffectSet)
+    es: EffectState = field(default_factory=EffectState)
 
     def initialize(self, opening_mm: float, flow_m3h: float, time_s: float = 0.0) -> None:
         check_inputs(opening_mm, flow_m3h)
+        self.fx = self.plant.effect_set
         self.time_s = time_s
         self.flow_m3h = flow_m3h
         self._check_range(flow_m3h)
-        u = opening_mm - self.plant.opening_ref_mm
+        self.es = EffectState(opening_mm, opening_mm, opening_mm, time_s)
+        u = self._effective_input(opening_mm)
         p = self.plant
         if isinstance(p, FopdtPlant):
-            self.x = p.schedule.at("gain_mm_per_mm", flow_m3h) * u
+            self.x = self._fopdt_parameters(flow_m3h)[0] * u
             self.history_t = [time_s]
             self.history_u = [u]
         else:
@@ -86,38 +129,172 @@ class PlantSimulator:
             self.x = x0
             self.x_hist = [x0] * p.na
             self.u_hist = [u] * (p.nk + p.nb - 1)
+        self._initialize_output_blocks(opening_mm, flow_m3h)
+
+    def _initialize_output_blocks(self, opening_mm: float, flow_m3h: float) -> None:
+        fx, es = self.fx, self.es
+        if fx.seiche:
+            v = opening_mm - self.plant.opening_ref_mm
+            es.seiche_x1 = blocks.seiche_equilibrium(v, fx.seiche.period_s, fx.seiche.decay_time_s)
+        if fx.inflow:
+            es.inflow_mm = fx.inflow.gain_mm_per_m3h * (flow_m3h - fx.inflow.flow_ref_m3h)
+        es.sensed_mm = self.plant.schedule.at("level_ref_mm", flow_m3h) + self.x
 
     @property
     def level_mm(self) -> float:
-        return self.plant.schedule.at("level_ref_mm", self.flow_m3h) + self.x
+        fx, es = self.fx, self.es
+        if fx.lag:
+            y = es.sensed_mm
+        else:
+            y = self.plant.schedule.at("level_ref_mm", self.flow_m3h) + self.x
+        if fx.seiche:
+            y += blocks.seiche_output(es.seiche_x2, fx.seiche.period_s,
+                                      fx.seiche.amplitude_mm_per_mm)  # fmt: skip
+        if fx.inflow:
+            y += es.inflow_mm
+        if fx.drift:
+            y += es.drift_mm
+        return y
 
     def do_step(self, h: float, opening_mm: float, flow_m3h: float) -> float:
         """Advance by ``h`` seconds with inputs held; return the level at the new time."""
         check_inputs(opening_mm, flow_m3h)
         if not 0 < h < math.inf:
             raise SimulationError(f"communication step {h} s must be > 0 and finite")
-        u = opening_mm - self.plant.opening_ref_mm
-        # the family steps raise before they change any state, so a refused step changes nothing
+        # every check raises before any state changes, so a refused step changes nothing
         if isinstance(self.plant, FopdtPlant):
-            self._fopdt_step(h, u, flow_m3h)
+            self._fopdt_check_step(h, opening_mm)
+            for t_start, t_end, gate in self._fopdt_pieces(h, opening_mm):
+                self._fopdt_piece(t_start, t_end, self._effective_input(gate), flow_m3h)
+                self._seiche_piece(t_end - t_start, gate)
         else:
-            self._arx_step(h, u, flow_m3h)
+            n = self._arx_samples(h)
+            a, b = self.plant.coefficients(flow_m3h)
+            level_ref = self.plant.schedule.at("level_ref_mm", flow_m3h)
+            for gate in self._arx_pieces(n, opening_mm):
+                self._arx_sample(self._effective_input(gate), a, b, level_ref)
+                self._seiche_piece(self.plant.sample_period_s, gate)
+        self._output_blocks_step(h, flow_m3h)
         self._check_range(flow_m3h)
         self.flow_m3h = flow_m3h
         self.time_s += h
         return self.level_mm
 
+    # -- input blocks --------------------------------------------------------------------
+    def _effective_input(self, gate_mm: float) -> float:
+        """``u`` the dynamics see for a gate position (opening nonlinearity applied)."""
+        v = gate_mm - self.plant.opening_ref_mm
+        if self.fx.nonlinearity:
+            return blocks.gain_map(v, self.fx.nonlinearity.gain_slope_per_mm)
+        return v
+
+    def _actuate(self, actuator: float, gate: float, command: float, duration_s: float
+                 ) -> tuple[float, float]:  # fmt: skip
+        """Actuator and gate after ``duration_s`` with ``command`` held (actuator monotone)."""
+        fx = self.fx
+        if fx.rate_limit:
+            actuator = blocks.move_toward(actuator, command,
+                                          fx.rate_limit.rate_mm_per_s * duration_s)  # fmt: skip
+        else:
+            actuator = command
+        if fx.backlash:
+            return actuator, blocks.play(gate, actuator, fx.backlash.deadband_mm)
+        return actuator, actuator
+
+    def _fopdt_pieces(self, h: float, command: float) -> Iterator[tuple[float, float, float]]:
+        """``(t_start, t_end, gate)`` pieces of the step; updates the actuator state."""
+        es, t0 = self.es, self.time_s
+        t1 = t0 + h
+        if not self.fx.rate_limit:
+            es.actuator_mm, es.gate_mm = self._actuate(es.actuator_mm, es.gate_mm, command, h)
+            es.held_gate_mm = es.gate_mm
+            yield t0, t1, es.gate_mm
+            return
+        delta, origin = self.fx.rate_limit.substep_s, es.grid_origin_s
+        k = blocks.grid_index_at_or_after(t0, origin, delta)
+        tk, t_start, t_act = origin + k * delta, t0, t0
+        while True:
+            if tk > t_start:
+                t_end = tk if tk < t1 else t1
+                yield t_start, t_end, es.held_gate_mm
+                if not tk < t1:
+                    break
+                t_start = tk
+            es.actuator_mm, es.gate_mm = self._actuate(es.actuator_mm, es.gate_mm, command,
+                                                       tk - t_act)  # fmt: skip
+            es.held_gate_mm, t_act = es.gate_mm, tk
+            k += 1
+            tk = origin + k * delta
+        es.actuator_mm, es.gate_mm = self._actuate(es.actuator_mm, es.gate_mm, command, t1 - t_act)
+
+    def _arx_pieces(self, n: int, command: float) -> Iterator[float]:
+        """The gate position at the start of each of the ``n`` ARX samples of the step."""
+        es, ts = self.es, self.plant.sample_period_s
+        duration = 0.0 if self.fx.rate_limit else ts
+        for _ in range(n):
+            es.actuator_mm, es.gate_mm = self._actuate(es.actuator_mm, es.gate_mm, command,
+                                                       duration)  # fmt: skip
+            es.held_gate_mm = es.gate_mm
+            yield es.gate_mm
+            duration = ts
+        if self.fx.rate_limit:
+            es.actuator_mm, es.gate_mm = self._actuate(es.actuator_mm, es.gate_mm, command, ts)
+
+    # -- output blocks -------------------------------------------------------------------
+    def _seiche_piece(self, duration_s: float, gate_mm: float) -> None:
+        fx, es = self.fx, self.es
+        if fx.seiche:
+            es.seiche_x1, es.seiche_x2 = blocks.seiche_advance(
+                es.seiche_x1, es.seiche_x2, gate_mm - self.plant.opening_ref_mm, duration_s,
+                fx.seiche.period_s, fx.seiche.decay_time_s,
+            )
+
+    def _output_blocks_step(self, h: float, q: float) -> None:
+        fx, es = self.fx, self.es
+        if fx.inflow:
+            target = fx.inflow.gain_mm_per_m3h * (q - fx.inflow.flow_ref_m3h)
+            es.inflow_mm = blocks.first_order(es.inflow_mm, target, h, fx.inflow.time_constant_s)
+        if fx.drift:
+            es.drift_mm += fx.drift.rate_mm_per_s * h
+
     # -- FOPDT ---------------------------------------------------------------------------
-    def _fopdt_step(self, h: float, u: float, q: float) -> None:
+    def _fopdt_parameters(self, q: float) -> tuple[float, float, float]:
+        """``K``, ``T`` (flow-dependent gain applied) and ``L`` at discharge ``q``."""
         p = self.plant
         k = p.schedule.at("gain_mm_per_mm", q)
         tau = p.schedule.at("time_constant_s", q)
-        delay = p.schedule.at("dead_time_s", q)
-        t0 = self.time_s
-        t1 = t0 + h
+        if self.fx.flow_gain:
+            fg = self.fx.flow_gain
+            k = k * math.exp(fg.gain_slope_per_m3h * (q - fg.flow_ref_m3h))
+            tau = tau * math.exp(fg.time_constant_slope_per_m3h * (q - fg.flow_ref_m3h))
+        return k, tau, p.schedule.at("dead_time_s", q)
+
+    def _fopdt_check_step(self, h: float, command: float) -> None:
+        """Refuse a step whose input changes would overflow the dead-time history."""
+        es = self.es
+        if self.fx.rate_limit:
+            delta, origin, t0 = self.fx.rate_limit.substep_s, es.grid_origin_s, self.time_s
+            k0 = blocks.grid_index_at_or_after(t0, origin, delta)
+            k1 = blocks.grid_index_at_or_after(t0 + h, origin, delta)
+            pieces = k1 - k0 + (0 if origin + k0 * delta == t0 else 1)
+            if len(self.history_u) + pieces > DELAY_HISTORY_CAPACITY:
+                raise SimulationError(
+                    f"communication step {h} s spans {pieces} actuator sub-steps; with the "
+                    f"{len(self.history_u)} input changes held for the dead time they exceed "
+                    f"the dead-time history ({DELAY_HISTORY_CAPACITY})"
+                )
+            return
+        gate = self._actuate(es.actuator_mm, es.gate_mm, command, h)[1]
+        u = self._effective_input(gate)
+        if u != self.history_u[-1] and len(self.history_u) >= DELAY_HISTORY_CAPACITY:
+            raise SimulationError("input changes faster than the dead-time history can hold")
+
+    def _fopdt_piece(self, t0: float, t1: float, u: float, q: float) -> None:
+        p = self.plant
+        k, tau, delay = self._fopdt_parameters(q)
+        lag = self.fx.lag
+        level_ref = p.schedule.at("level_ref_mm", q) if lag else 0.0
         if u != self.history_u[-1]:
-            if len(self.history_u) >= DELAY_HISTORY_CAPACITY:
-                raise SimulationError("input changes faster than the dead-time history can hold")
             self.history_t.append(t0)
             self.history_u.append(u)
         t = t0
@@ -129,6 +306,11 @@ class PlantSimulator:
             if i + 1 < len(self.history_t):
                 t_next = min(t1, self.history_t[i + 1] + delay)
             target = k * self.history_u[i]
+            if lag:
+                self.es.sensed_mm = blocks.lag_interval(
+                    self.es.sensed_mm, level_ref + target, self.x - target, t_next - t, tau,
+                    lag.time_constant_s,
+                )
             self.x = target + (self.x - target) * math.exp(-(t_next - t) / tau)
             t = t_next
         self._prune_history(t1, p.max_dead_time_s)
@@ -140,7 +322,7 @@ class PlantSimulator:
             del self.history_u[0]
 
     # -- ARX -----------------------------------------------------------------------------
-    def _arx_step(self, h: float, u: float, q: float) -> None:
+    def _arx_samples(self, h: float) -> int:
         p = self.plant
         n_float = h / p.sample_period_s
         if not n_float <= ARX_MAX_SUBSTEPS:
@@ -153,17 +335,23 @@ class PlantSimulator:
                 f"communication step {h} s is not a whole multiple of the ARX sample period "
                 f"{p.sample_period_s} s"
             )
-        a, b = p.coefficients(q)
-        for _ in range(n):
-            # u_hist[0] is u(k) (the held input), u_hist[m] is u(k-m)
-            self.u_hist = [u, *self.u_hist[:-1]] if self.u_hist else []
-            x_new = 0.0
-            for i in range(p.na):
-                x_new += a[i] * self.x_hist[i]
-            for j in range(p.nb):
-                x_new += b[j] * self._u_lag(p.nk - 1 + j, u)
-            self.x_hist = [x_new, *self.x_hist[:-1]]
-            self.x = x_new
+        return n
+
+    def _arx_sample(self, u: float, a: np.ndarray, b: np.ndarray, level_ref: float) -> None:
+        p = self.plant
+        # u_hist[0] is u(k) (the held input), u_hist[m] is u(k-m)
+        self.u_hist = [u, *self.u_hist[:-1]] if self.u_hist else []
+        x_new = 0.0
+        for i in range(p.na):
+            x_new += a[i] * self.x_hist[i]
+        for j in range(p.nb):
+            x_new += b[j] * self._u_lag(p.nk - 1 + j, u)
+        self.x_hist = [x_new, *self.x_hist[:-1]]
+        self.x = x_new
+        if self.fx.lag:
+            self.es.sensed_mm = blocks.first_order(self.es.sensed_mm, level_ref + x_new,
+                                                   p.sample_period_s,
+                                                   self.fx.lag.time_constant_s)  # fmt: skip
 
     def _u_lag(self, m: int, u: float) -> float:
         return u if m == 0 else self.u_hist[m]
