@@ -1,0 +1,252 @@
+"""PI baseline: SIMC tuning from the FOPDT, loop margins, and a rate-limited PI controller.
+
+SIMC (Skogestad 2003) for ``G(s) = K e^{−θs}/(T s + 1)``::
+
+    Kc = T / (K (τc + θ)),        Ti = min(T, 4 (τc + θ)),
+
+with ``τc = θ`` by default ("tight" control). For a sampled loop the zero-order hold adds
+about half a sample of delay, so ``θ = L + Ts/2`` (Skogestad's rule for digital control).
+
+Gain and phase margins come from python-control on the continuous loop ``C(s) G(s)``,
+where — for the margins only — the delay ``e^{−θs}`` is replaced by a Padé
+approximation (:func:`control.pade`); the controller itself never uses it.
+
+The controller is positional, with back-calculation anti-windup (the integral tracks
+the opening actually commanded after the opening-range and rate limits, with tracking
+time ``Tt``), and the same rate limit as the MPC.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import control
+import numpy as np
+
+from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
+from gatetwin.mpc.errors import ControlError
+from gatetwin.plant.model import FopdtPlant
+
+
+@dataclass(frozen=True)
+class PiTuning:
+    """SIMC PI tuning of one FOPDT operating point.
+
+    Attributes
+    ----------
+    gain_mm_per_mm : float
+        ``Kc``: opening change per mm of level error (``error = set-point − level``), mm/mm.
+        Negative, as the plant gain is: opening the gate lowers the level.
+    integral_time_s : float
+        ``Ti``, s.
+    closed_loop_time_constant_s : float
+        ``τc`` used, s.
+    effective_delay_s : float
+        ``θ = L + Ts/2``, s.
+    plant_gain_mm_per_mm, plant_time_constant_s, plant_dead_time_s : float
+        The FOPDT ``K``, ``T``, ``L`` tuned for.
+    flow_m3h : float
+        Discharge at which ``K``, ``T``, ``L`` were evaluated (NaN if given directly), m³/h.
+    """
+
+    gain_mm_per_mm: float
+    integral_time_s: float
+    closed_loop_time_constant_s: float
+    effective_delay_s: float
+    plant_gain_mm_per_mm: float
+    plant_time_constant_s: float
+    plant_dead_time_s: float
+    flow_m3h: float = math.nan
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        return {
+            k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+            for k, v in out.items()
+        }
+
+
+def simc_pi(
+    gain_mm_per_mm: float,
+    time_constant_s: float,
+    dead_time_s: float,
+    *,
+    closed_loop_time_constant_s: float | None = None,
+    sample_period_s: float = SAMPLE_PERIOD_S,
+) -> PiTuning:
+    """SIMC PI settings for ``K e^{−Ls}/(T s + 1)`` sampled every ``sample_period_s``.
+
+    Parameters
+    ----------
+    gain_mm_per_mm : float
+        Plant gain ``K``, mm/mm (non-zero).
+    time_constant_s, dead_time_s : float
+        ``T > 0`` and ``L >= 0``, s.
+    closed_loop_time_constant_s : float, optional
+        ``τc``, s; default ``θ`` (SIMC's "tight control").
+    sample_period_s : float
+        ``Ts``, s; half of it is added to the delay for the zero-order hold (0 for a
+        continuous controller).
+    """
+    if not (gain_mm_per_mm != 0 and math.isfinite(gain_mm_per_mm)):
+        raise ControlError(f"simc: plant gain must be finite and non-zero (got {gain_mm_per_mm})")
+    if not (time_constant_s > 0 and dead_time_s >= 0 and sample_period_s >= 0):
+        raise ControlError("simc: need T > 0, L >= 0 and Ts >= 0")
+    theta = dead_time_s + 0.5 * sample_period_s
+    tau_c = theta if closed_loop_time_constant_s is None else float(closed_loop_time_constant_s)
+    if not tau_c > 0 or tau_c + theta <= 0:
+        raise ControlError(f"simc: closed-loop time constant must be > 0 (got {tau_c})")
+    kc = time_constant_s / (gain_mm_per_mm * (tau_c + theta))
+    ti = min(time_constant_s, 4.0 * (tau_c + theta))
+    return PiTuning(kc, ti, tau_c, theta, gain_mm_per_mm, time_constant_s, dead_time_s)
+
+
+def simc_pi_for_plant(
+    plant: FopdtPlant,
+    flow_m3h: float,
+    *,
+    closed_loop_time_constant_s: float | None = None,
+    sample_period_s: float = SAMPLE_PERIOD_S,
+) -> PiTuning:
+    """SIMC settings from the scheduled FOPDT evaluated at the operating discharge."""
+    if not isinstance(plant, FopdtPlant):
+        raise ControlError(f"simc needs an FOPDT plant (got {type(plant).__name__})")
+    s = plant.schedule
+    tuning = simc_pi(
+        s.at("gain_mm_per_mm", flow_m3h),
+        s.at("time_constant_s", flow_m3h),
+        s.at("dead_time_s", flow_m3h),
+        closed_loop_time_constant_s=closed_loop_time_constant_s,
+        sample_period_s=sample_period_s,
+    )
+    return PiTuning(**{**asdict(tuning), "flow_m3h": float(flow_m3h)})
+
+
+@dataclass(frozen=True)
+class LoopMargins:
+    """Stability margins of ``C(s) G(s)`` (delay by Padé, for the margins only).
+
+    Attributes
+    ----------
+    gain_margin : float
+        Factor by which the loop gain may grow, dimensionless (``inf`` if unbounded).
+    gain_margin_db : float
+        The same in dB.
+    phase_margin_deg : float
+        Phase margin, degrees.
+    phase_crossover_rad_s, gain_crossover_rad_s : float
+        Frequencies where the phase is −180° and where ``|L| = 1``, rad/s.
+    pade_order : int
+        Order of the Padé approximation of ``e^{−θs}``.
+    """
+
+    gain_margin: float
+    gain_margin_db: float
+    phase_margin_deg: float
+    phase_crossover_rad_s: float
+    gain_crossover_rad_s: float
+    pade_order: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            k: (v if not isinstance(v, float) or math.isfinite(v) else None)
+            for k, v in asdict(self).items()
+        }
+
+
+def loop_margins(tuning: PiTuning, *, pade_order: int = 8) -> LoopMargins:
+    """Gain and phase margins of the PI loop on the FOPDT with delay ``θ = L + Ts/2``."""
+    kc, ti = tuning.gain_mm_per_mm, tuning.integral_time_s
+    pi_tf = control.tf([kc * ti, kc], [ti, 0.0])
+    lag = control.tf([tuning.plant_gain_mm_per_mm], [tuning.plant_time_constant_s, 1.0])
+    num, den = control.pade(tuning.effective_delay_s, pade_order)
+    loop = pi_tf * lag * control.tf(num, den)
+    gm, pm, _, wpc, wgc, _ = control.stability_margins(loop)
+    gm_db = 20.0 * math.log10(gm) if gm > 0 and math.isfinite(gm) else math.inf
+    return LoopMargins(float(gm), gm_db, float(pm), float(wpc), float(wgc), pade_order)
+
+
+@dataclass(frozen=True)
+class PiSettings:
+    """Limits and anti-windup of the PI controller (the MPC's limits, for a fair match).
+
+    Attributes
+    ----------
+    opening_range_mm : tuple[float, float]
+        Allowed opening, mm.
+    opening_rate_mm_s : float
+        Largest gate speed, mm/s (0.6 mm/s, as the MPC).
+    sample_period_s : float
+        Control period, s.
+    tracking_time_s : float or None
+        Back-calculation time ``Tt``, s; default ``Ti / 2`` (between the sample period and
+        ``Ti``, as Åström & Hägglund recommend).
+    """
+
+    opening_range_mm: tuple[float, float] = (5.0, 100.0)
+    opening_rate_mm_s: float = 0.6
+    sample_period_s: float = SAMPLE_PERIOD_S
+    tracking_time_s: float | None = None
+
+    def __post_init__(self) -> None:
+        lo, hi = self.opening_range_mm
+        ok = 0 <= lo < hi and self.opening_rate_mm_s > 0 and self.sample_period_s > 0
+        if not ok or (self.tracking_time_s is not None and not self.tracking_time_s > 0):
+            raise ControlError("pi settings: invalid range, rate, period or tracking time")
+
+
+class PiController:
+    """Positional PI on the level error with range and rate limits and anti-windup.
+
+    Same step interface as :class:`~gatetwin.mpc.controller.MpcController`.
+    """
+
+    name = "pi"
+
+    def __init__(self, tuning: PiTuning, settings: PiSettings | None = None) -> None:
+        self.tuning = tuning
+        self.settings = settings or PiSettings()
+        self.integral_mm = math.nan
+        self.previous_opening_mm = math.nan
+        self.last_solve_s = 0.0
+
+    def reset(self, opening_mm: float, level_mm: float, flow_m3h: float) -> None:
+        """Start at rest at ``opening_mm`` (bumpless: the integral holds the opening)."""
+        lo, hi = self.settings.opening_range_mm
+        if not lo <= opening_mm <= hi:
+            raise ControlError(f"pi: start opening {opening_mm} mm outside [{lo}, {hi}] mm")
+        self.integral_mm = float(opening_mm)
+        self.previous_opening_mm = float(opening_mm)
+
+    def step(self, level_mm: float, flow_m3h: float, setpoint_mm: float) -> float:
+        """Opening (mm) to hold over the next sample (``flow_m3h`` is not used)."""
+        if math.isnan(self.integral_mm):
+            raise ControlError("pi: call reset() before step()")
+        s, t = self.settings, self.tuning
+        error = setpoint_mm - level_mm
+        wanted = t.gain_mm_per_mm * error + self.integral_mm
+        step = s.opening_rate_mm_s * s.sample_period_s
+        opening = float(
+            np.clip(wanted, self.previous_opening_mm - step, self.previous_opening_mm + step)
+        )
+        opening = float(np.clip(opening, *s.opening_range_mm))
+        tracking = s.tracking_time_s or 0.5 * t.integral_time_s
+        ts = s.sample_period_s
+        self.integral_mm += t.gain_mm_per_mm * ts / t.integral_time_s * error + ts / tracking * (
+            opening - wanted
+        )
+        self.previous_opening_mm = opening
+        return opening
+
+
+__all__ = [
+    "LoopMargins",
+    "PiController",
+    "PiSettings",
+    "PiTuning",
+    "loop_margins",
+    "simc_pi",
+    "simc_pi_for_plant",
+]

@@ -1,0 +1,357 @@
+"""The MPC problem as a condensed, dense QP solved by a casadi conic plugin.
+
+The predicted levels are affine in the openings, ``level = f + G e``, with ``G`` the
+lower-triangular Toeplitz matrix of the model's Markov parameters ``C A^m B`` and ``f``
+the free response from the estimated state and disturbance (condensing: the states are
+eliminated and the QP stays small and dense). Decision variables are the moves
+``Δe_0 … Δe_{N−1}`` (mm), so that the rate limit is a bound, and with a level band one
+slack ``s`` (mm) shared by the horizon.
+
+The QP goes to :func:`casadi.conic` (the matrix-level interface under ``casadi.qpsol``):
+``qpsol`` would take the problem symbolically and re-derive the dense Hessian
+``G'G`` (``N³`` scalar operations) in casadi's virtual machine at every call, while here
+numpy forms it once per discharge with BLAS. qpOASES keeps its working set between calls
+(casadi hot-starts its ``SQProblem`` from the second call on); DAQP is set up afresh at
+every call; OSQP is warm-started from the previous primal solution.
+
+See :mod:`gatetwin.mpc.opti` for the same problem posed with ``casadi.Opti`` and IPOPT.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import casadi
+import numpy as np
+from scipy.linalg import toeplitz
+
+from gatetwin.mpc.discrete import DiscreteModel
+from gatetwin.mpc.errors import ControlError
+from gatetwin.mpc.settings import MpcSettings
+
+
+@dataclass(frozen=True, eq=False)
+class MpcProblem:
+    """One MPC decision: the model at the measured discharge and what the observer knows.
+
+    Attributes
+    ----------
+    model : DiscreteModel
+        Plant rendering at the measured discharge (held over the horizon).
+    state : ndarray
+        Estimated state ``z(k|k)``.
+    disturbance_mm : float
+        Estimated input disturbance, mm of opening (held over the horizon).
+    setpoint_mm : float
+        Level set-point over the horizon (no preview of future changes), mm.
+    previous_opening_mm : float
+        Opening commanded at the previous sample (the rate limit's anchor), mm.
+    settings : MpcSettings
+        Horizon, constraints and weights.
+    """
+
+    model: DiscreteModel
+    state: np.ndarray
+    disturbance_mm: float
+    setpoint_mm: float
+    previous_opening_mm: float
+    settings: MpcSettings
+
+
+@dataclass(frozen=True, eq=False)
+class MpcSolution:
+    """A solved MPC problem.
+
+    Attributes
+    ----------
+    openings_mm : ndarray
+        Planned openings over the horizon, mm; the first is applied.
+    slack_mm : float
+        Band violation the plan accepts, mm (0 without a band).
+    predicted_level_mm : ndarray
+        Predicted levels at samples ``k+1 … k+N``, mm.
+    solve_s : float
+        Wall time of the solver call alone, s.
+    success : bool
+        The solver reported success.
+    status : str
+        The solver's return status.
+    """
+
+    openings_mm: np.ndarray
+    slack_mm: float
+    predicted_level_mm: np.ndarray
+    solve_s: float
+    success: bool
+    status: str
+
+    @property
+    def first_move_mm(self) -> float:
+        return float(self.openings_mm[0])
+
+
+def prediction_matrix(model: DiscreteModel, horizon: int) -> np.ndarray:
+    """``G`` with ``G[j, i] = C A^(j−i) B``: level at ``k+1+j`` per mm of ``e_i``."""
+    markov = np.empty(horizon)
+    v = model.b.copy()
+    for m in range(horizon):
+        markov[m] = model.c @ v
+        v = model.a @ v
+    return toeplitz(markov, np.zeros(horizon))
+
+
+def free_response(
+    model: DiscreteModel, horizon: int, state: np.ndarray, disturbance_mm: float
+) -> np.ndarray:
+    """Levels at ``k+1 … k+N`` if every opening stayed at ``opening_ref_mm``, mm."""
+    drift = model.b_dist * disturbance_mm
+    z = np.asarray(state, dtype=float)
+    out = np.empty(horizon)
+    for j in range(horizon):
+        z = model.a @ z + drift
+        out[j] = model.c @ z
+    return out + model.level_ref_mm
+
+
+@dataclass(frozen=True, eq=False)
+class QpData:
+    """``min ½ x'Hx + g'x  s.t.  lba <= A x <= uba,  lbx <= x <= ubx`` (numpy arrays)."""
+
+    h: np.ndarray
+    g: np.ndarray
+    a: np.ndarray
+    lba: np.ndarray
+    uba: np.ndarray
+    lbx: np.ndarray
+    ubx: np.ndarray
+
+    def as_casadi_args(self) -> dict[str, Any]:
+        return {
+            "h": self.h,
+            "g": self.g,
+            "a": self.a,
+            "lba": self.lba,
+            "uba": self.uba,
+            "lbx": self.lbx,
+            "ubx": self.ubx,
+        }
+
+
+class CondensedQp:
+    """The matrices of one model's QP (they change only when the discharge does).
+
+    Variables are the moves ``Δe_j = e_j − e_{j−1}`` (and the slack): the rate limit is
+    then a simple bound, the kind of constraint an active-set solver adds and drops
+    cheapest, and it is the constraint that is active through every large transient.
+    Openings are ``e = e_prev + S Δe`` with ``S`` the lower-triangular matrix of ones.
+    """
+
+    def __init__(self, model: DiscreteModel, settings: MpcSettings) -> None:
+        n = settings.horizon
+        self.model = model
+        self.settings = settings
+        self.has_band = settings.level_band_mm is not None
+        self._dm: tuple[casadi.DM, casadi.DM] | None = None
+        self.gain = prediction_matrix(model, n)
+        self.cumulative = np.tril(np.ones((n, n)))
+        self.move_gain = np.cumsum(self.gain[:, ::-1], axis=1)[:, ::-1]  # G @ S
+        h_move = 2.0 * (
+            settings.level_weight * self.move_gain.T @ self.move_gain
+            + settings.move_weight * np.eye(n)
+        )
+        if not self.has_band:
+            self.h, self.a = h_move, self.cumulative
+            return
+        self.h = np.zeros((n + 1, n + 1))
+        self.h[:n, :n] = h_move
+        self.h[n, n] = 2.0 * settings.slack_weight_quadratic
+        one = np.ones((n, 1))
+        self.a = np.block(
+            [
+                [self.cumulative, np.zeros((n, 1))],
+                [self.move_gain, one],
+                [self.move_gain, -one],
+            ]
+        )
+
+    def data(self, problem: MpcProblem) -> QpData:
+        """QP data for the problem's state, disturbance, set-point and previous opening."""
+        s, n = self.settings, self.settings.horizon
+        e_prev = problem.previous_opening_mm
+        free = free_response(self.model, n, problem.state, problem.disturbance_mm)
+        # levels if the opening stayed at e_prev (the model's input is e − e_ref)
+        hold = free + self.gain.sum(axis=1) * (e_prev - self.model.opening_ref_mm)
+        g = 2.0 * s.level_weight * self.move_gain.T @ (hold - problem.setpoint_mm)
+        step = np.full(n, s.max_move_mm)
+        lo_e, hi_e = s.opening_range_mm
+        range_lo, range_hi = np.full(n, lo_e - e_prev), np.full(n, hi_e - e_prev)
+        if not self.has_band:
+            return QpData(self.h, g, self.a, range_lo, range_hi, -step, step)
+        band_lo, band_hi = s.level_band_mm  # type: ignore[misc]
+        inf = np.full(n, np.inf)
+        lba = np.concatenate([range_lo, band_lo - hold, -inf])
+        uba = np.concatenate([range_hi, inf, band_hi - hold])
+        return QpData(
+            self.h,
+            np.append(g, s.slack_weight_linear),
+            self.a,
+            lba,
+            uba,
+            np.append(-step, 0.0),
+            np.append(step, np.inf),
+        )
+
+    def openings(self, problem: MpcProblem, x: np.ndarray) -> np.ndarray:
+        """Openings (mm) from the QP's solution vector."""
+        return problem.previous_opening_mm + np.cumsum(x[: self.settings.horizon])
+
+    def casadi_matrices(self) -> tuple[casadi.DM, casadi.DM]:
+        """``H`` and ``A`` as casadi matrices (numpy → DM costs ~4 ms at N = 100)."""
+        if self._dm is None:
+            self._dm = (casadi.DM(self.h), casadi.DM(self.a))
+        return self._dm
+
+    def predicted_levels(self, problem: MpcProblem, openings_mm: np.ndarray) -> np.ndarray:
+        free = free_response(
+            self.model, self.settings.horizon, problem.state, problem.disturbance_mm
+        )
+        return free + self.gain @ (openings_mm - self.model.opening_ref_mm)
+
+
+def _solver_options(name: str) -> dict[str, Any]:
+    if name == "qpoases":
+        return {
+            "printLevel": "none",
+            "hessian_type": "posdef",
+            "error_on_fail": False,
+            "sparse": False,
+        }
+    if name == "osqp":
+        return {
+            "error_on_fail": False,
+            "warm_start_primal": True,
+            "osqp": {
+                "verbose": False,
+                "eps_abs": 1e-7,
+                "eps_rel": 1e-7,
+                "max_iter": 20000,
+                "polish": True,
+            },
+        }
+    return {"error_on_fail": False}
+
+
+def set_casadi_blas_threads(threads: int) -> bool:
+    """Set the thread count of the OpenBLAS bundled with casadi (qpOASES' dense algebra).
+
+    Process-wide. Returns False when this casadi build has no bundled OpenBLAS.
+    """
+    folder = Path(casadi.__file__).parent
+    for path in sorted(folder.glob("libcasadi-tp-openblas*")):
+        try:
+            lib = ctypes.CDLL(str(path))
+            lib.openblas_set_num_threads(int(threads))
+        except (OSError, AttributeError):
+            continue
+        return True
+    return False
+
+
+@contextlib.contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    """Silence what C code writes to file descriptor 1 (a library banner), then restore."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # no real stdout (e.g. captured in memory)
+        yield
+        return
+    sys.stdout.flush()
+    saved = os.dup(fd)
+    try:
+        with open(os.devnull, "wb") as devnull:
+            os.dup2(devnull.fileno(), fd)
+            try:
+                yield
+            finally:
+                with contextlib.suppress(OSError, AttributeError):
+                    ctypes.CDLL(None).fflush(None)  # C stdio buffers go to /dev/null too
+                os.dup2(saved, fd)
+    finally:
+        os.close(saved)
+
+
+class QpBackend:
+    """Solves :class:`MpcProblem` s through one casadi conic solver (kept between calls).
+
+    The solver is created once for the problem's dimensions; the condensed matrices are
+    rebuilt only when the model object changes.
+    """
+
+    name = "qp"
+
+    def __init__(self, settings: MpcSettings) -> None:
+        self.settings = settings
+        if settings.blas_threads is not None:
+            set_casadi_blas_threads(settings.blas_threads)
+        n_var = settings.horizon + (settings.level_band_mm is not None)
+        n_con = settings.horizon * (3 if settings.level_band_mm is not None else 1)
+        dense_h = casadi.Sparsity.dense(n_var, n_var)
+        dense_a = casadi.Sparsity.dense(n_con, n_var)
+        with _quiet_stdout():  # qpOASES prints its licence banner when it is created
+            self._solver = casadi.conic(
+                "mpc_qp",
+                settings.qp_solver,
+                {"h": dense_h, "a": dense_a},
+                _solver_options(settings.qp_solver),
+            )
+        self._qp: CondensedQp | None = None
+        self._x0: np.ndarray | None = None
+
+    def condensed(self, model: DiscreteModel) -> CondensedQp:
+        if self._qp is None or self._qp.model is not model:
+            self._qp = CondensedQp(model, self.settings)
+        return self._qp
+
+    def solve(self, problem: MpcProblem) -> MpcSolution:
+        qp = self.condensed(problem.model)
+        args = qp.data(problem).as_casadi_args()
+        args["h"], args["a"] = qp.casadi_matrices()  # converted once per model, not per call
+        if self._x0 is not None:
+            args["x0"] = self._x0
+        start = time.perf_counter()
+        res = self._solver(**args)
+        solve_s = time.perf_counter() - start
+        stats = self._solver.stats()
+        x = np.asarray(res["x"], dtype=float).ravel()
+        if not np.all(np.isfinite(x)):
+            raise ControlError(f"{self.settings.qp_solver}: returned a non-finite solution")
+        self._x0 = x
+        openings = qp.openings(problem, x)
+        return MpcSolution(
+            openings_mm=openings,
+            slack_mm=float(x[self.settings.horizon]) if qp.has_band else 0.0,
+            predicted_level_mm=qp.predicted_levels(problem, openings),
+            solve_s=solve_s,
+            success=bool(stats.get("success", False)),
+            status=str(stats.get("return_status", "")),
+        )
+
+
+__all__ = [
+    "CondensedQp",
+    "MpcProblem",
+    "MpcSolution",
+    "QpBackend",
+    "QpData",
+    "free_response",
+    "prediction_matrix",
+    "set_casadi_blas_threads",
+]

@@ -1,0 +1,137 @@
+"""Settings of the MPC and its disturbance observer (documented, frozen dataclasses)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
+from gatetwin.mpc.errors import ControlError
+
+#: QP solvers reachable from PyPI's casadi that the MPC accepts (casadi ``conic`` plugins).
+QP_SOLVERS = ("qpoases", "daqp", "osqp")
+
+
+@dataclass(frozen=True)
+class ObserverSettings:
+    """Kalman filter on the model state and an input disturbance (offset-free MPC).
+
+    The disturbance ``d`` (mm of opening) is a random walk added to the gate opening; with
+    it in the model, any constant mismatch (gain, level, the actuator's rounding) is
+    absorbed by ``d`` and leaves no steady error. The defaults were chosen on the demo's
+    scenarios (30 min, both plants, several noise seeds): a slower ``d`` (0.03–0.1 mm)
+    leaves the flume's 8 mm opening mismatch at 60 m³/h to be integrated out over
+    minutes; a faster one (> 0.3 mm) mostly adds gate travel.
+
+    Attributes
+    ----------
+    measurement_sd_mm : float
+        Standard deviation of the level measurement noise, mm (the demo's gauge: 0.7 mm).
+    level_sd_mm : float
+        Process noise on the level state per sample, mm (1 mm): how far the level may
+        wander from the model in one sample — the flume's waves and its own response to an
+        inflow change.
+    disturbance_sd_mm : float
+        Random-walk step of the input disturbance per sample, mm of opening (0.3 mm): sets
+        how fast a mismatch is integrated out.
+    """
+
+    measurement_sd_mm: float = 0.7
+    level_sd_mm: float = 1.0
+    disturbance_sd_mm: float = 0.3
+
+    def __post_init__(self) -> None:
+        values = (self.measurement_sd_mm, self.level_sd_mm, self.disturbance_sd_mm)
+        if not all(v > 0 and math.isfinite(v) for v in values):
+            raise ControlError("observer: standard deviations must be finite and > 0")
+
+
+@dataclass(frozen=True)
+class MpcSettings:
+    """Horizon, constraints, weights and solver of the level MPC.
+
+    Cost over the horizon ``j = 1..N`` (levels in mm, openings in mm)::
+
+        Σ level_weight (level_j − setpoint)² + Σ move_weight (e_j − e_{j−1})²
+          + slack_weight_quadratic s² + slack_weight_linear s
+
+    subject to ``opening_range_mm``, ``|e_j − e_{j−1}| <= opening_rate_mm_s · Ts`` and the
+    soft band ``level_band_mm[0] − s <= level_j <= level_band_mm[1] + s``, ``s >= 0``. The
+    linear slack weight makes the softening exact: the band holds whenever it can.
+
+    Attributes
+    ----------
+    horizon : int
+        Prediction (and control) horizon, samples (100 × 1.2 s = 2 min ≈ 2–3 T).
+    sample_period_s : float
+        Control period, s.
+    opening_range_mm : tuple[float, float]
+        Allowed gate opening, mm.
+    opening_rate_mm_s : float
+        Largest gate speed the MPC plans with, mm/s: 0.6 mm/s, a conservative loaded speed
+        (the flume's actuator runs at ~1.2 mm/s at 0.24 m depth and ~0.66 mm/s at
+        0.35 m, :func:`gatetwin.flume.solver.leaf_speed`), i.e. 0.72 mm per sample.
+    level_band_mm : tuple[float, float] or None
+        Soft level band, mm; ``None`` drops it (and the slack). (100, 360): the flume's
+        wall is 400 mm high (40 mm freeboard), and below 100 mm the gate would run nearly
+        free at the demo's openings.
+    level_weight : float
+        Weight of the squared level error, 1/mm².
+    move_weight : float
+        Weight of the squared gate move, 1/mm² (10). Each mm of opening is ~10–15 mm of
+        level, so 10 keeps moves decisive (a 1 mm move costs as much as ~3 mm of level
+        error for one sample) without answering every noise sample.
+    slack_weight_quadratic, slack_weight_linear : float
+        Penalties of the band slack, 1/mm² and 1/mm.
+    qp_solver : str
+        casadi conic plugin: ``"qpoases"`` (default: fastest measured, hot-started),
+        ``"daqp"`` or ``"osqp"``; see ``benchmarks/bench_mpc.py``.
+    blas_threads : int or None
+        Threads of the OpenBLAS bundled with casadi, which qpOASES' dense algebra uses
+        (process-wide; ``None`` leaves it alone). 1: at N = 100–200 the matrices are too
+        small to gain from threads, and on a busy 2-core machine OpenBLAS' threads made
+        single solves take 40–50 ms instead of 0.5 ms.
+    observer : ObserverSettings
+        The disturbance observer's tuning.
+    """
+
+    horizon: int = 100
+    sample_period_s: float = SAMPLE_PERIOD_S
+    opening_range_mm: tuple[float, float] = (5.0, 100.0)
+    opening_rate_mm_s: float = 0.6
+    level_band_mm: tuple[float, float] | None = (100.0, 360.0)
+    level_weight: float = 1.0
+    move_weight: float = 10.0
+    slack_weight_quadratic: float = 1.0e3
+    slack_weight_linear: float = 1.0e3
+    qp_solver: str = "qpoases"
+    blas_threads: int | None = 1
+    observer: ObserverSettings = field(default_factory=ObserverSettings)
+
+    def __post_init__(self) -> None:
+        lo, hi = self.opening_range_mm
+        checks = {
+            "horizon": isinstance(self.horizon, int) and 1 <= self.horizon <= 2000,
+            "sample_period_s": self.sample_period_s > 0,
+            "opening_range_mm": 0 <= lo < hi < math.inf,
+            "opening_rate_mm_s": 0 < self.opening_rate_mm_s < math.inf,
+            "weights": self.level_weight > 0
+            and self.move_weight > 0
+            and self.slack_weight_quadratic > 0
+            and self.slack_weight_linear >= 0,
+            "qp_solver": self.qp_solver in QP_SOLVERS,
+            "blas_threads": self.blas_threads is None or self.blas_threads >= 1,
+        }
+        if self.level_band_mm is not None:
+            checks["level_band_mm"] = self.level_band_mm[0] < self.level_band_mm[1]
+        bad = [k for k, ok in checks.items() if not ok]
+        if bad:
+            raise ControlError(f"mpc settings: invalid {', '.join(bad)}")
+
+    @property
+    def max_move_mm(self) -> float:
+        """Largest opening change per sample, mm."""
+        return self.opening_rate_mm_s * self.sample_period_s
+
+
+__all__ = ["QP_SOLVERS", "MpcSettings", "ObserverSettings"]

@@ -1,0 +1,124 @@
+"""Closed loop: the MPC beats the SIMC PI on the inflow step on the exported FMU and on the
+virtual flume; the demo's JSON, plots and command line; the plants' step interface."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gatetwin.cli import main
+from gatetwin.flume import FlumeConfig
+from gatetwin.mpc import (
+    DemoSettings,
+    FlumeCore,
+    LoopPlant,
+    MeasurementNoise,
+    ModelCore,
+    compare_controllers,
+    demo_plant,
+    demo_scenarios,
+    loop_metrics,
+    run_mpc_demo,
+)
+
+#: Keys every controller's metrics carry in the demo JSON (the agreed contract).
+METRIC_KEYS = {"iae", "max_dev_mm", "settling_s", "travel_mm", "violations",
+               "solve_ms_median", "solve_ms_p99"}  # fmt: skip
+
+
+def has_compiler() -> bool:
+    return shutil.which("cc") is not None or shutil.which("gcc") is not None
+
+
+@pytest.fixture(scope="module")
+def plant():
+    return demo_plant()
+
+
+@pytest.mark.parametrize("plant_kind", ["fmu", "flume"])
+def test_mpc_beats_pi_on_the_inflow_step(plant, plant_kind):
+    if plant_kind == "fmu" and not has_compiler():
+        pytest.skip("no C compiler (cc/gcc) on PATH")
+    inflow = next(s for s in demo_scenarios(10.0) if "inflow" in s.name)
+    runs = compare_controllers(plant, inflow, plant_kind=plant_kind)
+    mpc, pi = loop_metrics(runs["mpc"]), loop_metrics(runs["pi"])
+    assert mpc["iae"] < pi["iae"], (mpc["iae"], pi["iae"])
+    assert mpc["violations"] == 0 and pi["violations"] == 0
+    assert mpc["travel_mm"] < pi["travel_mm"]
+    assert runs["mpc"].flow_m3h[-1] == 60.0 and abs(mpc["final_error_mm"]) < 2.0
+
+
+def test_fmu_loop_equals_the_python_reference_loop(plant):
+    if not has_compiler():
+        pytest.skip("no C compiler (cc/gcc) on PATH")
+    scenario = demo_scenarios(3.0)[0]
+    on_fmu = compare_controllers(plant, scenario, plant_kind="fmu")
+    on_model = compare_controllers(plant, scenario, plant_kind="model")
+    for name in ("mpc", "pi"):
+        assert np.max(np.abs(on_fmu[name].level_mm - on_model[name].level_mm)) < 1e-6
+
+
+def test_demo_json_and_plots(plant, tmp_path):
+    result = run_mpc_demo(plant, plant_kind="model", minutes=3.0, out_plots_dir=tmp_path)
+    json.dumps(result, allow_nan=False)  # JSON-ready, no NaN
+    assert set(result["scenarios"]) == {"setpoint_steps", "inflow_step"}
+    for metrics in result["scenarios"].values():
+        assert set(metrics) == {"mpc", "pi"}
+        for m in metrics.values():
+            assert METRIC_KEYS <= set(m)
+    assert result["pi_margins"]["phase_margin_deg"] > 0
+    for name in result["scenarios"]:
+        assert (tmp_path / f"{name}.png").stat().st_size > 10_000
+
+
+def test_cli_mpc_demo(tmp_path, capsys):
+    if not has_compiler():
+        pytest.skip("no C compiler (cc/gcc) on PATH")
+    out = tmp_path / "demo.json"
+    code = main(["mpc-demo", "--plant", "fmu", "--json", str(out), "--plots",
+                 str(tmp_path / "plots"), "--minutes", "2"])  # fmt: skip
+    assert code == 0
+    data = json.loads(out.read_text())
+    assert data["plant"] == "fmu"
+    assert METRIC_KEYS <= set(data["scenarios"]["inflow_step"]["mpc"])
+    assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == [
+        "inflow_step.png", "setpoint_steps.png"]  # fmt: skip
+    capsys.readouterr()
+    assert main(["mpc-demo", "--json", str(out), "--plots", str(tmp_path), "--minutes",
+                 "nan"]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert err.startswith("gatetwin: error:") and err.count("\n") == 1
+
+
+def test_demo_plant_levels_are_the_flumes_at_the_reference_opening(plant):
+    core = FlumeCore(FlumeConfig())
+    level = core.start(plant.opening_ref_mm, 40.0)
+    assert level == pytest.approx(plant.schedule.at("level_ref_mm", 40.0), abs=1e-6)
+    levels = plant.schedule.values["level_ref_mm"]
+    assert all(b > a for a, b in zip(levels, levels[1:], strict=False))
+
+
+def test_loop_plant_rounds_the_opening_and_adds_gauge_noise(plant):
+    noisy = LoopPlant(ModelCore(plant), noise=MeasurementNoise(sd_mm=0.7, seed=5))
+    exact = LoopPlant(ModelCore(plant), noise=None)
+    noisy.start(25.0, 40.0)
+    exact.start(25.0, 40.0)
+    readings = np.array([noisy.step(25.4, 40.0) for _ in range(3000)])
+    for _ in range(3000):
+        exact.step(25.4, 40.0)
+    assert noisy.applied_opening_mm == 25.0  # 1 mm actuator resolution
+    assert exact.true_level_mm == pytest.approx(plant.schedule.at("level_ref_mm", 40.0))
+    noise = readings - noisy.true_level_mm
+    assert np.std(noise) == pytest.approx(0.7, rel=0.15)
+    assert np.allclose(readings * 10, np.round(readings * 10))  # 0.1 mm resolution
+
+
+def test_demo_settings_are_those_documented():
+    s = DemoSettings()
+    assert s.mpc.max_move_mm == pytest.approx(0.72)  # 0.6 mm/s loaded speed x 1.2 s
+    assert s.mpc.horizon >= 100
+    assert Path(s.mpc.qp_solver).name == "qpoases"
