@@ -67,6 +67,61 @@ def applicable_pairs(ctx: Any) -> tuple[dict[str, list[str]], list[dict[str, str
     return pairs, outside
 
 
+#: Plants the MPC demo closes the loop on in ``gatetwin run`` (both, 30 minutes each).
+MPC_PLANTS = ("fmu", "flume")
+MPC_MINUTES = 30.0
+
+
+def mpc_demo(ctx: Any) -> None:
+    """MPC against PI on the exported FOPDT (3F) and on the flume: ``mpc.json``."""
+    from gatetwin._io import write_json_atomic
+    from gatetwin.modelfile import read_model_file
+    from gatetwin.mpc import run_mpc_demo
+
+    model = read_model_file(ctx.out_dir / "models" / "fopdt_3F.json")
+    scenarios: dict[str, Any] = {}
+    runs: dict[str, Any] = {}
+    for kind in MPC_PLANTS:
+        ctx.progress(f"      {kind}: {MPC_MINUTES:g} simulated minutes per scenario")
+        result = run_mpc_demo(model.plant, plant_kind=kind, minutes=MPC_MINUTES,
+                              out_plots_dir=ctx.out_dir / "figures" / f"mpc_{kind}")  # fmt: skip
+        runs[kind] = {k: v for k, v in result.items() if k != "scenarios"}
+        for name, pair in result["scenarios"].items():
+            scenarios[f"{kind}_{name}"] = {**pair, "plant": kind}
+    doc = {"model": model.name, "minutes": MPC_MINUTES, "runs": runs, "scenarios": scenarios}
+    write_json_atomic(ctx.out_dir / "mpc.json", doc)
+    ctx.results["mpc"] = doc
+    ctx.results.setdefault("summary_sections", []).append(_mpc_markdown(doc))
+
+
+MPC_COLUMNS = ("iae", "max_dev_mm", "settling_s", "travel_mm", "violations",
+               "solve_ms_median", "solve_ms_p99")  # fmt: skip
+
+
+def _mpc_rows(doc: dict[str, Any]) -> list[list[str]]:
+    rows = []
+    for name, pair in doc["scenarios"].items():
+        for ctrl in ("mpc", "pi"):
+            m = pair[ctrl]
+            cells = [name, ctrl.upper()]
+            for key in MPC_COLUMNS:
+                v = m.get(key)
+                v = v.get("total", v) if isinstance(v, dict) else v
+                cells.append("–" if v is None else f"{v:.4g}" if isinstance(v, float) else str(v))
+            rows.append(cells)
+    return rows
+
+
+def _mpc_markdown(doc: dict[str, Any]) -> str:
+    header = ["scenario", "controller", "IAE (mm·s)", "max dev (mm)", "settling (s)",
+              "travel (mm)", "violations", "solve median (ms)", "solve p99 (ms)"]  # fmt: skip
+    lines = ["## MPC demo", "", f"Model {doc['model']}, {doc['minutes']:g} simulated minutes "
+             "per scenario, control period 1.2 s.", "", "| " + " | ".join(header) + " |",
+             "|" + "---|" * len(header)]  # fmt: skip
+    lines += ["| " + " | ".join(r) + " |" for r in _mpc_rows(doc)]
+    return "\n".join(lines) + "\n"
+
+
 def write_report(ctx: Any) -> None:
     """``report.html``: tables, figures, validation matrix (and later sections)."""
     from gatetwin.report import Report, Table
@@ -93,6 +148,19 @@ def write_report(ctx: Any) -> None:
             f"{', '.join(MATRIX_FAIL_UNDER)}.",
             Table.from_dicts(cells, columns),
         )
+    doc = ctx.results.get("mpc")
+    if doc:
+        header = ("scenario", "controller", "IAE (mm·s)", "max dev (mm)", "settling (s)",
+                  "travel (mm)", "violations", "solve median (ms)", "solve p99 (ms)")
+        plots = sorted((ctx.out_dir / "figures").glob("mpc_*/*.png"))
+        report.add_section(
+            "MPC demo",
+            f"CasADi MPC (condensed QP, qpOASES) against a SIMC-tuned PI, built from "
+            f"{doc['model']}; plants: the exported C FMU through fmpy, and the virtual flume.",
+            Table(header, tuple(tuple(r) for r in _mpc_rows(doc))),
+            figures=[(p, f"{p.parent.name.replace('_', ' ')}: {p.stem.replace('_', ' ')}")
+                     for p in plots],
+        )  # fmt: skip
     for title, blocks in ctx.results.get("report_sections", []):
         report.add_section(title, *blocks)
     report.write(ctx.out_dir / "report.html")
