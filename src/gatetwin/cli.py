@@ -221,7 +221,8 @@ def _add_mpc_demo_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--model", metavar="MODEL.json",
-        help="FOPDT model file to control (default: the built-in 3F demo plant)",
+        help="FOPDT model file to control (default: the 3F schedule identified from "
+        "the bundled records)",
     )  # fmt: skip
 
 

@@ -47,7 +47,7 @@ from gatetwin.mpc.loop import (
 from gatetwin.mpc.pi import PiController, PiSettings, PiTuning, loop_margins, simc_pi_for_plant
 from gatetwin.mpc.plants import FlumeCore, FmuCore, LoopPlant, MeasurementNoise, ModelCore
 from gatetwin.mpc.settings import MpcSettings
-from gatetwin.plant.model import FopdtPlant, Plant, Schedule
+from gatetwin.plant.model import FopdtPlant, Plant, Schedule, plant_from_dict
 
 PLANT_KINDS = ("fmu", "flume", "model")
 
@@ -92,9 +92,14 @@ def demo_plant(config: FlumeConfig | None = None, *, opening_ref_mm: float = 25.
 
 
 def load_demo_plant(model_path: str | Path | None = None) -> FopdtPlant:
-    """The plant of a model file (must be FOPDT), or :func:`demo_plant` without one."""
+    """The plant of a model file (must be FOPDT); without one, the scheduled FOPDT of gauge
+    3F identified from the bundled records (the model ``gatetwin run`` exports)."""
     if model_path is None:
-        return demo_plant()
+        from gatetwin.identify.suite import identify_folder
+        from gatetwin.pipeline import bundled_records_dir
+
+        doc = identify_folder(bundled_records_dir()).models["fopdt_3F"]
+        return plant_from_dict(doc["plant"])  # type: ignore[return-value]
     from gatetwin.modelfile import read_model_file
 
     plant = read_model_file(model_path).plant
