@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from gatetwin import __version__
+from gatetwin import _commands_diagnose as _diagnose_cmds
 from gatetwin import _commands_model as _model_cmds
 from gatetwin._io import write_json_atomic
 from gatetwin._sidecar import TEST_TYPES
@@ -284,6 +285,12 @@ _COMMANDS: tuple[Command, ...] = (
         "MPC vs SIMC PI on the exported FMU or the virtual flume: metrics JSON and plots",
         _add_mpc_demo_arguments,
         _run_mpc_demo,
+    ),
+    Command(
+        "diagnose",
+        "find where a model and a record disagree, name the missing effect, add it, re-validate",
+        _diagnose_cmds.add_diagnose_arguments,
+        _diagnose_cmds.run_diagnose,
     ),
     Command(
         "run",

@@ -1,0 +1,301 @@
+"""Fast simulation of a plant on a uniform time grid, for fitting.
+
+The same semantics as :mod:`gatetwin.plant.simulate` (the reference), specialised to inputs
+that change only at the points of a uniform grid of step ``step_s`` (a record's nominal
+sample period): the FOPDT with its dead time is then an exact two-tap recursion per grid
+interval (``L = n dt + theta``: the input of interval ``j - n - 1`` acts for ``theta``, that of
+interval ``j - n`` for the rest), and the effect blocks run per interval, the rate-limited
+actuator on its sub-step grid. Loops are compiled with numba. Tests hold it equal to the
+reference to round-off; it is a faster rendering of the same plant, not another model.
+
+The grid starts at the first record sample; a record's samples are mapped to the nearest grid
+point (:func:`grid_index`), and inputs are held from one sample to the next, as the FMU
+validation harness holds them across logging gaps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from gatetwin.errors import IdentificationError
+from gatetwin.plant.effects import EffectSet
+from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant
+
+_PI = math.pi
+
+
+@dataclass(frozen=True)
+class GridInputs:
+    """Inputs on a uniform grid: ``command_mm[j]``, ``flow_m3h[j]`` held over interval ``j``.
+
+    Attributes
+    ----------
+    command_mm, flow_m3h : ndarray
+        One value per grid interval (``n`` intervals, ``n + 1`` points).
+    step_s : float
+        Grid step, s.
+    sample_point : ndarray of int
+        Grid point of every record sample.
+    """
+
+    command_mm: np.ndarray
+    flow_m3h: np.ndarray
+    step_s: float
+    sample_point: np.ndarray
+
+    @property
+    def n_intervals(self) -> int:
+        return int(self.command_mm.size)
+
+
+def grid_index(time_s: np.ndarray, step_s: float) -> np.ndarray:
+    """Nearest grid point of every sample time (grid origin: the first sample)."""
+    t = np.asarray(time_s, dtype=float)
+    return np.rint((t - t[0]) / step_s).astype(np.int64)
+
+
+def grid_inputs(
+    time_s: np.ndarray, command_mm: np.ndarray, flow_m3h: np.ndarray, step_s: float
+) -> GridInputs:
+    """Hold every sample's inputs until the next sample, on the grid of ``step_s``."""
+    points = grid_index(time_s, step_s)
+    if np.any(np.diff(points) < 1):
+        raise IdentificationError(
+            f"two samples fall on one point of the {step_s:g} s grid (time jitter above half a "
+            "sample period)"
+        )
+    n = int(points[-1])
+    owner = np.searchsorted(points, np.arange(n), side="right") - 1
+    return GridInputs(
+        np.asarray(command_mm, float)[owner], np.asarray(flow_m3h, float)[owner], float(step_s),
+        points,
+    )  # fmt: skip
+
+
+# --------------------------------------------------------------------------- kernels
+
+
+@njit(cache=True)
+def _gate_seen(command, has_rate, travel, has_band, band):  # pragma: no cover - numba
+    """Gate position the dynamics see over each interval (see gatetwin.plant.effects)."""
+    n = command.size
+    seen = np.empty(n)
+    a = command[0]
+    g = command[0]
+    half = 0.5 * band
+    for j in range(n):
+        if has_rate:
+            seen[j] = g
+            diff = command[j] - a
+            if diff > travel:
+                a = a + travel
+            elif diff < -travel:
+                a = a - travel
+            else:
+                a = command[j]
+        else:
+            a = command[j]
+        if has_band:
+            if a - g > half:
+                g = a - half
+            elif a - g < -half:
+                g = a + half
+        else:
+            g = a
+        if not has_rate:
+            seen[j] = g
+    return seen
+
+
+@njit(cache=True)
+def _lag_interval(z, target, excess, d, tau, lag):  # pragma: no cover - numba
+    alpha = 1.0 / tau
+    beta = 1.0 / lag
+    lo = alpha if alpha < beta else beta
+    gap = (beta - alpha) if beta > alpha else (alpha - beta)
+    if gap == 0.0:
+        phi = beta * d * math.exp(-lo * d)
+    else:
+        phi = beta * math.exp(-lo * d) * (-math.expm1(-gap * d)) / gap
+    return target + (z - target) * math.exp(-beta * d) + excess * phi
+
+
+@njit(cache=True)
+def _fopdt(u, gain, tau, delay, level_ref, dt, x0, lag):  # pragma: no cover - numba
+    """Bulk level (level_ref + x, or the sensor-lag output) at every grid point."""
+    n = u.size
+    out = np.empty(n + 1)
+    x = x0
+    z = level_ref[0] + x0
+    out[0] = z if lag > 0.0 else level_ref[0] + x0
+    for j in range(n):
+        whole = math.floor(delay[j] / dt)
+        theta = delay[j] - whole * dt
+        i_old = j - int(whole) - 1
+        i_new = i_old + 1
+        u_old = u[i_old] if i_old > 0 else u[0]
+        u_new = u[i_new] if i_new > 0 else u[0]
+        for part in range(2):
+            d = theta if part == 0 else dt - theta
+            if d <= 0.0:
+                continue
+            target = gain[j] * (u_old if part == 0 else u_new)
+            if lag > 0.0:
+                z = _lag_interval(z, level_ref[j] + target, x - target, d, tau[j], lag)
+            x = target + (x - target) * math.exp(-d / tau[j])
+        out[j + 1] = z if lag > 0.0 else level_ref[j] + x
+    return out
+
+
+@njit(cache=True)
+def _arx(u, a, b, nk, level_ref, x0, u0, dt, lag):  # pragma: no cover - numba
+    n, na, nb = u.size, a.shape[1], b.shape[1]
+    lags = nk + nb - 1
+    x_hist = np.full(na, x0)
+    u_hist = np.full(max(lags, 1), u0)
+    out = np.empty(n + 1)
+    z = level_ref[0] + x0
+    out[0] = z if lag > 0.0 else level_ref[0] + x0
+    x = x0
+    for j in range(n):
+        for i in range(lags - 1, 0, -1):
+            u_hist[i] = u_hist[i - 1]
+        u_hist[0] = u[j]
+        x = 0.0
+        for i in range(na):
+            x += a[j, i] * x_hist[i]
+        for i in range(nb):
+            x += b[j, i] * (u[j] if nk - 1 + i == 0 else u_hist[nk - 1 + i])
+        for i in range(na - 1, 0, -1):
+            x_hist[i] = x_hist[i - 1]
+        x_hist[0] = x
+        if lag > 0.0:
+            target = level_ref[j] + x
+            z = target + (z - target) * math.exp(-dt / lag)
+        out[j + 1] = z if lag > 0.0 else level_ref[j] + x
+    return out
+
+
+@njit(cache=True)
+def _seiche(v, dt, period, decay, amplitude):  # pragma: no cover - numba
+    n = v.size
+    w = 2.0 * _PI / period
+    sigma = 1.0 / decay
+    w0_sq = sigma * sigma + w * w
+    envelope = math.exp(-sigma * dt)
+    c = math.cos(w * dt)
+    s = math.sin(w * dt) / w
+    out = np.zeros(n + 1)
+    x1 = v[0] / w0_sq
+    x2 = 0.0
+    for j in range(n):
+        p = x1 - v[j] / w0_sq
+        p_new = envelope * ((c + sigma * s) * p + s * x2)
+        x2 = envelope * (-w0_sq * s * p + (c - sigma * s) * x2)
+        x1 = p_new + v[j] / w0_sq
+        out[j + 1] = amplitude * w * x2
+    return out
+
+
+@njit(cache=True)
+def _first_order(target, dt, tau):  # pragma: no cover - numba
+    n = target.size
+    out = np.empty(n + 1)
+    x = target[0]
+    out[0] = x
+    a = math.exp(-dt / tau)
+    for j in range(n):
+        x = target[j] + (x - target[j]) * a
+        out[j + 1] = x
+    return out
+
+
+# --------------------------------------------------------------------------- rendering
+
+
+def _column(plant: Plant, name: str, flow: np.ndarray) -> np.ndarray:
+    knots = np.asarray(plant.schedule.flow_m3h, dtype=float)
+    values = np.asarray(plant.schedule.values[name], dtype=float)
+    if knots.size == 1 or np.all(values == values[0]):
+        return np.full(flow.size, values[0])
+    return np.interp(flow, knots, values)
+
+
+def _substeps(fx: EffectSet, plant: Plant, step_s: float) -> int:
+    if not fx.rate_limit or isinstance(plant, ArxPlant):
+        return 1
+    m = step_s / fx.rate_limit.substep_s
+    if abs(m - round(m)) > 1e-9 * m or round(m) < 1:
+        raise IdentificationError(
+            f"the actuator sub-step {fx.rate_limit.substep_s:g} s must divide the grid step "
+            f"{step_s:g} s"
+        )
+    return int(round(m))
+
+
+def _effective(fx: EffectSet, gate: np.ndarray, opening_ref: float) -> np.ndarray:
+    v = gate - opening_ref
+    if fx.nonlinearity and fx.nonlinearity.gain_slope_per_mm != 0.0:
+        s = fx.nonlinearity.gain_slope_per_mm
+        return np.expm1(s * v) / s
+    return v
+
+
+def _bulk(plant: Plant, fx: EffectSet, u: np.ndarray, flow: np.ndarray, dt: float) -> np.ndarray:
+    lag = fx.lag.time_constant_s if fx.lag else 0.0
+    level_ref = _column(plant, "level_ref_mm", flow)
+    if isinstance(plant, FopdtPlant):
+        gain = _column(plant, "gain_mm_per_mm", flow)
+        tau = _column(plant, "time_constant_s", flow)
+        if fx.flow_gain:
+            dq = flow - fx.flow_gain.flow_ref_m3h
+            gain = gain * np.exp(fx.flow_gain.gain_slope_per_m3h * dq)
+            tau = tau * np.exp(fx.flow_gain.time_constant_slope_per_m3h * dq)
+        delay = _column(plant, "dead_time_s", flow)
+        return _fopdt(u, gain, tau, delay, level_ref, dt, gain[0] * u[0], lag)
+    a = np.column_stack([_column(plant, f"a{i}", flow) for i in range(1, plant.na + 1)])
+    b = np.column_stack([_column(plant, f"b{j}", flow) for j in range(1, plant.nb + 1)])
+    sum_a = float(np.sum(a[0]))
+    if sum_a == 1.0:
+        raise IdentificationError("arx: no equilibrium (sum of a coefficients is 1)")
+    x0 = float(np.sum(b[0])) / (1.0 - sum_a) * u[0]
+    return _arx(u, a, b, plant.nk, level_ref, x0, u[0], dt, lag)
+
+
+def simulate_grid(plant: Plant, inputs: GridInputs) -> np.ndarray:
+    """Level (mm) at every record sample of ``inputs``, free run from equilibrium.
+
+    Raises
+    ------
+    IdentificationError
+        An ARX plant whose sample period is not the grid step, or an actuator sub-step that
+        does not divide it.
+    """
+    fx = plant.effect_set
+    dt = inputs.step_s
+    if isinstance(plant, ArxPlant) and abs(plant.sample_period_s - dt) > 1e-9 * dt:
+        raise IdentificationError(
+            f"arx sample period {plant.sample_period_s:g} s differs from the grid step {dt:g} s"
+        )
+    m = _substeps(fx, plant, dt)
+    command = np.repeat(inputs.command_mm, m)
+    flow = np.repeat(inputs.flow_m3h, m)
+    fine = dt / m
+    travel = fx.rate_limit.rate_mm_per_s * fine if fx.rate_limit else 0.0
+    band = fx.backlash.deadband_mm if fx.backlash else 0.0
+    gate = _gate_seen(command, bool(fx.rate_limit), travel, bool(fx.backlash), band)
+    level = _bulk(plant, fx, _effective(fx, gate, plant.opening_ref_mm), flow, fine)
+    if fx.seiche:
+        s = fx.seiche
+        level = level + _seiche(gate - plant.opening_ref_mm, fine, s.period_s, s.decay_time_s,
+                                s.amplitude_mm_per_mm)  # fmt: skip
+    if fx.inflow:
+        target = fx.inflow.gain_mm_per_m3h * (flow - fx.inflow.flow_ref_m3h)
+        level = level + _first_order(target, fine, fx.inflow.time_constant_s)
+    if fx.drift:
+        level = level + fx.drift.rate_mm_per_s * fine * np.arange(level.size)
+    return level[inputs.sample_point * m]

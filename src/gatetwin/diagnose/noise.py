@@ -1,0 +1,188 @@
+"""The noise floor of a record and where a model's residual rises above it.
+
+**Noise floor.** ``sigma`` is the standard deviation of the level around a quadratic in time,
+fitted to the *last half* of every steady stretch (hold samples at one opening with no step of
+the discharge, at least :data:`MIN_STRETCH_SAMPLES` long), pooled over the stretches (sum of
+squares over degrees of freedom), stretches more than three times the median SD dropped.
+Why this one: the last half of a long hold is past the transient of the move that began it, the
+quadratic takes out what is left of it and any slow drift, and unlike the SD of first
+differences it keeps correlated noise (the surface waves of a flume are correlated over
+seconds; first differences see only their fast part). What it cannot separate is an
+oscillation still ringing in the second half of a hold (a slowly decaying seiche): that raises
+``sigma``. Without any such stretch it falls back to the robust SD of first differences of
+hold samples divided by ``sqrt(2)``, and says so.
+
+**Windows.** The residual's moving RMS over :data:`WINDOW_S` (``w`` samples) is compared with
+the level a white residual of SD ``sigma`` exceeds by chance with probability
+:data:`FALSE_ALARM` over the whole record: ``sigma sqrt(chi2_w^-1(1 - a / m) / w)``, ``m`` the
+number of independent windows in the record (Bonferroni). Runs above it are merged and
+reported with their RMS; :func:`regions` scores operating regions the same way (``m`` the
+number of regions).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from gatetwin.diagnose.data import DiagnosisData
+
+MIN_STRETCH_SAMPLES = 24
+WINDOW_S = 30.0
+MAD_TO_SD = 1.4826
+#: Chance that a white residual at the noise floor raises a window (or a region) anywhere.
+FALSE_ALARM = 0.01
+
+
+@dataclass(frozen=True)
+class NoiseFloor:
+    """The record's noise floor.
+
+    Attributes
+    ----------
+    sigma_mm : float
+        Noise SD, mm.
+    method : str
+        How it was obtained (module docstring).
+    n_stretches, n_samples : int
+        Steady stretches and samples it rests on.
+    """
+
+    sigma_mm: float
+    method: str
+    n_stretches: int
+    n_samples: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"sigma_mm": self.sigma_mm, "method": self.method,
+                "n_stretches": self.n_stretches, "n_samples": self.n_samples}  # fmt: skip
+
+
+def flow_steps(flow_m3h: np.ndarray) -> np.ndarray:
+    """Indices ``i`` where the discharge steps between samples ``i - 1`` and ``i``."""
+    dq = np.diff(flow_m3h)
+    sd = MAD_TO_SD * float(np.median(np.abs(dq - np.median(dq)))) if dq.size else 0.0
+    return np.flatnonzero(np.abs(dq) > max(6.0 * sd, 0.5)) + 1
+
+
+def steady_stretches(data: DiagnosisData) -> list[tuple[int, int]]:
+    """``(start, stop)`` runs of hold samples at one command with no discharge step."""
+    n = data.time_s.size
+    cut = np.zeros(n, dtype=bool)
+    cut[flow_steps(data.flow_m3h)] = True
+    cut[1:] |= data.command_mm[1:] != data.command_mm[:-1]
+    cut[1:] |= np.diff(data.time_s) > 1.5 * data.sample_period_s
+    out, start = [], None
+    for i in range(n):
+        if start is not None and (cut[i] or not data.hold[i]):
+            out.append((start, i))
+            start = None
+        if start is None and data.hold[i]:
+            start = i
+    if start is not None:
+        out.append((start, n))
+    return [(a, b) for a, b in out if b - a >= MIN_STRETCH_SAMPLES]
+
+
+def noise_floor(data: DiagnosisData) -> NoiseFloor:
+    """The record's noise floor (see the module docstring)."""
+    sums, dofs = [], []
+    for start, stop in steady_stretches(data):
+        idx = np.arange(start + (stop - start) // 2, stop)
+        idx = idx[np.isfinite(data.level_mm[idx])]
+        if idx.size < 8:
+            continue
+        t = data.time_s[idx] - data.time_s[idx].mean()
+        coef = np.polyfit(t, data.level_mm[idx], 2)
+        resid = data.level_mm[idx] - np.polyval(coef, t)
+        sums.append(float(resid @ resid))
+        dofs.append(idx.size - 3)
+    if sums:
+        ss, dof = np.array(sums), np.array(dofs)
+        keep = np.sqrt(ss / dof) <= 3.0 * np.median(np.sqrt(ss / dof))
+        sigma = float(np.sqrt(np.sum(ss[keep]) / np.sum(dof[keep])))
+        used = int(np.sum(dof[keep]) + 3 * np.count_nonzero(keep))
+        return NoiseFloor(sigma, "SD around a quadratic over the last half of steady holds",
+                          int(np.count_nonzero(keep)), used)  # fmt: skip
+    y = np.where(data.hold, data.level_mm, np.nan)
+    d = np.diff(y)
+    d = d[np.isfinite(d)]
+    sigma = MAD_TO_SD * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2.0)
+    return NoiseFloor(sigma, "robust SD of first differences of hold samples / sqrt(2) "
+                      "(no steady stretch long enough)", 0, int(d.size))  # fmt: skip
+
+
+def threshold_mm(sigma_mm: float, n_samples: int, tests: float = 1.0) -> float:
+    """RMS over ``n_samples`` that a white residual of SD ``sigma`` exceeds with probability
+    ``FALSE_ALARM / tests``."""
+    n = max(int(n_samples), 1)
+    return sigma_mm * float(np.sqrt(stats.chi2.isf(FALSE_ALARM / max(tests, 1.0), n) / n))
+
+
+def windows(
+    time_s: np.ndarray, residual_mm: np.ndarray, sigma_mm: float, sample_period_s: float
+) -> list[dict[str, float]]:
+    """Time windows where the residual's moving RMS exceeds the noise floor's band.
+
+    Runs closer than half a window are merged; runs of fewer than 3 samples are dropped.
+    """
+    w = max(5, int(round(WINDOW_S / sample_period_s)))
+    r = np.where(np.isfinite(residual_mm), residual_mm, 0.0)
+    kernel = np.ones(w)
+    count = np.convolve(np.isfinite(residual_mm).astype(float), kernel, mode="same")
+    ms = np.convolve(r * r, kernel, mode="same") / np.maximum(count, 1.0)
+    above = (ms > threshold_mm(sigma_mm, w, time_s.size / w) ** 2) & (count >= w / 2)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], above.astype(np.int8), [0]])))
+    merged: list[list[int]] = []
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if merged and a - merged[-1][1] <= w // 2:
+            merged[-1][1] = int(b)
+        else:
+            merged.append([int(a), int(b)])
+    out = []
+    for a, b in merged:
+        seg = residual_mm[a:b][np.isfinite(residual_mm[a:b])]
+        if b - a >= 3 and seg.size:
+            out.append({"t_start_s": float(time_s[a]), "t_end_s": float(time_s[b - 1]),
+                        "rms_mm": float(np.sqrt(np.mean(seg * seg)))})  # fmt: skip
+    return out
+
+
+def _region_row(name: str, mask: np.ndarray, residual: np.ndarray, sigma: float,
+                extra: dict[str, Any]) -> dict[str, Any] | None:  # fmt: skip
+    r = residual[mask & np.isfinite(residual)]
+    if r.size < 10:
+        return None
+    rms = float(np.sqrt(np.mean(r * r)))
+    return {"region": name, **extra, "n": int(r.size), "rms_mm": rms}
+
+
+def regions(data: DiagnosisData, residual_mm: np.ndarray, sigma_mm: float,
+            settle_s: float) -> list[dict[str, Any]]:  # fmt: skip
+    """Residual RMS by operating region: after moves / steady, opening level, discharge level."""
+    t = data.time_s
+    since = np.full(t.size, np.inf)
+    for move in data.moves:
+        later = t >= move.time_s
+        since[later] = np.minimum(since[later], t[later] - move.time_s)
+    rows = [
+        _region_row("after moves", since <= settle_s, residual_mm, sigma_mm,
+                    {"within_s": settle_s}),
+        _region_row("steady", since > settle_s, residual_mm, sigma_mm, {"after_s": settle_s}),
+    ]  # fmt: skip
+    for value in np.unique(data.command_mm):
+        rows.append(_region_row("opening", data.command_mm == value, residual_mm, sigma_mm,
+                                {"opening_mm": float(value)}))  # fmt: skip
+    edges = np.unique(np.quantile(data.flow_m3h, [0.0, 1 / 3, 2 / 3, 1.0]))
+    if edges.size > 2 and edges[-1] - edges[0] > 1.0:
+        for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+            mask = (data.flow_m3h >= lo) & (data.flow_m3h <= hi)
+            rows.append(_region_row("discharge", mask, residual_mm, sigma_mm,
+                                    {"flow_m3h": [float(lo), float(hi)]}))  # fmt: skip
+    kept = [r for r in rows if r is not None]
+    for row in kept:
+        row["exceeds"] = bool(row["rms_mm"] > threshold_mm(sigma_mm, row["n"], len(kept)))
+    return kept

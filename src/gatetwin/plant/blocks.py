@@ -1,0 +1,130 @@
+"""Arithmetic kernels of the effect blocks, shared by the reference simulator and the FMUs.
+
+Standard library only (``math``), and no gatetwin imports: the pythonfmu slave embeds this
+module's source verbatim at export (:mod:`gatetwin.fmu.python_build`), so the Python
+reference (:mod:`gatetwin.plant.simulate`) and the pythonfmu FMU run the very same
+operations. ``fmu_templates/effects.c`` spells the same operations in C, in the same order,
+so that all three renderings agree to round-off. Change the three together.
+
+What the blocks mean (inputs, outputs, parameters, state) is documented in
+:mod:`gatetwin.plant.effects`; this module only advances them.
+"""
+
+from __future__ import annotations
+
+import math
+
+
+def move_toward(position_mm: float, command_mm: float, max_travel_mm: float) -> float:
+    """Rate-limited actuator: move at most ``max_travel_mm`` toward ``command_mm``."""
+    diff = command_mm - position_mm
+    if diff > max_travel_mm:
+        return position_mm + max_travel_mm
+    if diff < -max_travel_mm:
+        return position_mm - max_travel_mm
+    return command_mm
+
+
+def play(gate_mm: float, actuator_mm: float, deadband_mm: float) -> float:
+    """Backlash (play operator) for an actuator that moved monotonically to ``actuator_mm``.
+
+    The gate stays put while the actuator is inside the band ``gate ± deadband/2`` and is
+    dragged along at the band's edge once it leaves it.
+    """
+    half = 0.5 * deadband_mm
+    if actuator_mm - gate_mm > half:
+        return actuator_mm - half
+    if actuator_mm - gate_mm < -half:
+        return actuator_mm + half
+    return gate_mm
+
+
+def gain_map(deviation_mm: float, slope_per_mm: float) -> float:
+    """Opening nonlinearity: ``expm1(s v) / s`` (``v`` for ``s = 0``), local gain ``exp(s v)``."""
+    if slope_per_mm == 0.0:
+        return deviation_mm
+    return math.expm1(slope_per_mm * deviation_mm) / slope_per_mm
+
+
+def gain_map_inverse(effective_mm: float, slope_per_mm: float) -> float:
+    """Inverse of :func:`gain_map` (``log1p(s u) / s``); NaN outside the map's range."""
+    if slope_per_mm == 0.0:
+        return effective_mm
+    arg = slope_per_mm * effective_mm
+    if not arg > -1.0:
+        return math.nan
+    return math.log1p(arg) / slope_per_mm
+
+
+def first_order(state: float, target: float, duration_s: float, time_constant_s: float) -> float:
+    """Exact first-order relaxation toward a constant ``target`` over ``duration_s``."""
+    return target + (state - target) * math.exp(-duration_s / time_constant_s)
+
+
+def seiche_advance(
+    x1: float, x2: float, drive_mm: float, duration_s: float, period_s: float, decay_time_s: float
+) -> tuple[float, float]:
+    """Exact advance of ``x1' = x2, x2' = -w0^2 x1 - 2 sigma x2 + v`` with ``v`` held.
+
+    ``w = 2 pi / period``, ``sigma = 1 / decay_time``, ``w0^2 = sigma^2 + w^2``; the block's
+    output is ``amplitude * w * x2`` (:func:`seiche_output`).
+    """
+    w = 2.0 * math.pi / period_s
+    sigma = 1.0 / decay_time_s
+    w0_sq = sigma * sigma + w * w
+    p = x1 - drive_mm / w0_sq
+    envelope = math.exp(-sigma * duration_s)
+    c = math.cos(w * duration_s)
+    s = math.sin(w * duration_s) / w
+    p_new = envelope * ((c + sigma * s) * p + s * x2)
+    q_new = envelope * (-w0_sq * s * p + (c - sigma * s) * x2)
+    return p_new + drive_mm / w0_sq, q_new
+
+
+def seiche_equilibrium(drive_mm: float, period_s: float, decay_time_s: float) -> float:
+    """``x1`` at rest for a held drive ``v`` (``x2 = 0``, output 0)."""
+    w = 2.0 * math.pi / period_s
+    sigma = 1.0 / decay_time_s
+    return drive_mm / (sigma * sigma + w * w)
+
+
+def seiche_output(x2: float, period_s: float, amplitude_mm_per_mm: float) -> float:
+    """Seiche contribution to the level, mm."""
+    return amplitude_mm_per_mm * (2.0 * math.pi / period_s) * x2
+
+
+def lag_interval(
+    sensed_mm: float,
+    level_target_mm: float,
+    level_excess_mm: float,
+    duration_s: float,
+    level_time_constant_s: float,
+    lag_s: float,
+) -> float:
+    """Exact sensor lag ``z' = (w - z) / lag`` over an interval where the level is
+    ``w(s) = level_target + level_excess * exp(-s / level_time_constant)``.
+
+    ``z(d) = A + (z0 - A) e^(-d/lag) + B phi(d)`` with ``A`` the target, ``B`` the excess and
+    ``phi(d) = beta (e^(-alpha d) - e^(-beta d)) / (beta - alpha)``, ``alpha = 1/T``,
+    ``beta = 1/lag``, evaluated without cancellation.
+    """
+    alpha = 1.0 / level_time_constant_s
+    beta = 1.0 / lag_s
+    lo = alpha if alpha < beta else beta
+    gap = (beta - alpha) if beta > alpha else (alpha - beta)
+    if gap == 0.0:
+        phi = beta * duration_s * math.exp(-lo * duration_s)
+    else:
+        phi = beta * math.exp(-lo * duration_s) * (-math.expm1(-gap * duration_s)) / gap
+    decay = math.exp(-beta * duration_s)
+    return level_target_mm + (sensed_mm - level_target_mm) * decay + level_excess_mm * phi
+
+
+def grid_index_at_or_after(time_s: float, origin_s: float, step_s: float) -> int:
+    """Index ``k`` of the first grid point ``origin + k * step`` that is ``>= time_s``."""
+    k = max(math.ceil((time_s - origin_s) / step_s), 0)
+    while k > 0 and origin_s + (k - 1) * step_s >= time_s:
+        k -= 1
+    while origin_s + k * step_s < time_s:
+        k += 1
+    return k
