@@ -122,6 +122,60 @@ def _mpc_markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: Records ``gatetwin run`` diagnoses, each against the baseline identified from the record
+#: itself (FOPDT for steps, ARX for PRBS) — and D, C also against the step tests' scheduled
+#: FOPDT (does the model the step tests see miss something at the PRBS openings?).
+DIAGNOSE = (("A", None), ("B", None), ("C", None), ("D", None), ("Q55", None),
+            ("C", "fopdt_3F"), ("D", "fopdt_3F"))  # fmt: skip
+
+
+def diagnose_records(ctx: Any) -> None:
+    """Diagnose the bundled records: ``diagnose.json``, augmented models and their FMUs."""
+    from gatetwin._io import write_json_atomic
+    from gatetwin.diagnose import diagnose_record
+
+    results = []
+    for record, model in DIAGNOSE:
+        path = ctx.records_dir / f"{record}.csv"
+        if not path.exists():
+            continue
+        label = f"{record} vs {model or 'own baseline'}"
+        model_path = ctx.out_dir / "models" / f"{model}.json" if model else None
+        out_dir = ctx.out_dir / "diagnose" / f"{record}_{model or 'own'}"
+        res = diagnose_record(path, model_path, plots_dir=ctx.out_dir / "figures" / "diagnose",
+                              fmu_dir=out_dir)  # fmt: skip
+        results.append({**res, "record": record,
+                        "baseline_source": model or "identified from the record"})  # fmt: skip
+        ctx.progress(f"      {label}: {res['named_effect']} (RMSE {res['rmse_before_mm']:.2f} "
+                     f"→ {res['rmse_after_mm']:.2f} mm)")  # fmt: skip
+    write_json_atomic(ctx.out_dir / "diagnose.json", {"diagnoses": results})
+    ctx.results["diagnose"] = results
+    ctx.results.setdefault("summary_sections", []).append(_diagnose_markdown(results))
+
+
+def _diagnose_rows(results: list[dict[str, Any]]) -> list[list[str]]:
+    rows = []
+    for r in results:
+        best = next((c for c in r["candidates"] if c["effect"] == r["named_effect"]), None)
+        params = ", ".join(f"{k} {v:.3g}" for k, v in (best or {}).get("params", {}).items()
+                           if isinstance(v, (int, float)))  # fmt: skip
+        rows.append([r["record"], r["baseline_source"], r["named_effect"], params or "–",
+                     f"{r['rmse_before_mm']:.2f}", f"{r['rmse_after_mm']:.2f}",
+                     str(len(r.get("windows", [])))])  # fmt: skip
+    return rows
+
+
+DIAGNOSE_HEADER = ("record", "baseline", "named effect", "parameters", "RMSE before (mm)",
+                   "RMSE after (mm)", "windows above noise")  # fmt: skip
+
+
+def _diagnose_markdown(results: list[dict[str, Any]]) -> str:
+    lines = ["## Diagnosis", "", "| " + " | ".join(DIAGNOSE_HEADER) + " |",
+             "|" + "---|" * len(DIAGNOSE_HEADER)]  # fmt: skip
+    lines += ["| " + " | ".join(r) + " |" for r in _diagnose_rows(results)]
+    return "\n".join(lines) + "\n"
+
+
 def write_report(ctx: Any) -> None:
     """``report.html``: tables, figures, validation matrix (and later sections)."""
     from gatetwin.report import Report, Table
@@ -161,6 +215,16 @@ def write_report(ctx: Any) -> None:
             figures=[(p, f"{p.parent.name.replace('_', ' ')}: {p.stem.replace('_', ' ')}")
                      for p in plots],
         )  # fmt: skip
+    diagnoses = ctx.results.get("diagnose")
+    if diagnoses:
+        plots = sorted((ctx.out_dir / "figures" / "diagnose").glob("*.png"))
+        report.add_section(
+            "Diagnosis",
+            "Where each record and its baseline disagree beyond the noise floor, which missing "
+            "effect explains it, and the RMSE before and after adding it.",
+            Table(DIAGNOSE_HEADER, tuple(tuple(r) for r in _diagnose_rows(diagnoses))),
+            figures=[(p, p.stem.replace("_", " ")) for p in plots],
+        )
     for title, blocks in ctx.results.get("report_sections", []):
         report.add_section(title, *blocks)
     report.write(ctx.out_dir / "report.html")

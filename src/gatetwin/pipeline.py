@@ -204,6 +204,7 @@ STAGES: tuple[PipelineStage, ...] = (
     PipelineStage("tables and figures", tables_and_figures),
     PipelineStage("validating every FMU against every record (fmpy)", _stages.validate_all),
     PipelineStage("MPC demo against PI (FMU and flume in the loop)", _stages.mpc_demo),
+    PipelineStage("diagnosing the bundled records", _stages.diagnose_records),
     PipelineStage("writing summary.md", write_summary),
     PipelineStage("writing report.html", _stages.write_report),
 )
