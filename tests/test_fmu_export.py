@@ -168,3 +168,12 @@ def test_bad_requests_raise_export_error(tmp_path, change, message):
     with pytest.raises(ExportError, match=message):
         export_fmu(args.pop("plant"), out, **args)
     assert list(tmp_path.iterdir()) == []
+
+
+@needs_cc
+def test_c_export_to_a_relative_path(tmp_path, monkeypatch):
+    # the compiler runs in the FMU's sources folder; a relative --out must still land
+    monkeypatch.chdir(tmp_path)
+    out = export_fmu(PLANTS["fopdt"](), Path("rel") / "m.fmu", backend="c", model_name="m",
+                     provenance=PROVENANCE)  # fmt: skip
+    assert (tmp_path / "rel" / "m.fmu").is_file() and out.name == "m.fmu"

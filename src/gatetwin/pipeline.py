@@ -245,7 +245,7 @@ def run_pipeline(
         From any stage, or :class:`~gatetwin.errors.PipelineError` if ``out_dir`` cannot
         be (re)placed. Nothing is left behind on failure.
     """
-    target = Path(out_dir)
+    target = Path(out_dir).resolve()
     say = progress or (lambda _line: None)
     _check_replaceable(target)
     inputs = Path(records_dir) if records_dir is not None else bundled_records_dir()

@@ -89,7 +89,9 @@ def compile_shared(
     sources_dir: Path, c_files: tuple[str, ...], out: Path, extra_flags: tuple[str, ...] = ()
 ) -> None:
     """Compile ``c_files`` in ``sources_dir`` into the shared library ``out``."""
-    cmd = [*find_compiler(), *CFLAGS, *extra_flags, "-o", str(out), *c_files, "-lm"]
+    # absolute: the compiler runs in sources_dir, so a relative output path would miss
+    cmd = [*find_compiler(), *CFLAGS, *extra_flags, "-o", str(Path(out).resolve()), *c_files,
+           "-lm"]  # fmt: skip
     try:
         done = subprocess.run(
             cmd, cwd=sources_dir, capture_output=True, text=True, timeout=300, check=False
