@@ -132,11 +132,13 @@ class LoopPlant:
         return self._measure()
 
     def _measure(self) -> float:
+        # a core with sensor blocks reads something other than the true level
+        reading = getattr(self.core, "reading_mm", self.true_level_mm)
         if self.noise is None:
-            return self.true_level_mm
+            return reading
         phi = math.exp(-self.sample_period_s / self.noise.correlation_s)
         self._ar = phi * self._ar + math.sqrt(1.0 - phi * phi) * float(self._rng.standard_normal())
-        reading = self.true_level_mm + self.noise.sd_mm * self._ar
+        reading = reading + self.noise.sd_mm * self._ar
         res = self.noise.resolution_mm
         return reading if res == 0 else float(np.round(reading / res) * res)
 
@@ -145,24 +147,32 @@ class LoopPlant:
 
 
 class ModelCore:
-    """The Python reference simulation of a plant (exact, fast)."""
+    """The Python reference simulation of a plant (exact, fast).
+
+    The true level is the water level (:attr:`PlantSimulator.process_level_mm`);
+    ``reading_mm`` is what the plant's gauge reads, which differs from it by the sensor
+    blocks (lag, drift) the plant may carry.
+    """
 
     def __init__(self, plant: Plant, sample_period_s: float = SAMPLE_PERIOD_S) -> None:
         self.plant = plant
         self.sample_period_s = sample_period_s
         self.description = f"python reference simulation of the {plant.kind} plant"
         self._sim = PlantSimulator(plant)
+        self.reading_mm = math.nan
 
     def start(self, opening_mm: float, flow_m3h: float) -> float:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # Q beyond the knots: clamped
             self._sim.initialize(opening_mm, flow_m3h)
-        return self._sim.level_mm
+        self.reading_mm = self._sim.level_mm
+        return self._sim.process_level_mm
 
     def advance(self, opening_mm: float, flow_m3h: float) -> float:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            return self._sim.do_step(self.sample_period_s, opening_mm, flow_m3h)
+            self.reading_mm = self._sim.do_step(self.sample_period_s, opening_mm, flow_m3h)
+        return self._sim.process_level_mm
 
     def close(self) -> None:
         return None

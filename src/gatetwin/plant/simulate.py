@@ -142,18 +142,27 @@ class PlantSimulator:
 
     @property
     def level_mm(self) -> float:
+        """What the gauge reads, mm (the plant's output)."""
         fx, es = self.fx, self.es
         if fx.lag:
-            y = es.sensed_mm
-        else:
-            y = self.plant.schedule.at("level_ref_mm", self.flow_m3h) + self.x
+            return self._physical_terms(es.sensed_mm) + (es.drift_mm if fx.drift else 0.0)
+        return self.process_level_mm + (es.drift_mm if fx.drift else 0.0)
+
+    @property
+    def process_level_mm(self) -> float:
+        """The water level itself, mm: the output without the sensor lag and drift."""
+        return self._physical_terms(
+            self.plant.schedule.at("level_ref_mm", self.flow_m3h) + self.x
+        )
+
+    def _physical_terms(self, y: float) -> float:
+        """``y`` plus the seiche and inflow terms (in the output blocks' order)."""
+        fx, es = self.fx, self.es
         if fx.seiche:
             y += blocks.seiche_output(es.seiche_x2, fx.seiche.period_s,
                                       fx.seiche.amplitude_mm_per_mm)  # fmt: skip
         if fx.inflow:
             y += es.inflow_mm
-        if fx.drift:
-            y += es.drift_mm
         return y
 
     def do_step(self, h: float, opening_mm: float, flow_m3h: float) -> float:
