@@ -32,6 +32,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import linalg
 
 from gatetwin.mpc.errors import ControlError
 from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant
@@ -44,13 +45,19 @@ DELAY_SPLIT_RTOL = 1e-9
 
 @dataclass(frozen=True, eq=False)
 class DiscreteModel:
-    """``z(k+1) = A z + B u + B_d d``, ``level = level_ref_mm + C z`` at one discharge.
+    """``z(k+1) = A z + B u + B_d d + f`` at one discharge, with two outputs.
+
+    ``reading = output_offset_mm + C z`` is what the gauge reads (what
+    :func:`gatetwin.plant.simulate` returns; the observer corrects with it) and
+    ``level = level_ref_mm + C_level z`` is the water level the MPC controls. They differ
+    only by the sensor blocks (``sensor_lag``, ``sensor_drift``).
 
     Attributes
     ----------
     a, b, c, b_dist : ndarray
         ``A`` (nz × nz), ``B``, ``C`` and ``B_d`` (nz each). ``u`` and ``d`` in mm of
-        opening, ``z`` in mm (levels) and mm (past openings).
+        opening (``u`` is the effective input when the plant has an opening nonlinearity),
+        ``z`` in mm (levels), mm (past inputs) and the effect blocks' own units.
     level_ref_mm : float
         Level of the plant at ``opening_ref_mm`` and this discharge, mm.
     opening_ref_mm : float
@@ -60,8 +67,20 @@ class DiscreteModel:
     sample_period_s : float
         ``Ts``, s.
     n_dynamic : int
-        The first ``n_dynamic`` states are level deviations (``x`` and, for ARX, its past
-        values); the rest is the register of past inputs, known exactly.
+        The first ``n_dynamic`` states are the level dynamics (``x``, for ARX its past
+        values, and the sensed level of a ``sensor_lag``); then the register of past
+        inputs (known exactly); then the states of the output effect blocks.
+    affine : ndarray
+        ``f``: the known drive of each state over one sample at this discharge (the
+        inflow term's ``Q − Q_ref``, the sensor lag's ``level_ref``); zeros by default.
+    c_level : ndarray
+        ``C_level``; ``c`` by default.
+    output_offset_mm : float
+        Constant of the reading; ``level_ref_mm`` by default (0 with a sensor lag, whose
+        state is the absolute sensed level).
+    fixed_states, fixed_values : tuple
+        States with no equilibrium, set at the start and never corrected by the observer
+        (the sensor drift's offset and rate), and their start values.
     """
 
     a: np.ndarray
@@ -73,28 +92,60 @@ class DiscreteModel:
     flow_m3h: float
     sample_period_s: float
     n_dynamic: int
+    affine: np.ndarray = None  # type: ignore[assignment]
+    c_level: np.ndarray = None  # type: ignore[assignment]
+    output_offset_mm: float = None  # type: ignore[assignment]
+    fixed_states: tuple[int, ...] = ()
+    fixed_values: tuple[float, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.affine is None:
+            object.__setattr__(self, "affine", np.zeros(self.b.size))
+        if self.c_level is None:
+            object.__setattr__(self, "c_level", self.c)
+        if self.output_offset_mm is None:
+            object.__setattr__(self, "output_offset_mm", self.level_ref_mm)
 
     @property
     def n_states(self) -> int:
         return int(self.b.size)
 
+    @property
+    def free_states(self) -> np.ndarray:
+        """Indices of the states that have an equilibrium (all but ``fixed_states``)."""
+        return np.setdiff1d(np.arange(self.n_states), np.asarray(self.fixed_states, dtype=int))
+
     def step(self, z: np.ndarray, opening_mm: float, disturbance_mm: float = 0.0) -> np.ndarray:
         """State one sample later with ``opening_mm`` held over the sample."""
         u = opening_mm - self.opening_ref_mm
-        return self.a @ z + self.b * u + self.b_dist * disturbance_mm
+        return self.a @ z + self.b * u + self.b_dist * disturbance_mm + self.affine
 
     def level_mm(self, z: np.ndarray) -> float:
-        return float(self.level_ref_mm + self.c @ z)
+        """What the gauge reads in state ``z``, mm."""
+        return float(self.output_offset_mm + self.c @ z)
+
+    def process_level_mm(self, z: np.ndarray) -> float:
+        """The water level in state ``z`` (without the sensor blocks), mm."""
+        return float(self.level_ref_mm + self.c_level @ z)
 
     def steady_state(self, opening_mm: float, disturbance_mm: float = 0.0) -> np.ndarray:
-        """Equilibrium state for a constant opening (the plants' initial state)."""
+        """Equilibrium state for a constant opening (the plants' initial state); the
+        ``fixed_states`` take their start values."""
         u = opening_mm - self.opening_ref_mm
-        rhs = self.b * u + self.b_dist * disturbance_mm
-        return np.linalg.solve(np.eye(self.n_states) - self.a, rhs)
+        z = np.zeros(self.n_states)
+        fixed = np.asarray(self.fixed_states, dtype=int)
+        z[fixed] = self.fixed_values
+        free = self.free_states
+        rhs = self.b * u + self.b_dist * disturbance_mm + self.affine + self.a @ z
+        lhs = np.eye(free.size) - self.a[np.ix_(free, free)]
+        z[free] = np.linalg.solve(lhs, rhs[free])
+        return z
 
     def dc_gain_mm_per_mm(self) -> float:
-        """Steady level change per mm of opening."""
-        return float(self.c @ np.linalg.solve(np.eye(self.n_states) - self.a, self.b))
+        """Steady change of the reading per mm of opening."""
+        free = self.free_states
+        lhs = np.eye(free.size) - self.a[np.ix_(free, free)]
+        return float(self.c[free] @ np.linalg.solve(lhs, self.b[free]))
 
 
 def fopdt_split(
@@ -139,42 +190,119 @@ def discretise(
 ) -> DiscreteModel:
     """The plant's exact discrete model at ``flow_m3h`` (parameters clamped outside knots).
 
+    The plant's effect blocks are rendered too: the flow-dependent gain in ``K`` and
+    ``T``, the sensor lag in the level dynamics, and the seiche, inflow and drift as extra
+    states (:mod:`gatetwin.mpc.augment`). The input blocks (rate limit, backlash, opening
+    nonlinearity) act on the command, not on the model: :mod:`gatetwin.mpc.actuation`.
+
     Raises
     ------
     ControlError
         Non-finite discharge, or an ARX plant whose sample period is not ``sample_period_s``.
     """
+    from gatetwin.mpc.augment import append_output_blocks
+
     if not math.isfinite(flow_m3h):
         raise ControlError(f"discharge {flow_m3h} m³/h is not finite")
     if isinstance(plant, FopdtPlant):
-        return _fopdt_model(plant, flow_m3h, sample_period_s)
-    if isinstance(plant, ArxPlant):
-        return _arx_model(plant, flow_m3h, sample_period_s)
-    raise ControlError(f"cannot render {type(plant).__name__}: expected FopdtPlant or ArxPlant")
+        core = _fopdt_model(plant, flow_m3h, sample_period_s)
+    elif isinstance(plant, ArxPlant):
+        core = _arx_model(plant, flow_m3h, sample_period_s)
+    else:
+        raise ControlError(
+            f"cannot render {type(plant).__name__}: expected FopdtPlant or ArxPlant"
+        )
+    return append_output_blocks(core, plant.effect_set, flow_m3h)
+
+
+def _fopdt_parameters(plant: FopdtPlant, q: float) -> tuple[float, float, float]:
+    """``K``, ``T`` (flow-dependent gain applied) and ``L`` at discharge ``q``."""
+    sched = plant.schedule
+    gain, tau = sched.at("gain_mm_per_mm", q), sched.at("time_constant_s", q)
+    flow_gain = plant.effect_set.flow_gain
+    if flow_gain:
+        gain_factor, tau_factor = flow_gain.factors(q)
+        gain, tau = gain * gain_factor, tau * tau_factor
+    return gain, tau, sched.at("dead_time_s", q)
 
 
 def _fopdt_model(plant: FopdtPlant, q: float, ts: float) -> DiscreteModel:
-    sched = plant.schedule
-    gain = sched.at("gain_mm_per_mm", q)
-    a, n, b1, b2 = fopdt_split(gain, sched.at("time_constant_s", q), sched.at("dead_time_s", q), ts)
+    gain, tau, delay = _fopdt_parameters(plant, q)
+    level_ref = plant.schedule.at("level_ref_mm", q)
+    lag = plant.effect_set.lag
+    a, n, b1, b2 = fopdt_split(gain, tau, delay, ts)
+    if lag:
+        core = _lagged_fopdt(gain, tau, delay, lag.time_constant_s, ts)
+    else:
+        core = _Core(np.array([[a]]), np.array([b1]), np.array([b2]), np.array([b1 + b2]),
+                     np.zeros(1))  # fmt: skip
+    nc = core.phi.shape[0]
     m = register_length(plant, ts)
-    nz = 1 + m
+    nz = nc + m
     a_mat = np.zeros((nz, nz))
-    b_vec = np.zeros(nz)
-    a_mat[0, 0] = a
-    # u(k - j) is state 1 + (j - 1) for j >= 1; u(k) itself enters through B
-    for lag, weight in ((n, b1), (n + 1, b2)):
-        if lag == 0:
-            b_vec[0] += weight
+    b_vec, b_dist, affine = np.zeros(nz), np.zeros(nz), np.zeros(nz)
+    a_mat[:nc, :nc] = core.phi
+    # u(k - j) is state nc + (j - 1) for j >= 1; u(k) itself enters through B
+    for lag_samples, weight in ((n, core.late), (n + 1, core.early)):
+        if lag_samples == 0:
+            b_vec[:nc] += weight
         else:
-            a_mat[0, lag] += weight
-    _shift_register(a_mat, b_vec, first=1, length=m)
-    c_vec = np.zeros(nz)
-    c_vec[0] = 1.0
-    b_dist = np.zeros(nz)
-    b_dist[0] = b1 + b2
+            a_mat[:nc, nc + lag_samples - 1] += weight
+    _shift_register(a_mat, b_vec, first=nc, length=m)
+    b_dist[:nc] = core.whole
+    affine[:nc] = core.level_drive * level_ref
+    c_level = np.zeros(nz)
+    c_level[0] = 1.0
+    c_vec = c_level
+    if lag:
+        c_vec = np.zeros(nz)
+        c_vec[1] = 1.0
     return DiscreteModel(
-        a_mat, b_vec, c_vec, b_dist, sched.at("level_ref_mm", q), plant.opening_ref_mm, q, ts, 1
+        a_mat, b_vec, c_vec, b_dist, level_ref, plant.opening_ref_mm, q, ts, nc,
+        affine=affine, c_level=c_level, output_offset_mm=0.0 if lag else level_ref,
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _Core:
+    """Sampled FOPDT core ``[x]`` or ``[x, sensed]`` over one sample.
+
+    ``z(k+1) = phi z + late u(k − n) + early u(k − n − 1) + level_drive level_ref``;
+    ``whole`` is the response to an input held over the whole sample (the disturbance's).
+    """
+
+    phi: np.ndarray
+    late: np.ndarray
+    early: np.ndarray
+    whole: np.ndarray
+    level_drive: np.ndarray
+
+
+def _lagged_fopdt(gain: float, tau: float, delay: float, lag_s: float, ts: float) -> _Core:
+    """FOPDT in cascade with the sensor's first-order lag, sampled exactly.
+
+    Continuous: ``x' = (K u(t − L) − x)/T``, ``s' = (level_ref + x − s)/lag``. Within a
+    sample the delayed input switches from ``u(k − n − 1)`` to ``u(k − n)`` at ``θ``, so
+    ``z(k+1) = Φ(Ts) z + Φ(Ts − θ) Γ(θ) u(k−n−1) + Γ(Ts − θ) u(k−n) + Γ_ref(Ts) level_ref``.
+    """
+    ratio = delay / ts
+    n_whole = math.floor(ratio + DELAY_SPLIT_RTOL * max(1.0, ratio))
+    theta = max(0.0, delay - n_whole * ts)
+    cont = np.zeros((4, 4))
+    cont[:2, :2] = [[-1.0 / tau, 0.0], [1.0 / lag_s, -1.0 / lag_s]]
+    cont[0, 2] = gain / tau  # input u
+    cont[1, 3] = 1.0 / lag_s  # constant level_ref
+
+    def flow(h: float) -> np.ndarray:
+        return linalg.expm(cont * h)
+
+    full, rest, head = flow(ts), flow(ts - theta), flow(theta)
+    return _Core(
+        phi=full[:2, :2],
+        late=rest[:2, 2],
+        early=rest[:2, :2] @ head[:2, 2],
+        whole=full[:2, 2],
+        level_drive=full[:2, 3],
     )
 
 
@@ -185,35 +313,40 @@ def _arx_model(plant: ArxPlant, q: float, ts: float) -> DiscreteModel:
             f"{ts} s; re-identify or resample the model"
         )
     a_coef, b_coef = plant.coefficients(q)
+    lag = plant.effect_set.lag
     na, m = plant.na, register_length(plant, ts)
-    nz = na + m
+    nc = na + (1 if lag else 0)
+    nz = nc + m
     a_mat = np.zeros((nz, nz))
-    b_vec = np.zeros(nz)
+    b_vec, b_dist, affine = np.zeros(nz), np.zeros(nz), np.zeros(nz)
     a_mat[0, :na] = a_coef
     for i in range(1, na):  # x(k - i) moves down the output history
         a_mat[i, i - 1] = 1.0
     for j, bj in enumerate(b_coef):
-        lag = plant.nk - 1 + j  # b_{j+1} multiplies u(k - lag)
-        if lag == 0:
+        lag_samples = plant.nk - 1 + j  # b_{j+1} multiplies u(k - lag_samples)
+        if lag_samples == 0:
             b_vec[0] += bj
         else:
-            a_mat[0, na + lag - 1] += bj
-    _shift_register(a_mat, b_vec, first=na, length=m)
-    c_vec = np.zeros(nz)
-    c_vec[0] = 1.0
-    b_dist = np.zeros(nz)
+            a_mat[0, nc + lag_samples - 1] += bj
+    _shift_register(a_mat, b_vec, first=nc, length=m)
     b_dist[0] = float(np.sum(b_coef))
+    level_ref = plant.schedule.at("level_ref_mm", q)
+    c_level = np.zeros(nz)
+    c_level[0] = 1.0
+    c_vec = c_level
+    if lag:  # s(k+1) = a_l s(k) + (1 - a_l) (level_ref + x(k+1)), x(k+1) from row 0
+        keep = lag.state_space(ts)[0][0, 0]
+        s = na
+        a_mat[s] = (1.0 - keep) * a_mat[0]
+        a_mat[s, s] = keep
+        b_vec[s], b_dist[s] = (1.0 - keep) * b_vec[0], (1.0 - keep) * b_dist[0]
+        affine[s] = (1.0 - keep) * level_ref
+        c_vec = np.zeros(nz)
+        c_vec[s] = 1.0
     return DiscreteModel(
-        a_mat,
-        b_vec,
-        c_vec,
-        b_dist,
-        plant.schedule.at("level_ref_mm", q),
-        plant.opening_ref_mm,
-        q,
-        ts,
-        na,
-    )
+        a_mat, b_vec, c_vec, b_dist, level_ref, plant.opening_ref_mm, q, ts, nc,
+        affine=affine, c_level=c_level, output_offset_mm=0.0 if lag else level_ref,
+    )  # fmt: skip
 
 
 def _shift_register(a_mat: np.ndarray, b_vec: np.ndarray, *, first: int, length: int) -> None:

@@ -48,13 +48,24 @@ def _process_noise(model: DiscreteModel, settings: ObserverSettings) -> np.ndarr
 
 
 def steady_prior_covariance(model: DiscreteModel, settings: ObserverSettings) -> np.ndarray:
-    """Steady-state prior covariance of ``[z, d]`` for the model held constant."""
+    """Steady-state prior covariance of ``[z, d]`` for the model held constant.
+
+    The model's ``fixed_states`` (a sensor drift: known from the start, no process noise,
+    no equilibrium) keep zero covariance; the Riccati equation is solved for the rest.
+    """
     a_aug, c_aug = _augmented(model)
+    keep = np.append(model.free_states, model.n_states)
+    sub = np.ix_(keep, keep)
     r = np.array([[settings.measurement_sd_mm**2]])
     try:
-        return solve_discrete_are(a_aug.T, c_aug[:, None], _process_noise(model, settings), r)
+        p_sub = solve_discrete_are(
+            a_aug[sub].T, c_aug[keep][:, None], _process_noise(model, settings)[sub], r
+        )
     except (LinAlgError, ValueError) as exc:
         raise ControlError(f"observer: no steady-state Kalman filter ({exc})") from None
+    p = np.zeros_like(a_aug)
+    p[sub] = p_sub
+    return p
 
 
 def kalman_gain(model: DiscreteModel, settings: ObserverSettings) -> np.ndarray:

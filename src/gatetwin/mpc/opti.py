@@ -1,7 +1,7 @@
 """The same MPC problem posed with ``casadi.Opti`` and solved by IPOPT: the reference.
 
 Unlike :mod:`gatetwin.mpc.qp` this formulation keeps the states as decision variables and
-the model as equality constraints (``z_{j+1} = A z_j + B (e_j − e_ref) + B_d d``), so it
+the model as equality constraints (``z_{j+1} = A z_j + B (e_j − e_ref) + B_d d + f``), so it
 shares nothing with the condensing but the model and the settings: agreement of the two
 checks the condensed QP. The model matrices are Opti parameters, so one compiled
 function serves every discharge. It is far slower than the QP and is not meant for the
@@ -47,14 +47,17 @@ class OptiBackend:
         args = [
             m.a,
             m.b,
-            m.c,
+            m.c_level,
             m.b_dist,
+            m.affine,
             m.level_ref_mm,
             m.opening_ref_mm,
             problem.state,
             problem.disturbance_mm,
             problem.setpoint_mm,
             problem.previous_opening_mm,
+            problem.move_bound_mm,
+            *problem.range_mm,
         ]
         start = time.perf_counter()
         try:
@@ -79,8 +82,9 @@ def _build(s: MpcSettings, nz: int) -> casadi.Function:
     e = opti.variable(n)
     z = opti.variable(nz, n + 1)
     a_p, b_p = opti.parameter(nz, nz), opti.parameter(nz)
-    c_p, bd_p = opti.parameter(nz), opti.parameter(nz)
+    c_p, bd_p, f_p = opti.parameter(nz), opti.parameter(nz), opti.parameter(nz)
     level_ref, e_ref = opti.parameter(), opti.parameter()
+    max_move, e_lo, e_hi = opti.parameter(), opti.parameter(), opti.parameter()
     z0, dist, setpoint, e_prev = (
         opti.parameter(nz),
         opti.parameter(),
@@ -89,12 +93,12 @@ def _build(s: MpcSettings, nz: int) -> casadi.Function:
     )
     opti.subject_to(z[:, 0] == z0)
     for j in range(n):
-        opti.subject_to(z[:, j + 1] == a_p @ z[:, j] + b_p * (e[j] - e_ref) + bd_p * dist)
+        opti.subject_to(z[:, j + 1] == a_p @ z[:, j] + b_p * (e[j] - e_ref) + bd_p * dist + f_p)
     level = level_ref + (c_p.T @ z[:, 1:]).T
     moves = e - casadi.vertcat(e_prev, e[:-1])
     cost = s.level_weight * casadi.sumsqr(level - setpoint) + s.move_weight * casadi.sumsqr(moves)
-    opti.subject_to(opti.bounded(s.opening_range_mm[0], e, s.opening_range_mm[1]))
-    opti.subject_to(opti.bounded(-s.max_move_mm, moves, s.max_move_mm))
+    opti.subject_to(opti.bounded(e_lo, e, e_hi))
+    opti.subject_to(opti.bounded(-max_move, moves, max_move))
     slack = casadi.MX(0.0)
     if s.level_band_mm is not None:
         slack = opti.variable()
@@ -104,7 +108,8 @@ def _build(s: MpcSettings, nz: int) -> casadi.Function:
         cost += s.slack_weight_quadratic * slack**2 + s.slack_weight_linear * slack
     opti.minimize(cost)
     opti.solver("ipopt", IPOPT_OPTIONS)
-    params = [a_p, b_p, c_p, bd_p, level_ref, e_ref, z0, dist, setpoint, e_prev]
+    params = [a_p, b_p, c_p, bd_p, f_p, level_ref, e_ref, z0, dist, setpoint, e_prev,
+              max_move, e_lo, e_hi]  # fmt: skip
     return opti.to_function("mpc_ipopt", params, [e, slack, level])
 
 

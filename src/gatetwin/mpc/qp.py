@@ -56,6 +56,12 @@ class MpcProblem:
         Opening commanded at the previous sample (the rate limit's anchor), mm.
     settings : MpcSettings
         Horizon, constraints and weights.
+    max_move_mm : float or None
+        Largest move per sample in the model's input, mm; ``None``: the settings' (the
+        controller narrows it for an actuator rate limit and maps it through an opening
+        nonlinearity, :mod:`gatetwin.mpc.actuation`).
+    opening_range_mm : tuple[float, float] or None
+        Allowed model input, mm; ``None``: the settings'.
     """
 
     model: DiscreteModel
@@ -64,6 +70,17 @@ class MpcProblem:
     setpoint_mm: float
     previous_opening_mm: float
     settings: MpcSettings
+    max_move_mm: float | None = None
+    opening_range_mm: tuple[float, float] | None = None
+
+    @property
+    def move_bound_mm(self) -> float:
+        return self.settings.max_move_mm if self.max_move_mm is None else self.max_move_mm
+
+    @property
+    def range_mm(self) -> tuple[float, float]:
+        rng = self.opening_range_mm
+        return self.settings.opening_range_mm if rng is None else rng
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,11 +116,11 @@ class MpcSolution:
 
 
 def prediction_matrix(model: DiscreteModel, horizon: int) -> np.ndarray:
-    """``G`` with ``G[j, i] = C A^(j−i) B``: level at ``k+1+j`` per mm of ``e_i``."""
+    """``G`` with ``G[j, i] = C_level A^(j−i) B``: level at ``k+1+j`` per mm of ``e_i``."""
     markov = np.empty(horizon)
     v = model.b.copy()
     for m in range(horizon):
-        markov[m] = model.c @ v
+        markov[m] = model.c_level @ v
         v = model.a @ v
     return toeplitz(markov, np.zeros(horizon))
 
@@ -111,13 +128,17 @@ def prediction_matrix(model: DiscreteModel, horizon: int) -> np.ndarray:
 def free_response(
     model: DiscreteModel, horizon: int, state: np.ndarray, disturbance_mm: float
 ) -> np.ndarray:
-    """Levels at ``k+1 … k+N`` if every opening stayed at ``opening_ref_mm``, mm."""
-    drift = model.b_dist * disturbance_mm
+    """Levels at ``k+1 … k+N`` if every opening stayed at ``opening_ref_mm``, mm.
+
+    The water level (``C_level``), not the gauge reading: the sensor blocks are the
+    observer's business.
+    """
+    drive = model.b_dist * disturbance_mm + model.affine
     z = np.asarray(state, dtype=float)
     out = np.empty(horizon)
     for j in range(horizon):
-        z = model.a @ z + drift
-        out[j] = model.c @ z
+        z = model.a @ z + drive
+        out[j] = model.c_level @ z
     return out + model.level_ref_mm
 
 
@@ -190,8 +211,8 @@ class CondensedQp:
         # levels if the opening stayed at e_prev (the model's input is e − e_ref)
         hold = free + self.gain.sum(axis=1) * (e_prev - self.model.opening_ref_mm)
         g = 2.0 * s.level_weight * self.move_gain.T @ (hold - problem.setpoint_mm)
-        step = np.full(n, s.max_move_mm)
-        lo_e, hi_e = s.opening_range_mm
+        step = np.full(n, problem.move_bound_mm)
+        lo_e, hi_e = problem.range_mm
         range_lo, range_hi = np.full(n, lo_e - e_prev), np.full(n, hi_e - e_prev)
         if not self.has_band:
             return QpData(self.h, g, self.a, range_lo, range_hi, -step, step)

@@ -91,6 +91,12 @@ class MpcSettings:
         (process-wide; ``None`` leaves it alone). 1: at N = 100–200 the matrices are too
         small to gain from threads, and on a busy 2-core machine OpenBLAS' threads made
         single solves take 40–50 ms instead of 0.5 ms.
+    backlash_hold_mm : float
+        For a plant with an ``actuator_backlash``: the smallest gate reversal the MPC makes,
+        mm (1e-6: a reversal below a micrometre is round-off in the plan, and each one
+        costs a crossing of the dead band; :class:`gatetwin.mpc.actuation.CommandShaper`).
+        Larger values do not stop the plan's small reversals near a set-point: they trade
+        them for a steady error of up to ``|K|`` × the hold.
     observer : ObserverSettings
         The disturbance observer's tuning.
     """
@@ -106,6 +112,7 @@ class MpcSettings:
     slack_weight_linear: float = 1.0e3
     qp_solver: str = "qpoases"
     blas_threads: int | None = 1
+    backlash_hold_mm: float = 1e-6
     observer: ObserverSettings = field(default_factory=ObserverSettings)
 
     def __post_init__(self) -> None:
@@ -121,6 +128,7 @@ class MpcSettings:
             and self.slack_weight_linear >= 0,
             "qp_solver": self.qp_solver in QP_SOLVERS,
             "blas_threads": self.blas_threads is None or self.blas_threads >= 1,
+            "backlash_hold_mm": 0 <= self.backlash_hold_mm < math.inf,
         }
         if self.level_band_mm is not None:
             checks["level_band_mm"] = self.level_band_mm[0] < self.level_band_mm[1]
