@@ -175,6 +175,13 @@ def test_the_workflow_names_adds_exports_and_revalidates(backlash_diagnosis):
         assert fmu["max_abs_diff_from_reference_mm"] <= 1e-9
         assert fmu["rmse_mm"] == pytest.approx(result["rmse_after_mm"], abs=1e-6)
     assert Path(result["plots"][0]).read_bytes()[:4] == b"\x89PNG"
+    # the augmented model controls: its MPC compensates the backlash and holds the set-point
+    # (a reversal of the plan under MpcSettings.backlash_hold_mm = 1e-6 mm is not made:
+    # |K| x 1e-6 ~ 2e-5 mm of steady error; 1e-3 mm leaves room for the QP's tolerance),
+    # and integrates the step's error faster than the MPC blind to the block
+    control = result["control"]
+    assert abs(control["augmented_mpc"]["final_error_mm"]) <= 1e-3
+    assert control["augmented_mpc"]["iae"] < control["blind_mpc"]["iae"]
 
 
 def test_a_model_file_baseline(tmp_path):

@@ -37,6 +37,7 @@ from gatetwin._io import write_bytes_atomic
 from gatetwin.diagnose import artifacts
 from gatetwin.diagnose.baseline import Baseline, identify_baseline, model_baseline
 from gatetwin.diagnose.candidates import CANDIDATES, Context
+from gatetwin.diagnose.control import control_check
 from gatetwin.diagnose.data import DiagnosisData, prepare
 from gatetwin.diagnose.noise import noise_floor, regions, windows
 from gatetwin.diagnose.select import CandidateResult, choose, evaluate, rmse_parts
@@ -207,7 +208,8 @@ def _summary(record: Record, ctx: Context, baseline: Baseline, results: list[Can
         "regions": regions(data, residual, sigma, settle),
         "signatures": {k: s.to_dict() for k, s in ctx.signatures.items()},
         "candidates": [r.to_dict(c) for r, c in zip(results, CANDIDATES, strict=True)],
-        "effect_fit": _effect_fit(winner), "augmented_model": None, "fmus": [], "plots": [],
+        "effect_fit": _effect_fit(winner), "augmented_model": None, "fmus": [], "control": None,
+        "plots": [],
         "findings": findings,
     }  # fmt: skip
 
@@ -235,6 +237,7 @@ def _write_outputs(summary: dict[str, Any], record: Record, data: DiagnosisData,
                       "named_effect": named, "record_sha256": record.sha256}  # fmt: skip
         summary["fmus"] = artifacts.export_and_validate(
             winner.fit.plant, data, name, Path(fmu_dir), provenance, settings.backends)
+        summary["control"] = control_check(winner.fit.plant, data)
 
 
 def _figure(data: DiagnosisData, levels: tuple[np.ndarray, np.ndarray], named: bool,
