@@ -161,12 +161,22 @@ def _diagnose_rows(results: list[dict[str, Any]]) -> list[list[str]]:
                            if isinstance(v, (int, float)))  # fmt: skip
         rows.append([r["record"], r["baseline_source"], r["named_effect"], params or "–",
                      f"{r['rmse_before_mm']:.2f}", f"{r['rmse_after_mm']:.2f}",
-                     str(len(r.get("windows", [])))])  # fmt: skip
+                     str(len(r.get("windows", []))), _control_cell(r.get("control"))])  # fmt: skip
     return rows
 
 
+def _control_cell(control: dict[str, Any] | None) -> str:
+    """``IAE augmented / blind`` of the closed-loop check, or why there is none."""
+    if not control:
+        return "–"
+    if "error" in control:
+        return f"not run: {control['error']}"
+    return f"{control['augmented_mpc']['iae']:.1f} / {control['blind_mpc']['iae']:.1f}"
+
+
 DIAGNOSE_HEADER = ("record", "baseline", "named effect", "parameters", "RMSE before (mm)",
-                   "RMSE after (mm)", "windows above noise")  # fmt: skip
+                   "RMSE after (mm)", "windows above noise",
+                   "MPC IAE augmented / blind (mm·s)")  # fmt: skip
 
 
 def _diagnose_markdown(results: list[dict[str, Any]]) -> str:

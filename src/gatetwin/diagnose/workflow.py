@@ -14,7 +14,9 @@ missing, and how much adding it closes the gap.
    ``sqrt(RMSE^2 - sigma^2)`` before and after, on the fitted and the held-out part.
    "Before" is the baseline with its adjustments refitted on the same data (what the
    candidates are scored against), so before/after isolates the named block; the baseline
-   as given is reported beside it.
+   as given is reported beside it. With FMUs exported, a closed-loop check runs the MPC
+   built from the augmented model and one blind to the block on the augmented plant
+   (:mod:`gatetwin.diagnose.control`).
 
 Reported levels before and after come from the Python reference simulation, stepped like the
 FMU validation harness steps an FMU (nominal sample period, several steps across a logging

@@ -287,6 +287,7 @@ def run_mpc_demo(
             "kind": plant_model.kind,
             "gauge": plant_model.gauge,
             "opening_ref_mm": plant_model.opening_ref_mm,
+            "effects": [dict(e) for e in plant_model.effects],
         },
         "pi_tuning": tuning.to_dict(),
         "pi_margins": loop_margins(tuning).to_dict(),
