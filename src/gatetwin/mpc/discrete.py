@@ -35,7 +35,9 @@ import numpy as np
 from scipy import linalg
 
 from gatetwin.mpc.errors import ControlError
+from gatetwin.plant.effects import EffectSet
 from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant
+from gatetwin.plant.simulate import fopdt_parameters
 
 #: Control period of the demo and of the paper's logger, s.
 SAMPLE_PERIOD_S = 1.2
@@ -167,14 +169,19 @@ def fopdt_split(
             f"fopdt: need T > 0, L >= 0, Ts > 0 (got T = {time_constant_s}, "
             f"L = {dead_time_s}, Ts = {sample_period_s})"
         )
-    ratio = dead_time_s / sample_period_s
-    n_whole = math.floor(ratio + DELAY_SPLIT_RTOL * max(1.0, ratio))
-    theta = max(0.0, dead_time_s - n_whole * sample_period_s)
+    n_whole, theta = _split_delay(dead_time_s, sample_period_s)
     a = math.exp(-sample_period_s / time_constant_s)
     late = math.exp(-(sample_period_s - theta) / time_constant_s)
     b1 = gain_mm_per_mm * (1.0 - late)
     b2 = gain_mm_per_mm * late * (1.0 - math.exp(-theta / time_constant_s))
     return a, n_whole, b1, b2
+
+
+def _split_delay(dead_time_s: float, sample_period_s: float) -> tuple[int, float]:
+    """``L = n Ts + θ``: whole samples ``n`` and the fraction ``0 <= θ < Ts``, s."""
+    ratio = dead_time_s / sample_period_s
+    n_whole = math.floor(ratio + DELAY_SPLIT_RTOL * max(1.0, ratio))
+    return n_whole, max(0.0, dead_time_s - n_whole * sample_period_s)
 
 
 def register_length(plant: Plant, sample_period_s: float = SAMPLE_PERIOD_S) -> int:
@@ -204,36 +211,26 @@ def discretise(
 
     if not math.isfinite(flow_m3h):
         raise ControlError(f"discharge {flow_m3h} m³/h is not finite")
-    if isinstance(plant, FopdtPlant):
-        core = _fopdt_model(plant, flow_m3h, sample_period_s)
-    elif isinstance(plant, ArxPlant):
-        core = _arx_model(plant, flow_m3h, sample_period_s)
-    else:
+    if not isinstance(plant, (FopdtPlant, ArxPlant)):
         raise ControlError(
             f"cannot render {type(plant).__name__}: expected FopdtPlant or ArxPlant"
         )
-    return append_output_blocks(core, plant.effect_set, flow_m3h)
-
-
-def _fopdt_parameters(plant: FopdtPlant, q: float) -> tuple[float, float, float]:
-    """``K``, ``T`` (flow-dependent gain applied) and ``L`` at discharge ``q``."""
-    sched = plant.schedule
-    gain, tau = sched.at("gain_mm_per_mm", q), sched.at("time_constant_s", q)
-    flow_gain = plant.effect_set.flow_gain
-    if flow_gain:
-        gain_factor, tau_factor = flow_gain.factors(q)
-        gain, tau = gain * gain_factor, tau * tau_factor
-    return gain, tau, sched.at("dead_time_s", q)
-
-
-def _fopdt_model(plant: FopdtPlant, q: float, ts: float) -> DiscreteModel:
-    gain, tau, delay = _fopdt_parameters(plant, q)
-    level_ref = plant.schedule.at("level_ref_mm", q)
-    lag = plant.effect_set.lag
-    a, n, b1, b2 = fopdt_split(gain, tau, delay, ts)
-    if lag:
-        core = _lagged_fopdt(gain, tau, delay, lag.time_constant_s, ts)
+    fx = plant.effect_set
+    if isinstance(plant, FopdtPlant):
+        core = _fopdt_model(plant, fx, flow_m3h, sample_period_s)
     else:
+        core = _arx_model(plant, fx, flow_m3h, sample_period_s)
+    return append_output_blocks(core, fx, flow_m3h)
+
+
+def _fopdt_model(plant: FopdtPlant, fx: EffectSet, q: float, ts: float) -> DiscreteModel:
+    gain, tau, delay = fopdt_parameters(plant, fx, q)
+    level_ref = plant.schedule.at("level_ref_mm", q)
+    if fx.lag:
+        core = _lagged_fopdt(gain, tau, delay, fx.lag.time_constant_s, ts)
+        n = _split_delay(delay, ts)[0]
+    else:
+        a, n, b1, b2 = fopdt_split(gain, tau, delay, ts)
         core = _Core(np.array([[a]]), np.array([b1]), np.array([b2]), np.array([b1 + b2]),
                      np.zeros(1))  # fmt: skip
     nc = core.phi.shape[0]
@@ -254,12 +251,12 @@ def _fopdt_model(plant: FopdtPlant, q: float, ts: float) -> DiscreteModel:
     c_level = np.zeros(nz)
     c_level[0] = 1.0
     c_vec = c_level
-    if lag:
+    if fx.lag:
         c_vec = np.zeros(nz)
         c_vec[1] = 1.0
     return DiscreteModel(
         a_mat, b_vec, c_vec, b_dist, level_ref, plant.opening_ref_mm, q, ts, nc,
-        affine=affine, c_level=c_level, output_offset_mm=0.0 if lag else level_ref,
+        affine=affine, c_level=c_level, output_offset_mm=0.0 if fx.lag else level_ref,
     )  # fmt: skip
 
 
@@ -285,9 +282,7 @@ def _lagged_fopdt(gain: float, tau: float, delay: float, lag_s: float, ts: float
     sample the delayed input switches from ``u(k − n − 1)`` to ``u(k − n)`` at ``θ``, so
     ``z(k+1) = Φ(Ts) z + Φ(Ts − θ) Γ(θ) u(k−n−1) + Γ(Ts − θ) u(k−n) + Γ_ref(Ts) level_ref``.
     """
-    ratio = delay / ts
-    n_whole = math.floor(ratio + DELAY_SPLIT_RTOL * max(1.0, ratio))
-    theta = max(0.0, delay - n_whole * ts)
+    theta = _split_delay(delay, ts)[1]
     cont = np.zeros((4, 4))
     cont[:2, :2] = [[-1.0 / tau, 0.0], [1.0 / lag_s, -1.0 / lag_s]]
     cont[0, 2] = gain / tau  # input u
@@ -306,14 +301,14 @@ def _lagged_fopdt(gain: float, tau: float, delay: float, lag_s: float, ts: float
     )
 
 
-def _arx_model(plant: ArxPlant, q: float, ts: float) -> DiscreteModel:
+def _arx_model(plant: ArxPlant, fx: EffectSet, q: float, ts: float) -> DiscreteModel:
     if abs(plant.sample_period_s - ts) > DELAY_SPLIT_RTOL * ts:
         raise ControlError(
             f"arx: sample period {plant.sample_period_s} s differs from the control period "
             f"{ts} s; re-identify or resample the model"
         )
     a_coef, b_coef = plant.coefficients(q)
-    lag = plant.effect_set.lag
+    lag = fx.lag
     na, m = plant.na, register_length(plant, ts)
     nc = na + (1 if lag else 0)
     nz = nc + m

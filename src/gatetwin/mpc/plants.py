@@ -33,7 +33,11 @@ from gatetwin.plant.simulate import PlantSimulator
 
 
 class PlantCore(Protocol):
-    """A simulated process: true level after each control period."""
+    """A simulated process: true level after each control period.
+
+    A core whose gauge reads something other than the true level (a plant with sensor
+    blocks) also has ``reading_mm``, the reading after the last call; the loop measures it.
+    """
 
     description: str
 

@@ -268,15 +268,7 @@ class PlantSimulator:
 
     # -- FOPDT ---------------------------------------------------------------------------
     def _fopdt_parameters(self, q: float) -> tuple[float, float, float]:
-        """``K``, ``T`` (flow-dependent gain applied) and ``L`` at discharge ``q``."""
-        p = self.plant
-        k = p.schedule.at("gain_mm_per_mm", q)
-        tau = p.schedule.at("time_constant_s", q)
-        if self.fx.flow_gain:
-            fg = self.fx.flow_gain
-            k = k * math.exp(fg.gain_slope_per_m3h * (q - fg.flow_ref_m3h))
-            tau = tau * math.exp(fg.time_constant_slope_per_m3h * (q - fg.flow_ref_m3h))
-        return k, tau, p.schedule.at("dead_time_s", q)
+        return fopdt_parameters(self.plant, self.fx, q)  # type: ignore[arg-type]
 
     def _fopdt_check_step(self, h: float, command: float) -> None:
         """Refuse a step whose input changes would overflow the dead-time history."""
@@ -375,6 +367,17 @@ class PlantSimulator:
                 RuntimeWarning,
                 stacklevel=3,
             )
+
+
+def fopdt_parameters(plant: FopdtPlant, fx: EffectSet, q: float) -> tuple[float, float, float]:
+    """``K``, ``T`` (flow-dependent gain of ``fx`` applied) and ``L`` at discharge ``q``."""
+    k = plant.schedule.at("gain_mm_per_mm", q)
+    tau = plant.schedule.at("time_constant_s", q)
+    if fx.flow_gain:
+        fg = fx.flow_gain
+        k = k * math.exp(fg.gain_slope_per_m3h * (q - fg.flow_ref_m3h))
+        tau = tau * math.exp(fg.time_constant_slope_per_m3h * (q - fg.flow_ref_m3h))
+    return k, tau, plant.schedule.at("dead_time_s", q)
 
 
 def _last_arrived_index(times: list[float], delay: float, t: float) -> int:
