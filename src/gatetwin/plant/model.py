@@ -23,12 +23,14 @@ This module holds data only; simulation is in :mod:`gatetwin.plant.simulate`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from gatetwin.errors import ModelFileError
+from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import EffectSet, parse_effects
 
 #: Inputs outside these bounds are physically impossible for any gate we model.
@@ -166,7 +168,92 @@ class ArxPlant:
         return a, b
 
 
-Plant = FopdtPlant | ArxPlant
+#: Lower bounds of the parameters that must be positive (the rest only finite).
+POSITIVE = ("width_m", "speed_mm_s", "stall_depth_m", "resolution_mm", "max_substep_s")
+
+
+def check_physical_parameters(values: dict[str, float] | list[float]) -> list[float]:
+    """The parameter vector in kernel order; raises :class:`ModelFileError` on a bad one."""
+    if isinstance(values, dict):
+        missing = [n for n, _, _ in kernel.PARAMETERS if n not in values]
+        if missing:
+            raise ModelFileError(f"physical: parameters lack {', '.join(missing)}")
+        vector = [values[n] for n, _, _ in kernel.PARAMETERS]
+    else:
+        vector = list(values)
+    out = []
+    for (name, _, _), value in zip(kernel.PARAMETERS, vector, strict=True):
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise ModelFileError(f"physical: parameter {name} must be a number") from None
+        if not math.isfinite(v) or (name in POSITIVE and not v > 0):
+            rule = "finite and > 0" if name in POSITIVE else "finite"
+            raise ModelFileError(f"physical: parameter {name} = {value!r} must be {rule}")
+        out.append(v)
+    return out
+
+
+@dataclass(frozen=True)
+class PhysicalPlant:
+    """Storage-and-gate-law plant of one gauge.
+
+    Attributes
+    ----------
+    gauge : str
+        Gauge name; the output is ``level_<gauge>_mm``.
+    parameters : dict[str, float]
+        The kernel's parameters by name (:data:`~gatetwin.plant.physical_kernel.PARAMETERS`).
+    schedule : Schedule
+        Two discharge knots spanning the identified range, column ``level_ref_mm`` (a datum
+        correction, mm).
+    """
+
+    gauge: str
+    parameters: dict[str, float]
+    schedule: Schedule
+    effects: tuple[dict[str, Any], ...] = ()
+
+    kind = "physical"
+    columns = ("level_ref_mm",)
+    opening_ref_mm = 0.0
+
+    def __post_init__(self) -> None:
+        vector = check_physical_parameters(self.parameters)
+        names = [n for n, _, _ in kernel.PARAMETERS]
+        object.__setattr__(self, "parameters", dict(zip(names, vector, strict=True)))
+        if "level_ref_mm" not in self.schedule.values:
+            raise ModelFileError("physical: schedule lacks column level_ref_mm")
+        if self.effects:
+            raise ModelFileError("physical: effect blocks are not supported on this family")
+
+    @property
+    def vector(self) -> list[float]:
+        """The parameters in kernel order."""
+        return list(self.parameters.values())
+
+    def steady_depth_m(self, opening_mm: float, flow_m3h: float) -> float:
+        """Depth at the gate at which it passes ``flow_m3h`` (the initial state), m."""
+        return steady_depth_m(opening_mm, flow_m3h, self.vector)
+
+    def steady_level_mm(self, opening_mm: float, flow_m3h: float) -> float:
+        """Steady level at the gauge, mm."""
+        p = self.vector
+        depth = steady_depth_m(opening_mm, flow_m3h, p)
+        return kernel.level_mm(depth, opening_mm, flow_m3h, p) + self.schedule.at(
+            "level_ref_mm", flow_m3h)
+
+
+def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
+    """The kernel's bisection, run to its fixed number of steps (as the C FMU runs it)."""
+    low, high = kernel.DEPTH_BRACKET_M
+    for _ in range(kernel.BISECTION_STEPS):
+        low, high = kernel.bisection_step(low, high, opening_mm, flow_m3h, p)
+    return 0.5 * (low + high)
+
+
+
+Plant = FopdtPlant | ArxPlant | PhysicalPlant
 
 
 def _normalise_effects(plant: Any) -> None:
@@ -194,6 +281,8 @@ def plant_to_dict(plant: Plant) -> dict[str, Any]:
         "schedule": plant.schedule.to_dict(),
         "effects": [dict(e) for e in plant.effects],
     }
+    if isinstance(plant, PhysicalPlant):
+        out.update(parameters=dict(plant.parameters), equations="gatetwin.plant.physical_kernel")
     if isinstance(plant, ArxPlant):
         out.update(sample_period_s=plant.sample_period_s, na=plant.na, nb=plant.nb, nk=plant.nk)
     return out
@@ -213,6 +302,11 @@ def plant_from_dict(data: dict[str, Any]) -> Plant:
         )
         if data["kind"] == "fopdt":
             return FopdtPlant(**common)
+        if data["kind"] == "physical":
+            if not isinstance(data.get("parameters"), dict):
+                raise ModelFileError("physical: parameters must be an object of name: number")
+            return PhysicalPlant(gauge=common["gauge"], parameters=data["parameters"],
+                                 schedule=schedule, effects=common["effects"])
         if data["kind"] == "arx":
             return ArxPlant(
                 sample_period_s=float(data["sample_period_s"]),
@@ -225,4 +319,6 @@ def plant_from_dict(data: dict[str, Any]) -> Plant:
         if isinstance(exc, ModelFileError):
             raise
         raise ModelFileError(f"plant: malformed section ({exc})") from None
-    raise ModelFileError(f"plant: unknown kind {data.get('kind')!r} (expected fopdt or arx)")
+    raise ModelFileError(
+        f"plant: unknown kind {data.get('kind')!r} (expected fopdt, arx or physical)"
+    )

@@ -14,16 +14,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gatetwin.errors import GatetwinError
 from gatetwin.plant import blocks
 from gatetwin.plant.effects import EffectSet
-from gatetwin.plant.model import (
-    FLOW_RANGE_M3H,
-    OPENING_RANGE_MM,
-    FopdtPlant,
-    Plant,
-    interp_clamped,
-)
+from gatetwin.plant.inputs import SimulationError, check_inputs
+from gatetwin.plant.model import FopdtPlant, PhysicalPlant, Plant, interp_clamped
+from gatetwin.plant.physical import PhysicalSimulator
 
 #: Capacity of the FOPDT input-change history, as in the C FMU.
 DELAY_HISTORY_CAPACITY = 4096
@@ -31,22 +26,6 @@ DELAY_HISTORY_CAPACITY = 4096
 ARX_STEP_RTOL = 1e-9
 #: Most ARX samples one communication step may span (guards against h / Ts overflowing).
 ARX_MAX_SUBSTEPS = 1e9
-
-
-class SimulationError(GatetwinError, ValueError):
-    """An input or communication step the plant cannot honour."""
-
-
-def check_inputs(opening_mm: float, flow_m3h: float) -> None:
-    """Refuse NaN or physically impossible inputs (as the FMUs do with fmi2Error)."""
-    if not OPENING_RANGE_MM[0] <= opening_mm <= OPENING_RANGE_MM[1]:
-        raise SimulationError(
-            f"opening_mm = {opening_mm} is outside [{OPENING_RANGE_MM[0]}, {OPENING_RANGE_MM[1]}]"
-        )
-    if not FLOW_RANGE_M3H[0] <= flow_m3h <= FLOW_RANGE_M3H[1]:
-        raise SimulationError(
-            f"flow_m3h = {flow_m3h} is outside [{FLOW_RANGE_M3H[0]}, {FLOW_RANGE_M3H[1]}]"
-        )
 
 
 @dataclass
@@ -414,7 +393,9 @@ def simulate(
     t = np.asarray(time_s, dtype=float)
     e = np.asarray(opening_mm, dtype=float)
     q = np.asarray(flow_m3h, dtype=float)
-    sim = PlantSimulator(plant)
+    sim: PlantSimulator | PhysicalSimulator = (
+        PhysicalSimulator(plant) if isinstance(plant, PhysicalPlant) else PlantSimulator(plant)
+    )
     sim.initialize(float(e[0]), float(q[0]), float(t[0]))
     out = np.empty_like(t)
     out[0] = sim.level_mm

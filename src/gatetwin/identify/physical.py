@@ -1,0 +1,309 @@
+"""Identify the ``physical`` family of one gauge from every record at once.
+
+Three stages, each on the data that determines its parameters, then a joint refinement:
+
+1. **Gate law and gauge offset** (11 parameters) from every steady point: the static table's
+   rows and the settled end of every long hold in the dynamic records (the last
+   :data:`STEADY_SAMPLES` valid samples of a hold lasting at least :data:`STEADY_HOLD_S`).
+   Residuals are levels (mm) against the kernel's steady level.
+2. **Actuator** (no-load speed, stall depth) from the gate's moves: each move's opening change
+   over the time between the last hold sample before it and the first after, against the
+   depth at the gate (rating level plus offset) at the start of the move.
+3. **Storage** (A0, A1) by simulation error: the kernel run freely on every dynamic record,
+   driven by the reconstructed opening and the measured inflow.
+4. **Joint**: all 13 hydraulic parameters on the stacked residuals of 1 and 3, each source
+   weighted by the inverse of its residual RMS after stage 3 (its noise level), with standard
+   errors from the Jacobian.
+
+The simulator here is the kernel compiled by numba (:func:`kernel_simulator`): the same
+arithmetic as every other rendering, stepping as :class:`gatetwin.plant.physical.
+PhysicalSimulator` does (tests hold the two equal).
+
+Not identified: the actuator's resolution (1 mm, the reference study's actuator) and the
+sub-step (0.6 s, half the sample period); the channel width is the flume's 0.30 m.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import cache
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from gatetwin.errors import IdentificationError
+from gatetwin.identify.preprocess import reconstructed_opening
+from gatetwin.plant import physical_kernel as kernel
+from gatetwin.plant.kernel_render import numba_kernel
+from gatetwin.plant.model import PhysicalPlant, Schedule
+from gatetwin.records import Record
+
+#: A hold this long has settled (about 5 time constants at the slowest condition), s.
+STEADY_HOLD_S = 360.0
+#: Samples averaged at the end of a settled hold.
+STEADY_SAMPLES = 40
+#: Fixed parameters (see the module docstring).
+FIXED = {"width_m": 0.30, "resolution_mm": 1.0, "max_substep_s": 0.6}
+LAW = [n for n, _, _ in kernel.PARAMETERS[:9]] + ["offset_mm", "offset_per_flow2_mm"]
+STORAGE = ["area_m2", "area_per_depth_m"]
+ACTUATOR = ["speed_mm_s", "stall_depth_m"]
+START = {
+    "cd_small": 0.86, "cd_small_per_q": 0.0, "cd_large": 0.45, "cd_large_per_q": 0.0,
+    "cd_mid_log_ratio": -1.9, "cd_mid_per_q": 0.0, "cd_log_width": -0.7,
+    "cd_log_width_per_q": 0.0, "cd_log_shape": 0.0, "offset_mm": 0.0,
+    "offset_per_flow2_mm": 30.0, "area_m2": 1.8, "area_per_depth_m": 0.0,
+    "speed_mm_s": 1.5, "stall_depth_m": 0.5, **FIXED,
+}
+
+
+@dataclass(frozen=True)
+class SteadyPoints:
+    """Steady operating points of one gauge: discharge, opening, level and where from."""
+
+    flow_m3h: np.ndarray
+    opening_mm: np.ndarray
+    level_mm: np.ndarray
+    source: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class PhysicalFit:
+    """The identified plant with its standard errors and per-source residuals."""
+
+    plant: PhysicalPlant
+    standard_errors: dict[str, float]
+    steady_rmse_mm: float
+    n_steady: int
+    dynamic_rmse_mm: dict[str, float]
+    actuator_moves: int
+
+    def report(self) -> dict[str, Any]:
+        return {
+            "standard_errors": self.standard_errors,
+            "steady_points": self.n_steady,
+            "steady_rmse_mm": self.steady_rmse_mm,
+            "dynamic_rmse_mm": self.dynamic_rmse_mm,
+            "actuator_moves": self.actuator_moves,
+            "fixed": dict(FIXED),
+        }
+
+
+def steady_points(static: Any, records: dict[str, Record], gauge: str) -> SteadyPoints:
+    """The static table's points and the settled end of every long hold of ``records``."""
+    q, e, h = [list(static.flow_m3h)], [list(static.opening_mm)], [list(static.levels_mm[gauge])]
+    source = ["static"] * len(static.flow_m3h)
+    for name, rec in records.items():
+        if gauge not in rec.levels_mm:
+            continue
+        for seg in rec.holds:
+            if rec.time_s[seg.stop - 1] - rec.time_s[seg.start] < STEADY_HOLD_S:
+                continue
+            idx = np.arange(seg.start, seg.stop)
+            level = rec.levels_mm[gauge][idx]
+            valid = idx[np.isfinite(level)][-STEADY_SAMPLES:]
+            q.append([float(np.mean(rec.flow_m3h[valid]))])
+            e.append([seg.opening_mm])
+            h.append([float(np.mean(rec.levels_mm[gauge][valid]))])
+            source.append(name)
+    arrays = [np.concatenate([np.asarray(v, float) for v in x]) for x in (q, e, h)]
+    ok = np.all([np.isfinite(a) for a in arrays], axis=0)
+    return SteadyPoints(*(a[ok] for a in arrays), tuple(np.asarray(source)[ok]))
+
+
+@cache
+def kernel_simulator() -> tuple[Callable[..., Any], Callable[..., Any]]:
+    """Numba renderings: ``run(t, e, q, p, out)`` (a free run, as PhysicalSimulator steps)
+    and ``steady(e, q, p, out)`` (the steady level at each point)."""
+    from numba import njit
+
+    k = numba_kernel(kernel.__name__)
+    substep, bisect, level = k.substep, k.bisection_step, k.level_mm
+    target_of, count_of = k.actuator_target_mm, k.substep_count
+    low0, high0 = kernel.DEPTH_BRACKET_M
+    n_bisect = kernel.BISECTION_STEPS
+
+    @njit(cache=False)
+    def depth0(e: float, q: float, p: np.ndarray) -> float:
+        low, high = low0, high0
+        for _ in range(n_bisect):
+            low, high = bisect(low, high, e, q, p)
+        return 0.5 * (low + high)
+
+    @njit(cache=False)
+    def run(t: np.ndarray, e: np.ndarray, q: np.ndarray, p: np.ndarray, out: np.ndarray
+            ) -> None:  # fmt: skip
+        gate = target_of(e[0], p)
+        depth = depth0(gate, q[0], p)
+        out[0] = level(depth, gate, q[0], p)
+        for i in range(1, t.size):
+            h = t[i] - t[i - 1]
+            n = count_of(h, p)
+            target = target_of(e[i - 1], p)
+            dt = h / n
+            for _ in range(int(n)):
+                depth, gate = substep(depth, gate, target, q[i - 1], dt, p)
+            out[i] = level(depth, gate, q[i - 1], p)
+
+    @njit(cache=False)
+    def steady(e: np.ndarray, q: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+        for i in range(e.size):
+            gate = target_of(e[i], p)
+            out[i] = level(depth0(gate, q[i], p), gate, q[i], p)
+
+    return run, steady
+
+
+def _vector(values: dict[str, float]) -> np.ndarray:
+    return np.array([values[n] for n, _, _ in kernel.PARAMETERS], dtype=float)
+
+
+def _steady_residuals(points: SteadyPoints, p: np.ndarray) -> np.ndarray:
+    out = np.empty(points.flow_m3h.size)
+    kernel_simulator()[1](points.opening_mm, points.flow_m3h, p, out)
+    return out - points.level_mm
+
+
+@dataclass(frozen=True)
+class _Drive:
+    """One dynamic record as the simulator is driven: time, opening, inflow, level."""
+
+    name: str
+    time_s: np.ndarray
+    opening_mm: np.ndarray
+    flow_m3h: np.ndarray
+    level_mm: np.ndarray
+
+
+def _drives(records: dict[str, Record], gauge: str) -> list[_Drive]:
+    out = []
+    for name, rec in records.items():
+        if gauge in rec.levels_mm:
+            e = reconstructed_opening(rec.time_s, rec.opening_mm, rec.hold)
+            out.append(_Drive(name, rec.time_s, e, rec.flow_m3h, rec.levels_mm[gauge]))
+    return out
+
+
+def _dynamic_residuals(drives: Sequence[_Drive], p: np.ndarray) -> list[np.ndarray]:
+    run = kernel_simulator()[0]
+    res = []
+    for d in drives:
+        out = np.empty(d.time_s.size)
+        run(d.time_s, d.opening_mm, d.flow_m3h, p, out)
+        ok = np.isfinite(d.level_mm)
+        res.append(out[ok] - d.level_mm[ok])
+    return res
+
+
+def _fit(names: list[str], values: dict[str, float], residual: Callable[[np.ndarray], np.ndarray]
+         ) -> tuple[dict[str, float], Any]:  # fmt: skip
+    """Least squares over ``names`` (the rest of ``values`` held)."""
+    index = [kernel.INDEX[n] for n in names]
+    base = _vector(values)
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        p = base.copy()
+        p[index] = x
+        return residual(p)
+
+    result = least_squares(fun, base[index], x_scale="jac", diff_step=1e-6)
+    if not result.success or not np.all(np.isfinite(result.fun)):
+        raise IdentificationError(f"physical fit did not converge ({result.message})")
+    return {**values, **dict(zip(names, (float(v) for v in result.x), strict=True))}, result
+
+
+def actuator_moves(records: dict[str, Record], gauge: str, values: dict[str, float]
+                   ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Observed speed of each gate move (mm/s) and the depth at the gate when it began (m).
+
+    The move lies between the last hold sample before it and the first after; the depth is
+    the gauge's level there plus the gauge offset at the measured discharge.
+    """
+    speeds, depths = [], []
+    for rec in records.values():
+        level = rec.levels_mm.get(gauge)
+        if level is None:
+            continue
+        for step in rec.steps:
+            i0, i1 = step.before.stop - 1, step.after.start
+            duration = rec.time_s[i1] - rec.time_s[i0]
+            if not (duration > 0 and np.isfinite(level[i0])):
+                continue
+            q100 = rec.flow_m3h[i0] / 100.0
+            offset = values["offset_mm"] + values["offset_per_flow2_mm"] * q100 * q100
+            speeds.append(abs(step.after.opening_mm - step.before.opening_mm) / duration)
+            depths.append((level[i0] + offset) / 1000.0)
+    return np.asarray(speeds), np.asarray(depths)
+
+
+def _fit_actuator(speeds: np.ndarray, depths: np.ndarray, values: dict[str, float]
+                  ) -> dict[str, float]:  # fmt: skip
+    if speeds.size < 3:
+        raise IdentificationError(
+            f"physical: {speeds.size} gate move(s) in the records; the actuator needs 3 or more"
+        )
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        load = depths / x[1]
+        return x[0] * np.maximum(kernel.SPEED_FLOOR, 1.0 - load * load) - speeds
+
+    x0 = [float(np.max(speeds)), max(0.5, 1.5 * float(np.max(depths)))]
+    result = least_squares(residual, x0, bounds=([1e-3, 1.05 * float(np.max(depths))],
+                                                 [1e3, 10.0]))  # fmt: skip
+    return {**values, "speed_mm_s": float(result.x[0]), "stall_depth_m": float(result.x[1])}
+
+
+def _standard_errors(result: Any, names: list[str]) -> dict[str, float]:
+    """One-sigma errors from the Jacobian of a (weighted) least-squares fit."""
+    jac = result.jac
+    dof = max(1, jac.shape[0] - jac.shape[1])
+    s2 = 2.0 * result.cost / dof
+    try:
+        cov = np.linalg.inv(jac.T @ jac) * s2
+    except np.linalg.LinAlgError:
+        return {n: float("nan") for n in names}
+    return {n: float(np.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(names)}
+
+
+def fit_physical(static: Any, records: dict[str, Record], gauge: str,
+                 flow_range_m3h: tuple[float, float]) -> PhysicalFit:  # fmt: skip
+    """Identify the physical plant of ``gauge`` from the static table and ``records``."""
+    points = steady_points(static, records, gauge)
+    if points.flow_m3h.size < len(LAW) + 2:
+        raise IdentificationError(
+            f"physical {gauge}: {points.flow_m3h.size} steady points; need {len(LAW) + 2}"
+        )
+    drives = _drives(records, gauge)
+    if not drives:
+        raise IdentificationError(f"physical {gauge}: no dynamic record has this gauge")
+    values, _ = _fit(LAW, dict(START), lambda p: _steady_residuals(points, p))
+    speeds, depths = actuator_moves(records, gauge, values)
+    values = _fit_actuator(speeds, depths, values)
+    values, _ = _fit(STORAGE, values, lambda p: np.concatenate(_dynamic_residuals(drives, p)))
+    # joint: each source weighted by its residual RMS (its noise level) after the stages
+    rms_static = _rms(_steady_residuals(points, _vector(values)))
+    rms_dyn = [_rms(r) for r in _dynamic_residuals(drives, _vector(values))]
+
+    def joint(p: np.ndarray) -> np.ndarray:
+        dyn = _dynamic_residuals(drives, p)
+        return np.concatenate([_steady_residuals(points, p) / rms_static,
+                               *(r / s for r, s in zip(dyn, rms_dyn, strict=True))])
+
+    values, result = _fit(LAW + STORAGE, values, joint)
+    p = _vector(values)
+    plant = PhysicalPlant(gauge, values, Schedule(tuple(flow_range_m3h),
+                                                  {"level_ref_mm": (0.0, 0.0)}))  # fmt: skip
+    return PhysicalFit(
+        plant=plant,
+        standard_errors=_standard_errors(result, LAW + STORAGE),
+        steady_rmse_mm=_rms(_steady_residuals(points, p)),
+        n_steady=int(points.flow_m3h.size),
+        dynamic_rmse_mm={d.name: _rms(r) for d, r in
+                         zip(drives, _dynamic_residuals(drives, p), strict=True)},
+        actuator_moves=int(speeds.size),
+    )
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(x))))
