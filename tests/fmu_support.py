@@ -20,7 +20,7 @@ from fmpy.fmi2 import (
 
 from gatetwin.fmu import export_fmu
 from gatetwin.plant.model import ArxPlant, FopdtPlant, Schedule
-from gatetwin.plant.simulate import PlantSimulator
+from gatetwin.plant.simulate import simulator_for
 
 TESTS = Path(__file__).parent
 BACKENDS = ("c", "python")
@@ -171,7 +171,7 @@ def driven_inputs(
 
 
 def reference_run(plant, times, opening, flow) -> np.ndarray:
-    sim = PlantSimulator(plant)
+    sim = simulator_for(plant)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # flow outside the knots, on purpose
         sim.initialize(float(opening[0]), float(flow[0]), float(times[0]))

@@ -26,6 +26,7 @@ from fmu_support import compiler, extract_all, fmu_run, open_fmu, reference_run 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 RECORDS = sorted(p for p in bundled_records_dir().glob("*.csv") if p.stem != "static")
 TOLERANCE_MM = 1e-9
+NAMES = ("fopdt_3F", "arx_3F", "physical_3F")
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +35,7 @@ def extracted(tmp_path_factory):
         pytest.skip("no C compiler on this machine")
     folder = tmp_path_factory.mktemp("bundled_fmus")
     fmus = {}
-    for name in ("fopdt_3F", "arx_3F"):
+    for name in NAMES:
         model = read_model_file(MODELS / f"{name}.json")
         for backend in ("c", "python"):
             fmus[(name, backend)] = export_fmu(model.plant, folder / backend / f"{name}.fmu",
@@ -51,7 +52,7 @@ def _inputs(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 @pytest.mark.parametrize("record", RECORDS, ids=lambda p: p.stem)
-@pytest.mark.parametrize("name", ["fopdt_3F", "arx_3F"])
+@pytest.mark.parametrize("name", NAMES)
 def test_reference_c_and_python_fmus_agree_on_bundled_record(extracted, record, name):
     times, opening, flow = _inputs(record)
     plant = read_model_file(MODELS / f"{name}.json").plant

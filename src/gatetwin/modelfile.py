@@ -106,6 +106,39 @@ def model_document(
     return doc
 
 
+def physical_document(
+    name: str, plant: Plant, ranges: dict[str, list[float]], *, description: str,
+    provenance: dict[str, Any],
+) -> dict[str, Any]:  # fmt: skip
+    """A physical model file's content: the validity is the envelope of the data it was
+    identified from (discharge, opening and level ranges)."""
+    from gatetwin.plant.physical_kernel import PARAMETERS
+
+    return {
+        "$schema": SCHEMA_ID,
+        "schema_version": SCHEMA_VERSION,
+        "name": name,
+        "description": description,
+        "gauge": plant.gauge,
+        "units": {**UNITS, **{n: u for n, u, _ in PARAMETERS}},
+        "plant": plant_to_dict(plant),
+        "parameters": [{"name": n, "unit": u, "description": d} for n, u, d in PARAMETERS],
+        "operating_point": {
+            "opening_ref_mm": plant.opening_ref_mm,
+            "level_ref_mm": list(plant.schedule.values["level_ref_mm"]),
+            "flow_m3h": list(plant.schedule.flow_m3h),
+        },
+        "validity": {
+            "flow_m3h": list(ranges["flow_m3h"]),
+            "opening_range_mm": list(ranges["opening_mm"]),
+            "level_range_mm": list(ranges["level_mm"]),
+            "outside": "the gate law and storage are extrapolated; a warning is logged once "
+            "when the discharge leaves the range",
+        },
+        "provenance": {"gatetwin_version": __version__, **provenance},
+    }
+
+
 def write_model_file(path: str | Path, content: dict[str, Any]) -> Path:
     return write_json_atomic(path, content)
 
@@ -146,6 +179,13 @@ def applies_to(content: dict[str, Any], flow_m3h: float, openings_mm: Any) -> tu
     lo, hi = validity["flow_m3h"]
     if not lo - 1.0 <= flow_m3h <= hi + 1.0:  # 1 m³/h: the flow meter's accuracy
         return False, f"Q {flow_m3h:.1f} m³/h outside [{lo}, {hi}]"
+    if "opening_range_mm" in validity:
+        e_lo, e_hi = validity["opening_range_mm"]
+        e = np.asarray(openings_mm, dtype=float)
+        e = e[np.isfinite(e)]
+        if e.size and not (e_lo <= e.min() and e.max() <= e_hi):
+            return False, f"openings {e.min():g}–{e.max():g} mm outside [{e_lo}, {e_hi}]"
+        return True, "within validity"
     knots = content["plant"]["schedule"]["flow_m3h"]
     centre = float(np.interp(flow_m3h, knots, validity["opening_mm_at_knots"]))
     band = float(validity["opening_band_mm"])

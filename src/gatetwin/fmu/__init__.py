@@ -17,7 +17,7 @@ from typing import Any
 
 from gatetwin.errors import ExportError
 from gatetwin.fmu.description import FmuDescription, describe
-from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant, plant_to_dict
+from gatetwin.plant.model import ArxPlant, FopdtPlant, PhysicalPlant, Plant, plant_to_dict
 
 BACKENDS = ("c", "python")
 
@@ -59,8 +59,10 @@ def export_fmu(
     """
     if backend not in BACKENDS:
         raise ExportError(f"backend must be one of {', '.join(BACKENDS)} (got {backend!r})")
-    if not isinstance(plant, (FopdtPlant, ArxPlant)):
-        raise ExportError(f"cannot export {type(plant).__name__}: expected FopdtPlant or ArxPlant")
+    if not isinstance(plant, (FopdtPlant, ArxPlant, PhysicalPlant)):
+        raise ExportError(
+            f"cannot export {type(plant).__name__}: expected FopdtPlant, ArxPlant or PhysicalPlant"
+        )
     target = Path(out_path)
     if target.suffix.lower() != ".fmu":
         raise ExportError(f"output {target} must end in .fmu")
@@ -88,6 +90,7 @@ def _code_digest(backend: str) -> str:
         files = sorted(p for p in templates_dir().iterdir() if p.suffix in {".c", ".h"})
     else:
         files = [Path(__file__).with_name("slave_template.py")]
+    files.append(Path(__file__).resolve().parents[1] / "plant" / "physical_kernel.py")
     digest = hashlib.sha256()
     for path in files:
         digest.update(path.name.encode() + b"\0" + path.read_bytes())

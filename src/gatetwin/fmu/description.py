@@ -33,15 +33,19 @@ from typing import Any
 from xml.etree import ElementTree as ET
 
 from gatetwin.errors import ExportError
+from gatetwin.plant import physical_kernel
 from gatetwin.plant.effects import BLOCK_FIELDS, KINDS, parameter_specs
 from gatetwin.plant.model import (
     FLOW_RANGE_M3H,
     OPENING_RANGE_MM,
+    POSITIVE,
     ArxPlant,
     FopdtPlant,
+    PhysicalPlant,
     Plant,
     plant_to_dict,
 )
+from gatetwin.plant.physical import MAX_SUBSTEPS
 from gatetwin.plant.simulate import ARX_MAX_SUBSTEPS, ARX_STEP_RTOL, DELAY_HISTORY_CAPACITY
 
 #: Largest ARX orders the FMUs accept (fixed-size C state).
@@ -64,6 +68,9 @@ UNITS: dict[str, tuple[str, dict[str, int], float]] = {
     "1/mm": ("per millimetre", {"m": -1}, 1000.0),
     "h/m3": ("per cubic metre per hour", {"m": -3, "s": 1}, 3600.0),
     "mm/(m3/h)": ("millimetre per cubic metre per hour", {"m": -2, "s": 1}, 3.6),
+    "1": ("dimensionless", {}, 1.0),
+    "m": ("metre", {"m": 1}, 1.0),
+    "m2": ("square metre", {"m": 2}, 1.0),
 }
 _FOPDT_COLUMNS = {
     "gain_mm_per_mm": ("mm/mm", "Static gain K of level on opening"),
@@ -116,6 +123,7 @@ class FmuDescription:
     summary: str
     provenance: dict[str, Any] = field(default_factory=dict)
     effects: dict[str, dict[str, int]] = field(default_factory=dict)
+    physical_first: int | None = None
 
     @property
     def output(self) -> VariableSpec:
@@ -159,12 +167,16 @@ def describe(
         summary=summary,
         provenance=dict(provenance),
         effects=effects,
+        physical_first=(_first(specs, f"physical.{physical_kernel.PARAMETERS[0][0]}").vr
+                        if isinstance(plant, PhysicalPlant) else None),
     )
 
 
 def _check_exportable(plant: Plant, model_name: str) -> None:
-    if not isinstance(plant, (FopdtPlant, ArxPlant)):
-        raise ExportError(f"cannot export {type(plant).__name__}: expected FopdtPlant or ArxPlant")
+    if not isinstance(plant, (FopdtPlant, ArxPlant, PhysicalPlant)):
+        raise ExportError(
+            f"cannot export {type(plant).__name__}: expected FopdtPlant, ArxPlant or PhysicalPlant"
+        )
     if not _IDENTIFIER.fullmatch(model_name):
         raise ExportError(
             f"model_name {model_name!r} must be a C identifier (letters, digits, _; <= 64 chars)"
@@ -199,17 +211,26 @@ def _variables(plant: Plant) -> list[VariableSpec]:
          "Reference opening of the operating point; the dynamics see opening - opening_ref",
          plant.opening_ref_mm),
     ]
+    if isinstance(plant, PhysicalPlant):
+        rows[2] = (output_name(plant.gauge), "output", "continuous", "calculated", "mm",
+                   f"Level at gauge {plant.gauge}: storage and gate law, plus level_ref_mm(Q)",
+                   None)
+        rows[3] = ("opening_ref_mm", "parameter", "fixed", "exact", "mm",
+                   "Always 0: the physical family takes the opening as it is", 0.0)
     if isinstance(plant, ArxPlant):
         rows.append(("sample_period_s", "parameter", "fixed", "exact", "s",
                      "ARX sample period; communication steps must be whole multiples",
                      plant.sample_period_s))
     columns = [("flow_m3h", ("m3/h", "Discharge knot of the schedule (strictly increasing)"))]
-    columns += [(name, _column_meta(name)) for name in plant.columns]
+    columns += [(name, _column_meta(name, plant.kind)) for name in plant.columns]
     for name, (unit, text) in columns:
         values = knots if name == "flow_m3h" else plant.schedule.values[name]
         for k, value in enumerate(values, start=1):
             rows.append((f"schedule.{name}[{k}]", "parameter", "tunable", "exact", unit,
                          f"{text}, knot {k}", float(value)))
+    if isinstance(plant, PhysicalPlant):
+        rows += [(f"physical.{name}", "parameter", "tunable", "exact", unit, text,
+                  plant.parameters[name]) for name, unit, text in physical_kernel.PARAMETERS]
     specs = [VariableSpec(r[0], vr, *r[1:]) for vr, r in enumerate(rows)]
     for effect in plant.effects:
         for p in parameter_specs(effect["kind"]):
@@ -222,7 +243,9 @@ def _variables(plant: Plant) -> list[VariableSpec]:
     return specs
 
 
-def _column_meta(name: str) -> tuple[str, str]:
+def _column_meta(name: str, kind: str) -> tuple[str, str]:
+    if kind == "physical":
+        return ("mm", "Datum correction added to the level (0 as identified)")
     if name in _FOPDT_COLUMNS:
         return _FOPDT_COLUMNS[name]
     if name.startswith("a"):
@@ -248,6 +271,9 @@ def _summary(plant: Plant, provenance: dict[str, Any]) -> str:
         f"gatetwin {plant.kind.upper()} plant of gauge {plant.gauge}, scheduled on Q over "
         f"{len(plant.schedule.flow_m3h)} knot(s), valid for Q in [{lo:g}, {hi:g}] m3/h"
     )
+    if isinstance(plant, PhysicalPlant):
+        head = (f"gatetwin PHYSICAL plant of gauge {plant.gauge} (pool storage drained by the "
+                f"gate law, loaded actuator), valid for Q in [{lo:g}, {hi:g}] m3/h")
     facts = [f"{k}={_short(v)}" for k, v in _flatten(provenance) if v is not None]
     return head + ("; " + "; ".join(facts) if facts else "")
 
@@ -316,6 +342,8 @@ def model_config_header(desc: FmuDescription) -> str:
               f"#define VR_OPENING_REF_MM {desc.vr('opening_ref_mm')}"]
     if desc.arx_orders is not None:
         lines.append(f"#define VR_SAMPLE_PERIOD_S {desc.vr('sample_period_s')}")
+    if desc.physical_first is not None:
+        lines += _physical_config_lines(desc)
     lines.append("/* schedule column c at knot k (from 0): VR_COL_c + k */")
     lines += [f"#define {_macro(name)} {vr}" for name, vr in desc.columns.items()]
     lines += _effect_config_lines(desc)
@@ -327,6 +355,18 @@ def model_config_header(desc: FmuDescription) -> str:
     ]
     lines += ["", "#endif", ""]
     return "\n".join(lines)
+
+
+def _physical_config_lines(desc: FmuDescription) -> list[str]:
+    first = desc.physical_first or 0
+    positive = [first + physical_kernel.INDEX[n] for n in POSITIVE]
+    return [
+        "/* physical family: the kernel's parameters from VR_PHYSICAL_FIRST on, kernel order */",
+        f"#define VR_PHYSICAL_FIRST {first}",
+        "#define GT_PHYSICAL_POSITIVE " + ", ".join(str(vr) for vr in positive),
+        f"#define GT_PHYSICAL_MAX_SUBSTEPS {MAX_SUBSTEPS}",
+        f"#define GT_PHYSICAL_MAX_SUBSTEP_INDEX {physical_kernel.INDEX['max_substep_s']}",
+    ]
 
 
 def _effect_limits(desc: FmuDescription) -> list[tuple[int, float, float, bool]]:
@@ -372,6 +412,9 @@ def slave_config(desc: FmuDescription) -> dict[str, Any]:
         "arx_max_substeps": ARX_MAX_SUBSTEPS,
         "communication_point_rtol": COMMUNICATION_POINT_RTOL,
         "effects": desc.effects,
+        "physical_first": desc.physical_first,
+        "physical_positive": list(POSITIVE),
+        "physical_max_substeps": MAX_SUBSTEPS,
         "effect_limits": [list(row) for row in _effect_limits(desc)],
         "variables": [
             {"name": v.name, "vr": v.vr, "causality": v.causality,

@@ -29,6 +29,9 @@ BLOCKS = Path(__file__).resolve().parents[1] / "plant" / "blocks.py"
 _CONFIG_LINE = 'CONFIG_JSON = "{}"  # replaced at export by gatetwin.fmu.python_build'
 _BLOCKS_BEGIN = "# BEGIN gatetwin.plant.blocks\n"
 _BLOCKS_END = "# END gatetwin.plant.blocks\n"
+KERNEL = Path(__file__).resolve().parents[1] / "plant" / "physical_kernel.py"
+_KERNEL_BEGIN = "# BEGIN gatetwin.plant.physical_kernel\n"
+_KERNEL_END = "# END gatetwin.plant.physical_kernel\n"
 #: pythonfmu 0.7.0 serialises FMU states through ``Fmi2Slave._fmu_state_to_bytes`` (JSON);
 #: the FMU needs a Python interpreter, hence needsExecutionTool.
 FLAGS = CoSimulationFlags(
@@ -46,16 +49,34 @@ def blocks_source() -> str:
     return "# gatetwin/plant/blocks.py, embedded at export\n" + body.strip() + "\n"
 
 
+def kernel_source() -> str:
+    """gatetwin/plant/physical_kernel.py run as a module of its own inside the slave."""
+    text = KERNEL.read_text(encoding="utf-8")
+    return (
+        "# gatetwin/plant/physical_kernel.py, embedded at export\n"
+        "import types as _types\n\n"
+        f"_PHYSICAL_KERNEL_SOURCE = {text!r}\n"
+        'physical_kernel = _types.ModuleType("physical_kernel")\n'
+        'exec(compile(_PHYSICAL_KERNEL_SOURCE, "physical_kernel.py", "exec"), '
+        "physical_kernel.__dict__)\n"
+    )
+
+
+def _splice(text: str, begin: str, end: str, body: str) -> str:
+    head, sep, rest = text.partition(begin)
+    _, sep_end, tail = rest.partition(end)
+    if not (sep and sep_end):
+        raise ExportError(f"{TEMPLATE.name}: {begin.strip()} markers missing")
+    return head + body + tail
+
+
 def slave_source(desc: FmuDescription) -> str:
     """The slave module with the description and the effect-block kernels embedded."""
     text = TEMPLATE.read_text(encoding="utf-8")
     if text.count(_CONFIG_LINE) != 1:
         raise ExportError(f"{TEMPLATE.name}: CONFIG_JSON marker line missing")
-    head, sep, rest = text.partition(_BLOCKS_BEGIN)
-    _, sep_end, tail = rest.partition(_BLOCKS_END)
-    if not (sep and sep_end):
-        raise ExportError(f"{TEMPLATE.name}: gatetwin.plant.blocks markers missing")
-    text = head + blocks_source() + tail
+    text = _splice(text, _BLOCKS_BEGIN, _BLOCKS_END, blocks_source())
+    text = _splice(text, _KERNEL_BEGIN, _KERNEL_END, kernel_source())
     config = json.dumps(slave_config(desc), sort_keys=True, allow_nan=False)
     return text.replace(_CONFIG_LINE, f"CONFIG_JSON = {config!r}")
 

@@ -3,8 +3,9 @@
 Self-contained on purpose: the FMU runs where gatetwin is not installed, so this file uses the
 standard library and pythonfmu only. It mirrors gatetwin.plant.simulate.PlantSimulator and the
 C FMU (fmu_templates/plant.c, model_fopdt.c, model_arx.c, effects.c) operation by operation.
-The effect blocks' arithmetic is gatetwin/plant/blocks.py itself: at export its source replaces
-the import between the BEGIN/END markers below, so the FMU carries it.
+The effect blocks' arithmetic is gatetwin/plant/blocks.py itself, and the physical family's is
+gatetwin/plant/physical_kernel.py: at export their sources replace the imports between the
+BEGIN/END markers below, so the FMU carries them.
 
 pythonfmu 0.7.0 maps ``do_step() -> False`` to fmi2Discard and any exception to fmi2Fatal, and
 forwards log messages only when the importer turned logging on; refused steps therefore return
@@ -20,6 +21,10 @@ from typing import Any
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
 
+# BEGIN gatetwin.plant.physical_kernel
+from gatetwin.plant import physical_kernel  # replaced at export by the module's source
+
+# END gatetwin.plant.physical_kernel
 # BEGIN gatetwin.plant.blocks
 from gatetwin.plant.blocks import (  # replaced by the module's source at export
     first_order,
@@ -221,6 +226,8 @@ class GatetwinPlant(Fmi2Slave):
                 )
         if CONFIG["family"] == "fopdt":
             self._fopdt_check_parameters()
+        elif CONFIG["family"] == "physical":
+            self._physical_check_parameters()
         else:
             self._arx_check_parameters()
         self._effects_check_parameters()
@@ -239,6 +246,9 @@ class GatetwinPlant(Fmi2Slave):
     def _equilibrium(self, u: float, q: float) -> float:
         if CONFIG["family"] == "fopdt":
             return self._fopdt_parameters(q)[0] * u
+        if CONFIG["family"] == "physical":
+            gate = physical_kernel.actuator_target_mm(u, self._physical())
+            return self._physical_level(self._physical_depth(gate, q), gate, q)
         return self._arx_equilibrium(u, q)
 
     def _initialize(self) -> tuple[int, str]:
@@ -249,6 +259,8 @@ class GatetwinPlant(Fmi2Slave):
         x0 = self._equilibrium(u, flow_m3h)
         if CONFIG["family"] == "fopdt":
             self._fopdt_initialize(u, x0)
+        elif CONFIG["family"] == "physical":
+            self._physical_initialize(u, x0, flow_m3h)
         else:
             self._arx_initialize(u, x0)
         self._effects_initialize(opening_mm, flow_m3h, self._at("level_ref_mm", flow_m3h) + x0)
@@ -269,6 +281,8 @@ class GatetwinPlant(Fmi2Slave):
         if CONFIG["family"] == "fopdt":
             self._fopdt_check_step(h, opening_mm)
             self._fopdt_step(h, opening_mm, flow_m3h)
+        elif CONFIG["family"] == "physical":
+            self._physical_step(h, opening_mm, flow_m3h)
         else:
             n = self._arx_samples(h)
             self._arx_step(n, opening_mm, flow_m3h)
@@ -293,6 +307,48 @@ class GatetwinPlant(Fmi2Slave):
                 flow_m3h - self._p("inflow_disturbance", "flow_ref_m3h")
             )
         return level
+
+    # -- physical (model_physical.c around physical_kernel) -------------------------------------
+    def _physical(self) -> list[float]:
+        first = CONFIG["physical_first"]
+        return self.real[first:first + len(physical_kernel.PARAMETERS)]
+
+    def _physical_check_parameters(self) -> None:
+        p = self._physical()
+        for name in CONFIG["physical_positive"]:
+            value = p[physical_kernel.INDEX[name]]
+            if not value > 0.0:
+                raise PlantError(f"parameter physical.{name} = {_g(value)} must be > 0")
+
+    def _physical_depth(self, gate_mm: float, q: float) -> float:
+        p = self._physical()
+        low, high = physical_kernel.DEPTH_BRACKET_M
+        for _ in range(physical_kernel.BISECTION_STEPS):
+            low, high = physical_kernel.bisection_step(low, high, gate_mm, q, p)
+        return 0.5 * (low + high)
+
+    def _physical_level(self, depth_m: float, gate_mm: float, q: float) -> float:
+        return physical_kernel.level_mm(depth_m, gate_mm, q, self._physical())
+
+    def _physical_initialize(self, u: float, x0: float, q: float) -> None:
+        gate = physical_kernel.actuator_target_mm(u, self._physical())
+        self.dyn = {"x": x0, "depth_m": self._physical_depth(gate, q), "gate_mm": gate}
+
+    def _physical_step(self, h: float, command: float, q: float) -> None:
+        p = self._physical()
+        n = physical_kernel.substep_count(h, p)
+        if not n <= CONFIG["physical_max_substeps"]:
+            raise PlantError(
+                f"communication step {_g(h)} s needs {n:.0f} sub-steps of at most "
+                f"{_g(p[physical_kernel.INDEX['max_substep_s']])} s; the limit is "
+                f"{CONFIG['physical_max_substeps']}"
+            )
+        target = physical_kernel.actuator_target_mm(command, p)
+        depth, gate, dt = self.dyn["depth_m"], self.dyn["gate_mm"], h / n
+        for _ in range(int(n)):
+            depth, gate = physical_kernel.substep(depth, gate, target, q, dt, p)
+        self.dyn = {"x": physical_kernel.level_mm(depth, gate, q, p), "depth_m": depth,
+                    "gate_mm": gate}
 
     # -- FOPDT (model_fopdt.c) ------------------------------------------------------------------
     def _fopdt_check_parameters(self) -> None:

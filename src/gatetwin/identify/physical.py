@@ -307,3 +307,22 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
 
 def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x))))
+
+
+def data_ranges(static: Any, records: dict[str, Record], gauge: str) -> dict[str, list[float]]:
+    """Discharge, opening and level ranges the data span (the model's validity envelope)."""
+    q = [np.asarray(static.flow_m3h, float)]
+    e = [np.asarray(static.opening_mm, float)]
+    h = [np.asarray(static.levels_mm[gauge], float)]
+    for rec in records.values():
+        q.append(rec.flow_m3h[rec.hold])
+        e.append(rec.opening_mm[rec.hold])
+        if gauge in rec.levels_mm:
+            h.append(rec.levels_mm[gauge])
+
+    def span(parts: list[np.ndarray], digits: int) -> list[float]:
+        x = np.concatenate(parts)
+        x = x[np.isfinite(x)]
+        return [round(float(x.min()), digits), round(float(x.max()), digits)]
+
+    return {"flow_m3h": span(q, 1), "opening_mm": span(e, 1), "level_mm": span(h, 0)}

@@ -380,6 +380,13 @@ def _sum_in_order(values: np.ndarray) -> float:
     return total
 
 
+def simulator_for(plant: Plant) -> PlantSimulator | PhysicalSimulator:
+    """The stepwise simulator of any plant (``initialize``, ``do_step``, ``level_mm``)."""
+    if isinstance(plant, PhysicalPlant):
+        return PhysicalSimulator(plant)
+    return PlantSimulator(plant)
+
+
 def simulate(
     plant: Plant,
     time_s: np.ndarray,
@@ -393,9 +400,7 @@ def simulate(
     t = np.asarray(time_s, dtype=float)
     e = np.asarray(opening_mm, dtype=float)
     q = np.asarray(flow_m3h, dtype=float)
-    sim: PlantSimulator | PhysicalSimulator = (
-        PhysicalSimulator(plant) if isinstance(plant, PhysicalPlant) else PlantSimulator(plant)
-    )
+    sim = simulator_for(plant)
     sim.initialize(float(e[0]), float(q[0]), float(t[0]))
     out = np.empty_like(t)
     out[0] = sim.level_mm
@@ -404,4 +409,4 @@ def simulate(
     return out
 
 
-__all__ = ["PlantSimulator", "SimulationError", "check_inputs", "simulate", "interp_clamped"]
+__all__ = ["PlantSimulator", "simulator_for", "SimulationError", "check_inputs", "simulate", "interp_clamped"]

@@ -1,0 +1,95 @@
+/* Physical dynamics: the steps of gatetwin.plant.physical.PhysicalSimulator around the kernel
+ * generated into physical_kernel.c (gatetwin.plant.physical_kernel): the steady depth by a fixed
+ * number of bisection steps, then equal sub-steps of at most max_substep_s per communication
+ * step. The parameters are the Real variables from VR_PHYSICAL_FIRST on, in kernel order.
+ */
+#include <math.h>
+
+#include "physical_kernel.h"
+#include "plant.h"
+
+#define PHYSICAL(m) (&(m)->real[VR_PHYSICAL_FIRST])
+
+static const int positive_parameters[] = {GT_PHYSICAL_POSITIVE};
+
+PlantStatus dynamics_check_parameters(const ModelData *m, PlantMessage *msg)
+{
+    size_t i;
+    for (i = 0; i < sizeof positive_parameters / sizeof positive_parameters[0]; i++) {
+        const int vr = positive_parameters[i];
+        if (!(m->real[vr] > 0.0)) {
+            plant_message(msg, "parameter %s = %.17g must be > 0", plant_variables[vr].name,
+                          m->real[vr]);
+            return PLANT_ERROR;
+        }
+    }
+    return PLANT_OK;
+}
+
+static double steady_depth_m(const ModelData *m, double gate_mm, double flow_m3h)
+{
+    double low = GT_DEPTH_LOW_M, high = GT_DEPTH_HIGH_M;
+    int i;
+    for (i = 0; i < GT_BISECTION_STEPS; i++) {
+        gt_bisection_step(low, high, gate_mm, flow_m3h, PHYSICAL(m), &low, &high);
+    }
+    return 0.5 * (low + high);
+}
+
+static double actuator_target(const ModelData *m, double command_mm)
+{
+    double target;
+    gt_actuator_target_mm(command_mm, PHYSICAL(m), &target);
+    return target;
+}
+
+PlantStatus dynamics_equilibrium(const ModelData *m, double u_mm, const KnotPosition *at,
+                                 double *x0_mm, PlantMessage *msg)
+{
+    const double flow_m3h = m->real[VR_FLOW_M3H];
+    const double gate = actuator_target(m, u_mm);
+    (void)at;
+    (void)msg;
+    gt_level_mm(steady_depth_m(m, gate, flow_m3h), gate, flow_m3h, PHYSICAL(m), x0_mm);
+    return PLANT_OK;
+}
+
+void dynamics_initialize(ModelData *m, double u_mm, double x0_mm)
+{
+    m->dyn.gate_mm = actuator_target(m, u_mm);
+    m->dyn.depth_m = steady_depth_m(m, m->dyn.gate_mm, m->real[VR_FLOW_M3H]);
+    m->dyn.x = x0_mm;
+}
+
+PlantStatus dynamics_check_step(const ModelData *m, double step_s, double command_mm,
+                                PlantMessage *msg)
+{
+    double n;
+    (void)command_mm;
+    gt_substep_count(step_s, PHYSICAL(m), &n);
+    if (!(n <= GT_PHYSICAL_MAX_SUBSTEPS)) {
+        plant_message(msg,
+                      "communication step %.17g s needs %.0f sub-steps of at most %.17g s; "
+                      "the limit is %d",
+                      step_s, n, m->real[VR_PHYSICAL_FIRST + GT_PHYSICAL_MAX_SUBSTEP_INDEX],
+                      GT_PHYSICAL_MAX_SUBSTEPS);
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
+}
+
+void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPosition *at)
+{
+    const double flow_m3h = m->real[VR_FLOW_M3H];
+    const double target = actuator_target(m, command_mm);
+    double n, dt;
+    long i;
+    (void)at;
+    gt_substep_count(step_s, PHYSICAL(m), &n);
+    dt = step_s / n;
+    for (i = 0; i < (long)n; i++) {
+        gt_substep(m->dyn.depth_m, m->dyn.gate_mm, target, flow_m3h, dt, PHYSICAL(m),
+                   &m->dyn.depth_m, &m->dyn.gate_mm);
+    }
+    gt_level_mm(m->dyn.depth_m, m->dyn.gate_mm, flow_m3h, PHYSICAL(m), &m->dyn.x);
+}

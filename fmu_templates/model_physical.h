@@ -1,0 +1,12 @@
+/* State of the physical dynamics: pool storage drained by the gate law, behind the actuator.
+ * The arithmetic is generated into physical_kernel.c from gatetwin.plant.physical_kernel. */
+#ifndef GATETWIN_MODEL_PHYSICAL_H
+#define GATETWIN_MODEL_PHYSICAL_H
+
+typedef struct {
+    double x;       /* level at the gauge, mm (level_ref_mm is added by plant.c) */
+    double depth_m; /* depth at the gate, m */
+    double gate_mm; /* gate position, mm */
+} DynamicsState;
+
+#endif

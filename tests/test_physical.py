@@ -1,0 +1,190 @@
+"""The physical family: its renderings agree, and identification recovers a known plant."""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import subprocess
+import types
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gatetwin.errors import ModelFileError
+from gatetwin.fmu.c_build import KERNEL_PREFIX, find_compiler, generated_kernel
+from gatetwin.identify.physical import fit_physical, kernel_simulator
+from gatetwin.identify.preprocess import reconstructed_opening
+from gatetwin.modelfile import read_model_file
+from gatetwin.pipeline import bundled_records_dir
+from gatetwin.plant import physical_kernel as kernel
+from gatetwin.plant.kernel_render import casadi_kernel, numba_kernel
+from gatetwin.plant.model import PhysicalPlant, Schedule, plant_from_dict, plant_to_dict
+from gatetwin.plant.simulate import SimulationError, simulate, simulator_for
+from gatetwin.records import read_record
+
+MODEL = Path(__file__).resolve().parents[1] / "models" / "physical_3F.json"
+#: Round-off: the renderings run the same operations; numba's and CasADi's libm calls may
+#: differ from the C library's in the last bit.
+ROUNDOFF = 1e-12
+
+
+@pytest.fixture(scope="module")
+def plant() -> PhysicalPlant:
+    return read_model_file(MODEL).plant
+
+
+def _random_points(n: int, seed: int = 3) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.column_stack([rng.uniform(0.05, 0.45, n), rng.uniform(5, 85, n),
+                            rng.uniform(5, 85, n), rng.uniform(20, 95, n),
+                            rng.uniform(0.01, 2.0, n)])  # fmt: skip
+
+
+def test_c_rendering_of_the_kernel_equals_python(plant, tmp_path):
+    try:
+        cc = find_compiler()
+    except Exception:
+        pytest.skip("no C compiler")
+    for name, text in generated_kernel("physical").items():
+        (tmp_path / name).write_text(text)
+    lib = tmp_path / "libkernel.so"
+    subprocess.run([*cc, "-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-Wall",
+                    "-Wextra", "-Werror", "-o", str(lib), "physical_kernel.c", "-lm"],
+                   cwd=tmp_path, check=True)  # fmt: skip
+    c = ctypes.CDLL(str(lib))
+    p = plant.vector
+    pa = (ctypes.c_double * len(p))(*p)
+    d0, d1 = ctypes.c_double(), ctypes.c_double()
+    worst = 0.0
+    for h, a, t, q, dt in _random_points(500):
+        args = [ctypes.c_double(v) for v in (h, a, t, q, dt)]
+        getattr(c, f"{KERNEL_PREFIX}substep")(*args, pa, ctypes.byref(d0), ctypes.byref(d1))
+        ref = kernel.substep(h, a, t, q, dt, p)
+        worst = max(worst, abs(d0.value - ref[0]), abs(d1.value - ref[1]))
+        getattr(c, f"{KERNEL_PREFIX}level_mm")(*args[:3], pa, ctypes.byref(d0))
+        worst = max(worst, abs(d0.value - kernel.level_mm(h, a, t, p)))
+    assert worst <= ROUNDOFF
+
+
+def test_numba_and_casadi_renderings_equal_python(plant):
+    import casadi as ca
+
+    p = plant.vector
+    fast = numba_kernel(kernel.__name__)
+    sym = casadi_kernel(kernel)
+    x = ca.SX.sym("x", 5)
+    f = ca.Function("f", [x], [ca.vertcat(*sym.substep(x[0], x[1], x[2], x[3], x[4], p))])
+    worst = 0.0
+    for row in _random_points(200):
+        ref = np.array(kernel.substep(*row, p))
+        worst = max(worst, float(np.max(np.abs(np.array(fast.substep(*row, np.array(p))) - ref))))
+        worst = max(worst, float(np.max(np.abs(np.array(f(row)).ravel() - ref))))
+    assert worst <= ROUNDOFF
+
+
+def test_fast_simulator_equals_reference_on_a_bundled_record(plant):
+    rec = read_record(bundled_records_dir() / "C.csv")
+    e = reconstructed_opening(rec.time_s, rec.opening_mm, rec.hold)
+    out = np.empty(rec.n_samples)
+    kernel_simulator()[0](rec.time_s, e, rec.flow_m3h, np.array(plant.vector), out)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        ref = simulate(plant, rec.time_s, e, rec.flow_m3h)
+    assert np.max(np.abs(out - ref)) <= 1e-9
+
+
+def test_model_file_round_trip_and_bad_parameters(plant):
+    again = plant_from_dict(plant_to_dict(plant))
+    assert again == plant
+    bad = plant_to_dict(plant)
+    bad["parameters"] = {**bad["parameters"], "area_m2": float("nan")}
+    with pytest.raises(ModelFileError, match="area_m2"):
+        plant_from_dict(bad)
+    bad["parameters"] = {**plant.parameters, "speed_mm_s": 0.0}
+    with pytest.raises(ModelFileError, match="speed_mm_s"):
+        plant_from_dict(bad)
+
+
+def test_a_step_needing_too_many_substeps_is_refused_without_change(plant):
+    sim = simulator_for(plant)
+    sim.initialize(30.0, 50.0)
+    before = (sim.depth_m, sim.gate_mm, sim.time_s)
+    with pytest.raises(SimulationError, match="sub-steps"):
+        sim.do_step(1e9, 30.0, 50.0)
+    assert (sim.depth_m, sim.gate_mm, sim.time_s) == before
+
+
+def test_a_large_move_lands_on_the_gate_law_level(plant):
+    """A 15 -> 30 mm move at Q 35 settles where the steady relation says (no tangent line)."""
+    sim = simulator_for(plant)
+    sim.initialize(15.0, 35.0)
+    for _ in range(2000):
+        level = sim.do_step(1.2, 30.0, 35.0)
+    assert abs(level - plant.steady_level_mm(30.0, 35.0)) < 1e-6
+    assert sim.gate_mm == 30.0
+
+
+# -- identification recovers a known plant ------------------------------------------------------
+TRUTH = {
+    "cd_small": 0.90, "cd_small_per_q": 0.10, "cd_large": 0.52, "cd_large_per_q": -0.05,
+    "cd_mid_log_ratio": -1.7, "cd_mid_per_q": -0.3, "cd_log_width": -0.7,
+    "cd_log_width_per_q": 0.0, "cd_log_shape": 0.3, "width_m": 0.30, "offset_mm": 2.0,
+    "offset_per_flow2_mm": 20.0, "area_m2": 2.2, "area_per_depth_m": -1.0, "speed_mm_s": 1.5,
+    "stall_depth_m": 0.5, "resolution_mm": 1.0, "max_substep_s": 0.6,
+}
+NOISE_MM = 0.5
+
+
+def _synthetic_record(path: Path, truth: PhysicalPlant, flow: float, openings: list[float],
+                      hold_s: float, seed: int) -> Path:  # fmt: skip
+    """A logged record of ``truth`` (fine steps of 0.1 s, sampled every 1.2 s, white noise)."""
+    rng = np.random.default_rng(seed)
+    sim = simulator_for(truth)
+    sim.initialize(openings[0], flow)
+    rows = ["time_s,opening_mm,state,flow_m3h,level_3F_mm"]
+    t, k = 0.0, 0
+    for command in openings:
+        for _ in range(round(hold_s / 1.2)):
+            moving = abs(sim.gate_mm - kernel.actuator_target_mm(command, truth.vector)) > 1e-9
+            state, shown = ("open", "") if moving else ("hold", f"{sim.gate_mm:g}")
+            level = sim.level_mm + rng.normal(0.0, NOISE_MM)
+            rows.append(f"{t:.3f},{shown},{state},{flow},{level:.2f}")
+            for _ in range(12):
+                sim.do_step(0.1, command, flow)
+            k += 1
+            t = k * 1.2
+    path.write_text("\n".join(rows) + "\n")
+    path.with_suffix(".json").write_text('{"test": "free", "sample_period_s": 1.2}')
+    return path
+
+
+def test_identification_recovers_a_known_plant(tmp_path):
+    truth = PhysicalPlant("3F", TRUTH, Schedule((20.0, 90.0), {"level_ref_mm": (0.0, 0.0)}))
+    rng = np.random.default_rng(7)
+    q, e = np.meshgrid(np.arange(25.0, 90.0, 10.0), np.arange(15.0, 80.0, 10.0))
+    q, e = q.ravel(), e.ravel()
+    h = np.array([truth.steady_level_mm(ei, qi) for qi, ei in zip(q, e, strict=True)])
+    keep = (h > 100) & (h < 380)
+    static = types.SimpleNamespace(flow_m3h=q[keep], opening_mm=e[keep],
+                                   levels_mm={"3F": h[keep] + rng.normal(0, 0.3, keep.sum())})
+    plans = [(35.0, [15, 20, 25, 20, 15], 420.0), (60.0, [30, 40, 35, 45, 30], 400.0),
+             (80.0, [40, 50, 60, 50], 400.0)]  # fmt: skip
+    records = {f"S{i}": read_record(_synthetic_record(tmp_path / f"S{i}.csv", truth, qq,
+                                                      [float(o) for o in ops], hs, 10 + i))
+               for i, (qq, ops, hs) in enumerate(plans)}  # fmt: skip
+    fit = fit_physical(static, records, "3F", (25.0, 85.0))
+    got = fit.plant
+    # storage: the dynamic records determine it to a few per cent at this noise
+    assert abs(got.parameters["area_m2"] / TRUTH["area_m2"] - 1) < 0.05
+    # the steady map: within the noise of the static points over the identified envelope
+    errs = [got.steady_level_mm(ei, qi) - truth.steady_level_mm(ei, qi)
+            for qi, ei in zip(static.flow_m3h, static.opening_mm, strict=True)]
+    assert math.sqrt(np.mean(np.square(errs))) < 1.0
+    # a record never fitted, with Q steps and moves together, is simulated at the noise floor
+    held = read_record(_synthetic_record(tmp_path / "H.csv", truth, 50.0, [20.0, 30.0, 25.0],
+                                         400.0, 99))  # fmt: skip
+    e_h = reconstructed_opening(held.time_s, held.opening_mm, held.hold)
+    err = simulate(got, held.time_s, e_h, held.flow_m3h) - held.levels_mm["3F"]
+    assert float(np.sqrt(np.mean(err**2))) < 2.0 * NOISE_MM
