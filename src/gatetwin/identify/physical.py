@@ -217,8 +217,10 @@ def actuator_moves(records: dict[str, Record], gauge: str, values: dict[str, flo
                    ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Observed speed of each gate move (mm/s) and the depth at the gate when it began (m).
 
-    The move lies between the last hold sample before it and the first after; the depth is
-    the gauge's level there plus the gauge offset at the measured discharge.
+    The move lies between the last hold sample before it and the first after; on average it
+    begins and ends half a sample period inside that interval, so its duration is the
+    interval less one sample period. The depth is the gauge's level at the start plus the
+    gauge offset at the measured discharge.
     """
     speeds, depths = [], []
     for rec in records.values():
@@ -227,7 +229,7 @@ def actuator_moves(records: dict[str, Record], gauge: str, values: dict[str, flo
             continue
         for step in rec.steps:
             i0, i1 = step.before.stop - 1, step.after.start
-            duration = rec.time_s[i1] - rec.time_s[i0]
+            duration = rec.time_s[i1] - rec.time_s[i0] - rec.sample_period_s
             if not (duration > 0 and np.isfinite(level[i0])):
                 continue
             q100 = rec.flow_m3h[i0] / 100.0

@@ -409,4 +409,7 @@ def simulate(
     return out
 
 
-__all__ = ["PlantSimulator", "simulator_for", "SimulationError", "check_inputs", "simulate", "interp_clamped"]
+__all__ = [
+    "PlantSimulator", "SimulationError", "check_inputs", "interp_clamped", "simulate",
+    "simulator_for",
+]
