@@ -23,11 +23,13 @@ import sysconfig
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 from fmpy import extract, platform, read_model_description, sharedLibraryExtension
 from fmpy.fmi2 import FMU2Slave
 
 from gatetwin.fmu import export_fmu
+from gatetwin.modelfile import read_model_file
 from gatetwin.plant.model import FopdtPlant, Schedule
 
 HERE = Path(__file__).parent
@@ -44,23 +46,24 @@ def test_plant() -> FopdtPlant:
     }))
 
 
-def build(folder: Path) -> dict[str, Path]:
+def build(folder: Path, plant: Any) -> dict[str, Path]:
     """Export and extract both FMUs; return backend -> extracted folder."""
     out = {}
     for backend in ("c", "python"):
-        fmu = export_fmu(test_plant(), folder / f"bench_{backend}.fmu", backend=backend,
+        fmu = export_fmu(plant, folder / f"bench_{backend}.fmu", backend=backend,
                          model_name="bench_fopdt", provenance={"purpose": "benchmark"})
         out[backend] = Path(extract(str(fmu), str(folder / backend)))
     return out
 
 
-def host_args(extracted: Path) -> list[str]:
+def host_args(extracted: Path, gauge: str = "3F") -> list[str]:
     md = read_model_description(str(extracted))
     vr = {v.name: str(v.valueReference) for v in md.modelVariables}
     name = md.coSimulation.modelIdentifier + sharedLibraryExtension
     binary = extracted / "binaries" / platform / name
     resources = (extracted / "resources").as_uri()
-    return [str(binary), md.guid, resources, vr["opening_mm"], vr["flow_m3h"], vr["level_3F_mm"]]
+    return [str(binary), md.guid, resources, vr["opening_mm"], vr["flow_m3h"],
+            vr[f"level_{gauge}_mm"]]
 
 
 def libpython() -> tuple[Path | None, str]:
@@ -123,18 +126,24 @@ def main() -> None:
     parser.add_argument("--n-c", type=int, default=5_000_000, help="doSteps timed, C FMU")
     parser.add_argument("--n-python", type=int, default=20_000, help="doSteps, python FMU")
     parser.add_argument("--n-fmpy", type=int, default=20_000, help="steps through fmpy")
+    parser.add_argument("--model", metavar="MODEL.json",
+                        help="time this model file's FMUs instead of the FOPDT test plant")
     args = parser.parse_args()
+    plant = read_model_file(args.model).plant if args.model else test_plant()
+    global STEP_S
+    STEP_S = getattr(plant, "sample_period_s", STEP_S)  # an ARX steps at its sample period
     cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        fmus = build(folder)
+        fmus = build(folder, plant)
         host = folder / "bench_host"
         subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
                         "-I", str(fmus["c"] / "sources"), "-o", str(host),
                         str(HERE / "bench_host.c"), "-ldl"], check=True)
-        print(f"FOPDT test plant, 3 knots, Q = 47 m3/h (between knots), step {STEP_S} s")
+        what = args.model or "FOPDT test plant, 3 knots"
+        print(f"{what}: Q = 47 m3/h, opening 18/23 mm alternating every 7 steps, step {STEP_S} s")
         print(f"\n1. C host (dlopen of the FMU binary, {sys.platform})")
-        c_ns = run_host(host, host_args(fmus["c"]), args.n_c)
+        c_ns = run_host(host, host_args(fmus["c"], plant.gauge), args.n_c)
         print(f"   C FMU       doStep                 {c_ns['doStep_ns']:10.1f} ns   "
               f"(target <= 50 ns; N = {args.n_c:,})")
         print(f"               setReal+doStep+getReal {c_ns['set_doStep_get_ns']:10.1f} ns")
@@ -143,7 +152,8 @@ def main() -> None:
             print(f"   python FMU  not timed from C: {why}")
         else:
             env = dict(os.environ, PYTHONHOME=sys.base_prefix, PYTHONNOUSERSITE="1")
-            py_ns = run_host(host, host_args(fmus["python"]), args.n_python, lib, env)
+            py_ns = run_host(host, host_args(fmus["python"], plant.gauge), args.n_python, lib,
+                             env)
             print(f"   python FMU  doStep                 {py_ns['doStep_ns']:10.1f} ns   "
                   f"(N = {args.n_python:,}; libpython {lib.name})")
             print(f"               setReal+doStep+getReal {py_ns['set_doStep_get_ns']:10.1f} ns")
