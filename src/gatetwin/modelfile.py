@@ -22,6 +22,8 @@ from gatetwin.plant.model import Plant, plant_from_dict, plant_to_dict
 
 SCHEMA_ID = "https://gatetwin.invalid/schema/model-1.json"
 SCHEMA_VERSION = "1.0"
+#: The flow meter's accuracy, m³/h: a discharge this close to the validity range is inside it.
+FLOW_METER_ACCURACY_M3H = 1.0
 
 UNITS = {
     "opening": "mm",
@@ -109,7 +111,7 @@ def validity_envelope(content: dict[str, Any]) -> dict[str, list[float]]:
     elif validity.get("opening_mm_at_knots") and "opening_band_mm" in validity:
         knots = [float(e) for e in validity["opening_mm_at_knots"]]
         band = float(validity["opening_band_mm"])
-        out["opening_mm"] = [min(knots) - band, max(knots) + band]
+        out["opening_mm"] = [round(min(knots) - band, 6), round(max(knots) + band, 6)]
     if "level_range_mm" in validity:
         out["level_mm"] = _pair(validity["level_range_mm"], "level_range_mm")
     return out
@@ -193,7 +195,7 @@ def applies_to(content: dict[str, Any], flow_m3h: float, openings_mm: Any) -> tu
 
     validity = content["validity"]
     lo, hi = validity["flow_m3h"]
-    if not lo - 1.0 <= flow_m3h <= hi + 1.0:  # 1 m³/h: the flow meter's accuracy
+    if not lo - FLOW_METER_ACCURACY_M3H <= flow_m3h <= hi + FLOW_METER_ACCURACY_M3H:
         return False, f"Q {flow_m3h:.1f} m³/h outside [{lo}, {hi}]"
     knots = content["plant"]["schedule"]["flow_m3h"]
     centre = float(np.interp(flow_m3h, knots, validity["opening_mm_at_knots"]))
