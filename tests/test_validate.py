@@ -265,6 +265,12 @@ def test_cli_pass_writes_json_junit_and_plots(
     assert rec["metrics"]["fit_percent"] > 85 and len(rec["step_comparison"]) == 1
     assert [t["metric"] for t in rec["thresholds"]] == ["fit_percent", "rmse_mm"]
     assert rec["whiteness"]["n"] == 751 and 0 <= rec["whiteness"]["ljung_box_p"] <= 1
+    # the test FMUs state no validity envelope: unknown, never inside
+    assert rec["inside_validity"] is None and doc["fmu"]["validity"] is None
+    floor = rec["noise_floor"]
+    assert 0 < floor["sigma_mm"] < 5 and 0 < floor["fit_percent"] < 100
+    fit = rec["metrics"]["fit_percent"]
+    assert rec["fit_vs_floor"] == pytest.approx(fit - floor["fit_percent"])
     suites = ET.parse(junit_path).getroot()
     assert suites.tag == "testsuites" and len(suites.findall("testsuite")) == 1
     cases = suites.findall("testsuite/testcase")

@@ -109,7 +109,14 @@ def add_export_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def fmu_provenance(model: Any) -> dict[str, Any]:
-    """What an FMU carries about the model file it came from."""
+    """What an FMU carries about the model file it came from.
+
+    ``validity`` is the model's validity envelope
+    (:func:`gatetwin.modelfile.validity_envelope`): ``flow_m3h``, ``opening_mm`` and
+    ``level_mm`` as ``[low, high]``, each only when the model file states it; the validation
+    harness reads it back from ``resources/provenance.json``. ``validity_flow_m3h`` repeats
+    the flow range for readers of earlier FMUs.
+    """
     prov = model.content.get("provenance", {})
     return {
         "model_name": model.name,
@@ -118,6 +125,7 @@ def fmu_provenance(model: Any) -> dict[str, Any]:
         "records": prov.get("records", []),
         "metrics": prov.get("metrics", {}),
         "validity_flow_m3h": list(model.validity_flow_m3h),
+        "validity": model.validity_envelope,
         "gatetwin_version": prov.get("gatetwin_version", ""),
     }
 

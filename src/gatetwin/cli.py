@@ -163,8 +163,10 @@ def _add_validate_arguments(parser: argparse.ArgumentParser) -> None:
                         "the FMU's only level output)")  # fmt: skip
     parser.add_argument(
         "--fail-under", metavar="METRIC=VALUE", action="append", default=[],
-        help="fail a record whose METRIC is below VALUE; for fit_percent, r2, ljung_box_p "
-        "(repeatable)",
+        help="fail a record whose METRIC is below VALUE; for fit_percent, r2, ljung_box_p and "
+        "fit_vs_floor: the fit minus the record's noise floor in percentage points, the floor "
+        "being the fit a perfect model scores against the record's level noise "
+        "(fit_vs_floor=-5: fit at least floor - 5 points) (repeatable)",
     )  # fmt: skip
     parser.add_argument(
         "--fail-over", metavar="METRIC=VALUE", action="append", default=[],
@@ -172,12 +174,19 @@ def _add_validate_arguments(parser: argparse.ArgumentParser) -> None:
         "max_abs_error_mm, abs_bias_mm, gain_abs_diff_mm_per_mm, time_constant_abs_diff_s, "
         "dead_time_abs_diff_s (repeatable)",
     )  # fmt: skip
+    parser.add_argument(
+        "--fail-outside-validity", action="store_true",
+        help="fail a record lying outside the validity envelope the FMU states (opening, "
+        "flow, level ranges in its resources/provenance.json); without it such a record is "
+        "only warned about on stderr",
+    )  # fmt: skip
     parser.add_argument("--json", metavar="OUT.json", required=True, help="findings as JSON")
     parser.add_argument("--junit", metavar="OUT.xml", help="findings as JUnit XML for CI")
     parser.add_argument("--plots", metavar="DIR", help="write measured-vs-FMU plots (PNG)")
     parser.epilog = (
-        "exit status: 0 when everything passed, 1 when a threshold or fmpy's static "
-        "validation failed, 2 for input that cannot be validated"
+        "exit status: 0 when everything passed, 1 when a threshold, fmpy's static "
+        "validation or (with --fail-outside-validity) the validity envelope failed, 2 for "
+        "input that cannot be validated"
     )
 
 
@@ -187,16 +196,22 @@ def _run_validate(args: argparse.Namespace) -> int:
         OutputPaths,
         matrix_cells,
         matrix_markdown,
+        outside_message,
         parse_thresholds,
         validate_fmu,
         write_outputs,
     )
 
     thresholds = parse_thresholds(args.fail_under, args.fail_over)
-    result = validate_fmu(args.fmu, args.records, gauge=args.gauge, thresholds=thresholds)
+    result = validate_fmu(args.fmu, args.records, gauge=args.gauge, thresholds=thresholds,
+                          fail_outside_validity=args.fail_outside_validity)  # fmt: skip
     plots = Path(args.plots) if args.plots else None
     junit = Path(args.junit) if args.junit else None
     written = write_outputs(result, OutputPaths(Path(args.json), junit, plots))
+    for rec in result.records:
+        if rec.inside_validity is False:
+            print_to_stderr(f"gatetwin: warning: {rec.record} lies outside {result.fmu.name}'s "
+                            f"validity: {outside_message(rec)}")  # fmt: skip
     print(matrix_markdown(matrix_cells(result)), end="")
     for finding in result.static_findings:
         print(f"fmpy static validation: {finding}")

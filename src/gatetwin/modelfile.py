@@ -22,6 +22,8 @@ from gatetwin.plant.model import Plant, plant_from_dict, plant_to_dict
 
 SCHEMA_ID = "https://gatetwin.invalid/schema/model-1.json"
 SCHEMA_VERSION = "1.0"
+#: The flow meter's accuracy, m³/h: a discharge this close to the validity range is inside it.
+FLOW_METER_ACCURACY_M3H = 1.0
 
 UNITS = {
     "opening": "mm",
@@ -64,6 +66,55 @@ class ModelFile:
     def validity_flow_m3h(self) -> tuple[float, float]:
         lo, hi = self.content["validity"]["flow_m3h"]
         return float(lo), float(hi)
+
+    @property
+    def validity_envelope(self) -> dict[str, list[float]]:
+        """The ranges the model is valid over (see :func:`validity_envelope`)."""
+        return validity_envelope(self.content)
+
+
+def _pair(value: Any, what: str) -> list[float]:
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ModelFileError(f"validity.{what}: expected [low, high], got {value!r}") from None
+    if not lo <= hi:
+        raise ModelFileError(f"validity.{what}: low {lo:g} above high {hi:g}")
+    return [lo, hi]
+
+
+def validity_envelope(content: dict[str, Any]) -> dict[str, list[float]]:
+    """The box of operating conditions a model file declares itself valid over.
+
+    Keys, each ``[low, high]`` and each present only when the file says it:
+
+    * ``flow_m3h`` -- ``validity.flow_m3h``, m³/h;
+    * ``opening_mm`` -- ``validity.opening_range_mm`` if given, else the operating openings
+      at the knots widened by the band: ``[min(knots) - band, max(knots) + band]``, mm, from
+      ``validity.opening_mm_at_knots`` and ``validity.opening_band_mm``;
+    * ``level_mm`` -- ``validity.level_range_mm`` (the level at the model's gauge), mm.
+
+    A missing key means unknown, not unbounded. The box is coarser than :func:`applies_to`,
+    which follows the operating opening along Q.
+
+    Raises
+    ------
+    ModelFileError
+        A range that is not two numbers with low <= high.
+    """
+    validity = content.get("validity", {})
+    out: dict[str, list[float]] = {}
+    if "flow_m3h" in validity:
+        out["flow_m3h"] = _pair(validity["flow_m3h"], "flow_m3h")
+    if "opening_range_mm" in validity:
+        out["opening_mm"] = _pair(validity["opening_range_mm"], "opening_range_mm")
+    elif validity.get("opening_mm_at_knots") and "opening_band_mm" in validity:
+        knots = [float(e) for e in validity["opening_mm_at_knots"]]
+        band = float(validity["opening_band_mm"])
+        out["opening_mm"] = [round(min(knots) - band, 6), round(max(knots) + band, 6)]
+    if "level_range_mm" in validity:
+        out["level_mm"] = _pair(validity["level_range_mm"], "level_range_mm")
+    return out
 
 
 def model_document(
@@ -177,7 +228,7 @@ def applies_to(content: dict[str, Any], flow_m3h: float, openings_mm: Any) -> tu
 
     validity = content["validity"]
     lo, hi = validity["flow_m3h"]
-    if not lo - 1.0 <= flow_m3h <= hi + 1.0:  # 1 m³/h: the flow meter's accuracy
+    if not lo - FLOW_METER_ACCURACY_M3H <= flow_m3h <= hi + FLOW_METER_ACCURACY_M3H:
         return False, f"Q {flow_m3h:.1f} m³/h outside [{lo}, {hi}]"
     if "opening_range_mm" in validity:
         e_lo, e_hi = validity["opening_range_mm"]

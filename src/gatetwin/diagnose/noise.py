@@ -1,16 +1,9 @@
 """The noise floor of a record and where a model's residual rises above it.
 
-**Noise floor.** ``sigma`` is the standard deviation of the level around a quadratic in time,
-fitted to the *last half* of every steady stretch (hold samples at one opening with no step of
-the discharge, at least :data:`MIN_STRETCH_SAMPLES` long), pooled over the stretches (sum of
-squares over degrees of freedom), stretches more than three times the median SD dropped.
-Why this one: the last half of a long hold is past the transient of the move that began it, the
-quadratic takes out what is left of it and any slow drift, and unlike the SD of first
-differences it keeps correlated noise (the surface waves of a flume are correlated over
-seconds; first differences see only their fast part). What it cannot separate is an
-oscillation still ringing in the second half of a hold (a slowly decaying seiche): that raises
-``sigma``. Without any such stretch it falls back to the robust SD of first differences of
-hold samples divided by ``sqrt(2)``, and says so.
+**Noise floor.** :func:`noise_floor` is :func:`gatetwin.noise.noise_floor` (the SD of the
+level around a quadratic over the last half of steady holds, pooled; see that module) on the
+diagnosis' steady stretches: hold samples at one *commanded* opening with no step of the
+discharge, at least :data:`~gatetwin.noise.MIN_STRETCH_SAMPLES` long.
 
 **Windows.** The residual's moving RMS over :data:`WINDOW_S` (``w`` samples) is compared with
 the level a white residual of SD ``sigma`` exceeds by chance with probability
@@ -22,97 +15,29 @@ number of regions).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from scipy import stats
 
+from gatetwin import noise as shared
 from gatetwin.diagnose.data import DiagnosisData
+from gatetwin.noise import NoiseFloor
 
-MIN_STRETCH_SAMPLES = 24
 WINDOW_S = 30.0
-MAD_TO_SD = 1.4826
 #: Chance that a white residual at the noise floor raises a window (or a region) anywhere.
 FALSE_ALARM = 0.01
 
 
-@dataclass(frozen=True)
-class NoiseFloor:
-    """The record's noise floor.
-
-    Attributes
-    ----------
-    sigma_mm : float
-        Noise SD, mm.
-    method : str
-        How it was obtained (module docstring).
-    n_stretches, n_samples : int
-        Steady stretches and samples it rests on.
-    """
-
-    sigma_mm: float
-    method: str
-    n_stretches: int
-    n_samples: int
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"sigma_mm": self.sigma_mm, "method": self.method,
-                "n_stretches": self.n_stretches, "n_samples": self.n_samples}  # fmt: skip
-
-
-def flow_steps(flow_m3h: np.ndarray) -> np.ndarray:
-    """Indices ``i`` where the discharge steps between samples ``i - 1`` and ``i``."""
-    dq = np.diff(flow_m3h)
-    sd = MAD_TO_SD * float(np.median(np.abs(dq - np.median(dq)))) if dq.size else 0.0
-    return np.flatnonzero(np.abs(dq) > max(6.0 * sd, 0.5)) + 1
-
-
 def steady_stretches(data: DiagnosisData) -> list[tuple[int, int]]:
     """``(start, stop)`` runs of hold samples at one command with no discharge step."""
-    n = data.time_s.size
-    cut = np.zeros(n, dtype=bool)
-    cut[flow_steps(data.flow_m3h)] = True
-    cut[1:] |= data.command_mm[1:] != data.command_mm[:-1]
-    cut[1:] |= np.diff(data.time_s) > 1.5 * data.sample_period_s
-    out, start = [], None
-    for i in range(n):
-        if start is not None and (cut[i] or not data.hold[i]):
-            out.append((start, i))
-            start = None
-        if start is None and data.hold[i]:
-            start = i
-    if start is not None:
-        out.append((start, n))
-    return [(a, b) for a, b in out if b - a >= MIN_STRETCH_SAMPLES]
+    return shared.steady_stretches(data.time_s, data.hold, data.command_mm, data.flow_m3h,
+                                   data.sample_period_s)  # fmt: skip
 
 
 def noise_floor(data: DiagnosisData) -> NoiseFloor:
     """The record's noise floor (see the module docstring)."""
-    sums, dofs = [], []
-    for start, stop in steady_stretches(data):
-        idx = np.arange(start + (stop - start) // 2, stop)
-        idx = idx[np.isfinite(data.level_mm[idx])]
-        if idx.size < 8:
-            continue
-        t = data.time_s[idx] - data.time_s[idx].mean()
-        coef = np.polyfit(t, data.level_mm[idx], 2)
-        resid = data.level_mm[idx] - np.polyval(coef, t)
-        sums.append(float(resid @ resid))
-        dofs.append(idx.size - 3)
-    if sums:
-        ss, dof = np.array(sums), np.array(dofs)
-        keep = np.sqrt(ss / dof) <= 3.0 * np.median(np.sqrt(ss / dof))
-        sigma = float(np.sqrt(np.sum(ss[keep]) / np.sum(dof[keep])))
-        used = int(np.sum(dof[keep]) + 3 * np.count_nonzero(keep))
-        return NoiseFloor(sigma, "SD around a quadratic over the last half of steady holds",
-                          int(np.count_nonzero(keep)), used)  # fmt: skip
-    y = np.where(data.hold, data.level_mm, np.nan)
-    d = np.diff(y)
-    d = d[np.isfinite(d)]
-    sigma = MAD_TO_SD * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2.0)
-    return NoiseFloor(sigma, "robust SD of first differences of hold samples / sqrt(2) "
-                      "(no steady stretch long enough)", 0, int(d.size))  # fmt: skip
+    return shared.noise_floor(data.time_s, data.level_mm, data.hold, steady_stretches(data))
 
 
 def threshold_mm(sigma_mm: float, n_samples: int, tests: float = 1.0) -> float:

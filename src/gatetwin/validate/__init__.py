@@ -5,16 +5,25 @@ compare its free-running level output with the measured level, apply the caller'
 thresholds, and render the findings as JSON, JUnit XML and plots.
 
 * :mod:`~gatetwin.validate.fmu_runner` -- open, check and run an FMU through fmpy;
-* :mod:`~gatetwin.validate.compare` -- free-run metrics and FOPDT step comparison;
+* :mod:`~gatetwin.validate.compare` -- free-run metrics, the noise floor's fit and FOPDT step
+  comparison;
+* :mod:`~gatetwin.validate.validity` -- the FMU's validity envelope and whether a record lies
+  inside it;
 * :mod:`~gatetwin.validate.thresholds` -- ``--fail-under`` / ``--fail-over`` limits;
 * :mod:`~gatetwin.validate.harness` -- one FMU on many records, and the FMU × record matrix;
 * :mod:`~gatetwin.validate.outputs` -- JSON, JUnit and PNG rendering, atomic writing.
 
 Exit-code policy of ``gatetwin validate``: 0 when everything passed, :data:`EXIT_FAILED`
-(1) when a threshold or fmpy's static validation failed, 2 for input it cannot validate.
+(1) when a threshold, fmpy's static validation or (with ``--fail-outside-validity``) the
+validity envelope failed, 2 for input it cannot validate.
 """
 
-from gatetwin.validate.compare import FreeRunMetrics, StepComparison, free_run_metrics
+from gatetwin.validate.compare import (
+    FreeRunMetrics,
+    StepComparison,
+    free_run_metrics,
+    noise_floor_fit_percent,
+)
 from gatetwin.validate.errors import ValidationError
 from gatetwin.validate.fmu_runner import (
     CommunicationGrid,
@@ -24,6 +33,7 @@ from gatetwin.validate.fmu_runner import (
     static_findings,
 )
 from gatetwin.validate.harness import (
+    VALIDITY_CHECK,
     FmuValidation,
     RecordValidation,
     matrix_cells,
@@ -34,6 +44,7 @@ from gatetwin.validate.harness import (
 from gatetwin.validate.outputs import (
     OutputPaths,
     junit_xml,
+    outside_message,
     plot_record,
     validation_document,
     write_outputs,
@@ -45,6 +56,7 @@ from gatetwin.validate.thresholds import (
     Threshold,
     parse_thresholds,
 )
+from gatetwin.validate.validity import ValidityFinding, read_envelope, record_validity
 
 #: Exit code of ``gatetwin validate`` when a threshold or the static validation failed.
 EXIT_FAILED = 1
@@ -62,15 +74,21 @@ __all__ = [
     "RecordValidation",
     "StepComparison",
     "Threshold",
+    "VALIDITY_CHECK",
     "ValidationError",
+    "ValidityFinding",
     "communication_grid",
     "free_run_metrics",
     "inspect_fmu",
     "junit_xml",
     "matrix_cells",
     "matrix_markdown",
+    "noise_floor_fit_percent",
+    "outside_message",
     "parse_thresholds",
     "plot_record",
+    "read_envelope",
+    "record_validity",
     "static_findings",
     "validate_fmu",
     "validate_matrix",

@@ -1,6 +1,7 @@
 """Compare a free-running FMU output with a measured level: the validation metrics.
 
 * :func:`free_run_metrics` -- R², NRMSE fit %, MAE, RMSE, largest error and bias;
+* :func:`noise_floor_fit_percent` -- the best fit a free run can expect given the noise;
 * :func:`compare_steps` -- least-squares FOPDT fits (K, T, L) of the measured and the
   simulated step responses of a step record, and their differences;
 * residual whiteness comes from :func:`gatetwin.identify.residual_whiteness`.
@@ -112,6 +113,46 @@ def free_run_metrics(measured_mm: np.ndarray, simulated_mm: np.ndarray) -> FreeR
         max_abs_error_mm=float(np.max(np.abs(err))),
         bias_mm=float(np.mean(err)),
     )
+
+
+def noise_floor_fit_percent(sigma_mm: float, measured_mm: np.ndarray) -> tuple[float, float]:
+    """The fit % a perfect model scores on a level measured with noise of SD ``sigma``.
+
+    ``100 (1 - sigma / s)``, ``s`` the SD (normalised by ``n``) of the measured level over the
+    compared samples (the finite ones, as in :func:`free_run_metrics`).
+
+    Why this is the bound of the NRMSE fit ``100 (1 - ||y - y_hat|| / ||y - mean(y)||)``:
+    write the measurement ``y = x + w``, ``x`` the true level and ``w`` noise of SD ``sigma``
+    that the inputs do not cause. A free-run output ``y_hat`` depends on the inputs only,
+    never on ``w``, so ``E ||y - y_hat||^2 = ||x - y_hat||^2 + n sigma^2 >= n sigma^2`` (the
+    cross term has mean zero), with equality for ``y_hat = x``; and ``||y - mean(y)|| =
+    sqrt(n) s`` exactly, noise included. Hence the expected fit is at most
+    ``100 (1 - sigma / s)``, reached by the noise-free truth. One realisation can beat it by
+    the sampling error of the noise's RMS (relative SD ``1 / sqrt(2 n)`` for white noise) and
+    of ``sigma``'s estimate. Noise slower than the estimator sees (it detrends each hold with a
+    quadratic, :mod:`gatetwin.noise`) is not in ``sigma``: the floor is then optimistic, still
+    an upper bound.
+
+    Parameters
+    ----------
+    sigma_mm : float
+        Noise SD of the level, mm.
+    measured_mm : ndarray
+        Measured level, mm; NaN samples are skipped.
+
+    Returns
+    -------
+    fit_percent : float
+        The floor, % (NaN when ``sigma`` is not finite or the level is constant).
+    level_sd_mm : float
+        ``s``, mm.
+    """
+    y = np.asarray(measured_mm, dtype=float)
+    y = y[np.isfinite(y)]
+    s = float(np.std(y)) if y.size else math.nan
+    if not (math.isfinite(sigma_mm) and s > 0):
+        return math.nan, s
+    return 100.0 * (1.0 - sigma_mm / s), s
 
 
 @dataclass(frozen=True)

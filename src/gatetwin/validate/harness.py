@@ -18,6 +18,16 @@ logging gap the FMU makes several steps with the last logged inputs (see
 corrected by a measurement: it is a free-run (simulation) test, much harder than the
 one-step-ahead R² of the reference study.
 
+Besides the metrics, every record gets
+
+* its **noise floor**: the level noise SD from its steady holds
+  (:func:`gatetwin.noise.record_noise_floor`) and the fit % a perfect model would score
+  against that noise (:func:`~gatetwin.validate.compare.noise_floor_fit_percent`);
+  ``fit_vs_floor`` is the fit minus that floor, in percentage points;
+* its place in the FMU's **validity envelope** (:mod:`gatetwin.validate.validity`), read from
+  the FMU's own ``resources/provenance.json``: ``inside_validity`` True, False or None
+  (unknown).
+
 Results are findings; whether they fail is decided by the thresholds the caller passes.
 """
 
@@ -35,12 +45,14 @@ from gatetwin.errors import IdentificationError
 from gatetwin.identify import reconstructed_opening, residual_whiteness
 from gatetwin.identify.metrics import Whiteness
 from gatetwin.identify.serial import finite_list, finite_or_none
+from gatetwin.noise import NoiseFloor, record_noise_floor
 from gatetwin.records import Record, read_record
 from gatetwin.validate.compare import (
     FreeRunMetrics,
     StepComparison,
     compare_steps,
     free_run_metrics,
+    noise_floor_fit_percent,
     worst_step_differences,
 )
 from gatetwin.validate.errors import ValidationError
@@ -53,6 +65,7 @@ from gatetwin.validate.fmu_runner import (
     static_findings,
 )
 from gatetwin.validate.thresholds import Check, Threshold
+from gatetwin.validate.validity import Envelope, ValidityFinding, read_envelope, record_validity
 
 #: Largest lag of the residual whiteness test, samples.
 WHITENESS_MAX_LAG = 25
@@ -118,6 +131,18 @@ class RecordValidation:
         The signals (not serialised).
     whiteness_note : str
         Why ``whiteness`` is missing ("" otherwise).
+    record_sha256 : str
+        Hash of the record's CSV ("" for in-memory records).
+    noise : NoiseFloor or None
+        The level noise at the gauge, from the record's steady holds.
+    noise_floor_fit_percent : float
+        The fit % a perfect model would score against that noise (NaN if unknown).
+    level_sd_mm : float
+        SD of the measured level over the compared samples, mm (the floor's ``s``).
+    validity : ValidityFinding or None
+        The record against the FMU's validity envelope.
+    fail_outside_validity : bool
+        Whether lying outside the envelope fails the record.
     """
 
     record: str
@@ -133,15 +158,55 @@ class RecordValidation:
     trace: Trace = field(repr=False, compare=False)
     whiteness_note: str = ""
     record_sha256: str = ""
+    noise: NoiseFloor | None = None
+    noise_floor_fit_percent: float = math.nan
+    level_sd_mm: float = math.nan
+    validity: ValidityFinding | None = None
+    fail_outside_validity: bool = False
+
+    @property
+    def inside_validity(self) -> bool | None:
+        """Inside the FMU's validity envelope: True, False, or None when unknown."""
+        return self.validity.inside if self.validity is not None else None
+
+    @property
+    def fit_vs_floor(self) -> float:
+        """Fit % minus the noise floor's fit %, percentage points (NaN when unknown)."""
+        return self.metrics.fit_percent - self.noise_floor_fit_percent
+
+    @property
+    def validity_failed(self) -> bool:
+        """Outside the envelope while that fails the record."""
+        return self.fail_outside_validity and self.inside_validity is False
 
     @property
     def passed(self) -> bool:
-        """True when no threshold failed."""
-        return not any(c.failed for c in self.checks)
+        """True when no threshold failed (nor the envelope, when it is enforced)."""
+        return not any(c.failed for c in self.checks) and not self.validity_failed
 
     def flat_metrics(self) -> dict[str, float]:
         """Every threshold-able metric of this record by name (see ``thresholds``)."""
-        return flat_metrics(self.metrics, self.whiteness, self.steps)
+        return flat_metrics(self.metrics, self.whiteness, self.steps,
+                            self.noise_floor_fit_percent)  # fmt: skip
+
+    def noise_floor_dict(self) -> dict[str, Any]:
+        """The ``noise_floor`` object of the JSON."""
+        noise = self.noise.to_dict() if self.noise is not None else {}
+        return {
+            "sigma_mm": finite_or_none(noise.get("sigma_mm", math.nan)),
+            "fit_percent": finite_or_none(self.noise_floor_fit_percent),
+            "level_sd_mm": finite_or_none(self.level_sd_mm),
+            "method": noise.get("method", ""),
+            "n_stretches": noise.get("n_stretches", 0),
+            "n_samples": noise.get("n_samples", 0),
+        }
+
+    def validity_dict(self) -> dict[str, Any]:
+        """``inside_validity``, ``validity``, ``outside_by`` and details, for the JSON."""
+        found = self.validity.to_dict() if self.validity is not None else {
+            "inside_validity": None, "validity": None, "outside_by": None}  # fmt: skip
+        return {**found, "fail_outside_validity": self.fail_outside_validity,
+                "validity_failed": self.validity_failed}  # fmt: skip
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -156,6 +221,9 @@ class RecordValidation:
             "step_comparison": [s.to_dict() for s in self.steps],
             "whiteness": _whiteness_dict(self.whiteness, self.whiteness_note),
             "thresholds": [c.to_dict() for c in self.checks],
+            "noise_floor": self.noise_floor_dict(),
+            "fit_vs_floor": finite_or_none(self.fit_vs_floor),
+            **self.validity_dict(),
             "passed": self.passed,
         }
 
@@ -173,11 +241,19 @@ def _whiteness_dict(whiteness: Whiteness | None, note: str) -> dict[str, Any]:
 
 
 def flat_metrics(
-    metrics: FreeRunMetrics, whiteness: Whiteness | None, steps: tuple[StepComparison, ...]
+    metrics: FreeRunMetrics,
+    whiteness: Whiteness | None,
+    steps: tuple[StepComparison, ...],
+    floor_fit_percent: float = math.nan,
 ) -> dict[str, float]:
-    """Metrics by threshold name; step metrics only for records with steps."""
+    """Metrics by threshold name; step metrics only for records with steps.
+
+    ``fit_vs_floor`` is ``fit_percent`` minus the noise floor's fit %, percentage points
+    (NaN when the floor is unknown).
+    """
     out = {
         "fit_percent": metrics.fit_percent,
+        "fit_vs_floor": metrics.fit_percent - floor_fit_percent,
         "r2": metrics.r2,
         "rmse_mm": metrics.rmse_mm,
         "mae_mm": metrics.mae_mm,
@@ -201,12 +277,15 @@ class FmuValidation:
         Problems found by fmpy's static validator (any one is a failure).
     thresholds : tuple of Threshold
     records : tuple of RecordValidation
+    validity : dict or None
+        The validity envelope the FMU states (:func:`~gatetwin.validate.validity.read_envelope`).
     """
 
     fmu: FmuInfo
     static_findings: tuple[str, ...]
     thresholds: tuple[Threshold, ...]
     records: tuple[RecordValidation, ...]
+    validity: Envelope | None = None
 
     @property
     def static_passed(self) -> bool:
@@ -218,8 +297,10 @@ class FmuValidation:
         return self.static_passed and all(r.passed for r in self.records)
 
     def to_dict(self) -> dict[str, Any]:
+        env = self.validity
         return {
-            "fmu": self.fmu.to_dict(),
+            "fmu": {**self.fmu.to_dict(),
+                    "validity": None if env is None else {q: list(env[q]) for q in env}},
             "static_validation": {
                 "tool": "fmpy.validation.validate_fmu",
                 "findings": list(self.static_findings),
@@ -262,8 +343,17 @@ def _whiteness(trace: Trace) -> tuple[Whiteness | None, str]:
         return None, str(exc)
 
 
+@dataclass(frozen=True)
+class _Settings:
+    """What applies to every record of one FMU."""
+
+    thresholds: tuple[Threshold, ...]
+    envelope: Envelope | None
+    fail_outside_validity: bool
+
+
 def _validate_record(
-    fmu: FmuInfo, output: str, record: Record, thresholds: Sequence[Threshold]
+    fmu: FmuInfo, output: str, record: Record, settings: _Settings
 ) -> RecordValidation:
     gauge = output[len("level_") : -len("_mm")]
     measured = _measured_level(record, gauge, fmu)
@@ -278,7 +368,11 @@ def _validate_record(
     whiteness, note = _whiteness(trace)
     finite = bool(np.all(np.isfinite(simulated)))
     steps = compare_steps(record, gauge, simulated) if finite else ()
-    flat = flat_metrics(metrics, whiteness, steps)
+    noise = record_noise_floor(record, gauge)
+    floor, level_sd = noise_floor_fit_percent(noise.sigma_mm, measured)
+    flat = flat_metrics(metrics, whiteness, steps, floor)
+    validity = record_validity(settings.envelope, opening, record.flow_m3h, measured,
+                               noise.sigma_mm)  # fmt: skip
     return RecordValidation(
         record=_record_name(record),
         gauge=gauge,
@@ -289,10 +383,15 @@ def _validate_record(
         metrics=metrics,
         whiteness=whiteness,
         steps=steps,
-        checks=tuple(t.check(flat) for t in thresholds),
+        checks=tuple(t.check(flat) for t in settings.thresholds),
         trace=trace,
         whiteness_note=note,
         record_sha256=record.sha256,
+        noise=noise,
+        noise_floor_fit_percent=floor,
+        level_sd_mm=level_sd,
+        validity=validity,
+        fail_outside_validity=settings.fail_outside_validity,
     )
 
 
@@ -302,6 +401,7 @@ def validate_fmu(
     *,
     gauge: str | None = None,
     thresholds: Sequence[Threshold] = (),
+    fail_outside_validity: bool = False,
 ) -> FmuValidation:
     """Validate one FMU against measured records.
 
@@ -316,11 +416,15 @@ def validate_fmu(
         Gauge to compare (output ``level_<gauge>_mm``); default the FMU's only level output.
     thresholds : sequence of Threshold
         Applied to every record; none means nothing but the static validation can fail.
+    fail_outside_validity : bool
+        Fail a record that lies outside the validity envelope the FMU states (one whose
+        ``inside_validity`` is False; unknown is not a failure).
 
     Returns
     -------
     FmuValidation
-        Metrics, static findings and checks; ``passed`` says whether anything failed.
+        Metrics, noise floors, validity findings, static findings and checks; ``passed`` says
+        whether anything failed.
 
     Raises
     ------
@@ -336,12 +440,17 @@ def validate_fmu(
     output = output_for_gauge(info, gauge)
     loaded = [_load(r) for r in records]
     findings = static_findings(info.path)
-    results = tuple(_validate_record(info, output, r, thresholds) for r in loaded)
-    return FmuValidation(info, findings, tuple(thresholds), results)
+    envelope = read_envelope(info.path)
+    settings = _Settings(tuple(thresholds), envelope, fail_outside_validity)
+    results = tuple(_validate_record(info, output, r, settings) for r in loaded)
+    return FmuValidation(info, findings, tuple(thresholds), results, envelope)
 
 
 #: Columns of a matrix cell, in table order (besides ``fmu`` and ``record``).
 MATRIX_METRICS = ("fit_percent", "r2", "rmse_mm", "mae_mm", "max_abs_error_mm", "bias_mm")
+
+#: Name of the failed check of a record outside the envelope (with ``fail_outside_validity``).
+VALIDITY_CHECK = "inside validity"
 
 
 def matrix_cells(result: FmuValidation) -> list[dict[str, Any]]:
@@ -356,6 +465,11 @@ def matrix_cells(result: FmuValidation) -> list[dict[str, Any]]:
                 "gauge": rec.gauge,
                 "test": rec.test,
                 **{name: metrics[name] for name in MATRIX_METRICS},
+                "noise_floor_fit_percent": finite_or_none(rec.noise_floor_fit_percent),
+                "fit_vs_floor": finite_or_none(rec.fit_vs_floor),
+                "noise_sigma_mm": rec.noise_floor_dict()["sigma_mm"],
+                "inside_validity": rec.inside_validity,
+                "outside_validity": rec.validity.problems() if rec.validity else [],
                 "static_passed": result.static_passed,
                 "failed_checks": _failed_checks(result, rec),
                 "passed": result.static_passed and rec.passed,
@@ -366,7 +480,8 @@ def matrix_cells(result: FmuValidation) -> list[dict[str, Any]]:
 
 def _failed_checks(result: FmuValidation, rec: RecordValidation) -> list[str]:
     static = [] if result.static_passed else ["fmpy static validation"]
-    return static + [c.threshold.text for c in rec.checks if c.failed]
+    validity = [VALIDITY_CHECK] if rec.validity_failed else []
+    return static + [c.threshold.text for c in rec.checks if c.failed] + validity
 
 
 def validate_matrix(
@@ -375,18 +490,24 @@ def validate_matrix(
     *,
     thresholds: Sequence[Threshold] = (),
     gauge: str | None = None,
+    fail_outside_validity: bool = False,
 ) -> list[dict[str, Any]]:
     """Validate every FMU against every record; one flat cell per pair.
 
     Records are read once. Each cell holds ``fmu`` and ``record`` (file names), ``gauge``,
     ``test``, ``fit_percent``, ``r2``, ``rmse_mm``, ``mae_mm``, ``max_abs_error_mm``,
-    ``bias_mm`` (None where not finite), ``static_passed``, ``failed_checks`` (the
-    passing conditions that failed) and ``passed``. Raises as :func:`validate_fmu`.
+    ``bias_mm`` (None where not finite), the noise floor's ``noise_floor_fit_percent``,
+    ``fit_vs_floor`` (points) and ``noise_sigma_mm``, ``inside_validity`` (True, False or
+    None) with ``outside_validity`` (what lies outside, as phrases), ``static_passed``,
+    ``failed_checks`` (the passing conditions that failed) and ``passed``. Raises as
+    :func:`validate_fmu`.
     """
     records = [_load(r) for r in record_paths]
     cells: list[dict[str, Any]] = []
     for fmu in fmu_paths:
-        cells.extend(matrix_cells(validate_fmu(fmu, records, gauge=gauge, thresholds=thresholds)))
+        result = validate_fmu(fmu, records, gauge=gauge, thresholds=thresholds,
+                              fail_outside_validity=fail_outside_validity)  # fmt: skip
+        cells.extend(matrix_cells(result))
     return cells
 
 
@@ -400,15 +521,37 @@ def _cell_text(value: Any) -> str:
     return str(value).replace("|", "\\|")
 
 
+def _fit_and_floor(cell: dict[str, Any]) -> str:
+    """``fit / floor`` in %, one decimal (– where unknown)."""
+    parts = [cell.get("fit_percent"), cell.get("noise_floor_fit_percent")]
+    return " / ".join("–" if v is None else f"{v:.1f}" for v in parts)
+
+
+def validity_text(cell: dict[str, Any]) -> str:
+    """A cell's place in the envelope: ``inside``, ``unknown`` or ``outside: <what>``."""
+    inside = cell.get("inside_validity")
+    if inside is None:
+        return "unknown"
+    if inside:
+        return "inside"
+    return "outside: " + ", ".join(cell.get("outside_validity", []))
+
+
 def matrix_markdown(cells: Sequence[dict[str, Any]]) -> str:
-    """The validation matrix as a Markdown table (one row per FMU × record)."""
-    header = ["FMU", "record", "gauge", "fit %", "R²", "RMSE (mm)", "MAE (mm)",
-              "max abs error (mm)", "bias (mm)", "result"]  # fmt: skip
+    """The validation matrix as a Markdown table (one row per FMU × record).
+
+    ``fit / floor %`` is the free-run fit next to the noise floor's fit (the best a perfect
+    model can expect on that record); ``validity`` says whether the record lies inside the
+    envelope the FMU states (``unknown`` when it states none, or not every range).
+    """
+    header = ["FMU", "record", "gauge", "fit / floor %", "R²", "RMSE (mm)", "MAE (mm)",
+              "max abs error (mm)", "bias (mm)", "validity", "result"]  # fmt: skip
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for cell in cells:
-        values = [cell["fmu"], cell["record"], cell["gauge"],
-                  *(cell[m] for m in MATRIX_METRICS), cell["passed"]]  # fmt: skip
-        row = [_cell_text(v) for v in values]
+        values = [cell["fmu"], cell["record"], cell["gauge"]]
+        row = [_cell_text(v) for v in values] + [_fit_and_floor(cell)]
+        row += [_cell_text(cell[m]) for m in MATRIX_METRICS[1:]]
+        row += [_cell_text(validity_text(cell)), _cell_text(cell["passed"])]
         if cell.get("failed_checks"):
             row[-1] += " (" + "; ".join(cell["failed_checks"]) + ")"
         lines.append("| " + " | ".join(row) + " |")

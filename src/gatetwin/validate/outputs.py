@@ -19,7 +19,7 @@ import numpy as np
 from gatetwin import __version__
 from gatetwin._io import write_bytes_atomic, write_json_atomic, write_text_atomic
 from gatetwin.validate.errors import ValidationError
-from gatetwin.validate.harness import FmuValidation, RecordValidation
+from gatetwin.validate.harness import VALIDITY_CHECK, FmuValidation, RecordValidation
 from gatetwin.validate.thresholds import FAILED, NOT_APPLICABLE
 
 #: JUnit ``classname`` prefix of every test case.
@@ -54,11 +54,38 @@ def _static_case(suite: ET.Element, result: FmuValidation) -> None:
 
 def _metrics_text(rec: RecordValidation) -> str:
     lines = [f"{k} = {v}" for k, v in rec.metrics.to_dict().items()]
+    floor = rec.noise_floor_dict()
+    lines.append(f"noise floor: sigma_mm = {floor['sigma_mm']}, fit_percent = "
+                 f"{floor['fit_percent']} ({floor['method']})")  # fmt: skip
+    lines.append(f"inside_validity = {_validity_value(rec)}" + (
+        f" ({outside_message(rec)})" if rec.inside_validity is False else ""))  # fmt: skip
     for step in rec.steps:
         diff = step.to_dict()["difference"]
         lines.append(f"step {step.step_index}: FMU - measured {diff}" + (
             f" ({step.note})" if step.note else ""))  # fmt: skip
     return "\n".join(lines)
+
+
+def _validity_value(rec: RecordValidation) -> str:
+    """``true``, ``false`` or ``unknown``."""
+    inside = rec.inside_validity
+    return "unknown" if inside is None else str(inside).lower()
+
+
+def outside_message(rec: RecordValidation) -> str:
+    """What lies outside the envelope, e.g. ``opening 12.0 mm below 15.0 mm`` ("" if none)."""
+    return ", ".join(rec.validity.problems()) if rec.validity is not None else ""
+
+
+def _validity_case(suite: ET.Element, classname: str, rec: RecordValidation) -> None:
+    """The envelope as a test case (only when it is enforced)."""
+    case = _testcase(suite, classname, VALIDITY_CHECK)
+    if rec.inside_validity is False:
+        message = f"{rec.record} lies outside the FMU's validity: {outside_message(rec)}"
+        ET.SubElement(case, "failure", message=message, type="OutsideValidity")
+    elif rec.inside_validity is None:
+        unknown = ", ".join(rec.validity.unknown) if rec.validity is not None else "all"
+        ET.SubElement(case, "skipped", message=f"validity unknown (no range for: {unknown})")
 
 
 def _record_cases(suite: ET.Element, fmu_stem: str, rec: RecordValidation) -> None:
@@ -71,14 +98,19 @@ def _record_cases(suite: ET.Element, fmu_stem: str, rec: RecordValidation) -> No
             ET.SubElement(case, "failure", message=check.message, type="ThresholdFailure")
         elif check.status == NOT_APPLICABLE:
             ET.SubElement(case, "skipped", message=check.message)
+    if rec.fail_outside_validity:
+        _validity_case(suite, classname, rec)
 
 
 def junit_xml(results: Sequence[FmuValidation]) -> str:
     """JUnit XML: one ``testsuite`` per FMU, one ``testcase`` per record × check.
 
     Per FMU: a case for fmpy's static validation (failed when it has findings); per record
-    a case for the free run (always passes; the metrics in ``system-out``) and one per
-    threshold (``failure`` when missed, ``skipped`` when not applicable to the record).
+    a case for the free run (always passes; the metrics, noise floor and validity in
+    ``system-out``), one per threshold (``failure`` when missed, ``skipped`` when not
+    applicable to the record) and, when the envelope is enforced, one ``inside validity``
+    (``failure`` outside it, ``skipped`` when unknown). The suite's properties carry each
+    record's ``inside_validity`` (``true``, ``false``, ``unknown``).
     """
     root = ET.Element("testsuites", name="gatetwin validate")
     totals = {"tests": 0, "failures": 0, "skipped": 0}
@@ -88,6 +120,9 @@ def junit_xml(results: Sequence[FmuValidation]) -> str:
         props = ET.SubElement(suite, "properties")
         for key, value in (("fmu", result.fmu.name), ("guid", result.fmu.guid)):
             ET.SubElement(props, "property", name=key, value=value)
+        for rec in result.records:
+            ET.SubElement(props, "property", name=f"{rec.record}: inside_validity",
+                          value=_validity_value(rec))  # fmt: skip
         _static_case(suite, result)
         for rec in result.records:
             _record_cases(suite, stem, rec)
@@ -126,8 +161,9 @@ def plot_record(result: FmuValidation, rec: RecordValidation) -> bytes:
     ax_level.legend(loc="best")
     m = rec.metrics
     ax_level.set_title(
-        f"{result.fmu.name} on {rec.record}: fit {m.fit_percent:.1f} %, R² {m.r2:.3f}, "
-        f"RMSE {m.rmse_mm:.2f} mm",
+        f"{result.fmu.name} on {rec.record}: fit {m.fit_percent:.1f} % (noise floor "
+        f"{rec.noise_floor_fit_percent:.1f} %), R² {m.r2:.3f}, RMSE {m.rmse_mm:.2f} mm"
+        + (" — outside validity" if rec.inside_validity is False else ""),
         fontsize=10,
     )
     ax_res.plot(tr.time_s, tr.residual_mm, "-", lw=0.8, color="C3")

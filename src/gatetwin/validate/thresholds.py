@@ -1,7 +1,10 @@
 """Pass/fail thresholds on validation metrics, and the checks they produce.
 
-Metrics where higher is better (``fit_percent``, ``r2``, ``ljung_box_p``) take a lower
-limit: ``--fail-under fit_percent=85`` fails a record whose fit is below 85 %. Error
+Metrics where higher is better (``fit_percent``, ``fit_vs_floor``, ``r2``, ``ljung_box_p``)
+take a lower limit: ``--fail-under fit_percent=85`` fails a record whose fit is below 85 %;
+``--fail-under fit_vs_floor=-5`` fails one whose fit is more than 5 percentage points below
+its noise floor's fit (the best fit a perfect model can expect on that record's noise; an
+undefined floor fails the check). Error
 metrics (``rmse_mm``, ``mae_mm``, ``max_abs_error_mm``, ``abs_bias_mm`` and the step
 comparison's ``*_abs_diff_*``) take an upper limit: ``--fail-over rmse_mm=4`` fails a record
 whose RMSE is above 4 mm. Putting a metric on the wrong side is refused, so that a
@@ -22,7 +25,7 @@ from gatetwin.validate.compare import STEP_METRICS
 from gatetwin.validate.errors import ValidationError
 
 #: Metrics where a higher value is better: a threshold on them is a lower limit.
-HIGHER_IS_BETTER = ("fit_percent", "r2", "ljung_box_p")
+HIGHER_IS_BETTER = ("fit_percent", "fit_vs_floor", "r2", "ljung_box_p")
 #: Metrics where a lower value is better: a threshold on them is an upper limit.
 LOWER_IS_BETTER = ("rmse_mm", "mae_mm", "max_abs_error_mm", "abs_bias_mm", *STEP_METRICS)
 
