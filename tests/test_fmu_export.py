@@ -153,7 +153,7 @@ def test_failing_compiler_leaves_the_previous_fmu_in_place(tmp_path, monkeypatch
         ({"provenance": {"r2": float("nan")}}, "provenance must be JSON"),
         ({"out": "model.zip"}, "must end in .fmu"),
         ({"plant": "arx9"}, r"orders \(na, nb, nk\) = \(9, 2, 1\) exceed 8"),
-        ({"plant": "not a plant"}, "expected FopdtPlant or ArxPlant"),
+        ({"plant": "not a plant"}, "expected FopdtPlant, ArxPlant or PhysicalPlant"),
     ],
 )
 def test_bad_requests_raise_export_error(tmp_path, change, message):
