@@ -9,11 +9,11 @@ sequence. Their sidecars carry ``role: validation``: identification reads them b
 fits them; the run only validates models against them.
 
 Every scenario is a :class:`~gatetwin.flume.experiments.Scenario` of piecewise-constant
-breakpoints, like any scenario file. Openings are chosen so that the steady level at every
-gauge stays inside the band with :data:`LEVEL_MARGIN_MM` to spare (see
-:func:`steady_levels_mm`); the transients between steady states stay within the same band
-(the flume's response is monotone between them, and the record test checks the logged
-levels).
+breakpoints, like any scenario file. Every input pair held for longer than a time constant
+has its steady level at every gauge inside the band with :data:`LEVEL_MARGIN_MM` to spare
+(see :func:`steady_levels_mm`); pairs held briefly (a discharge change 20–30 s before the
+gate follows it) move the level only part of the way, and the tests check the logged
+levels over each whole record.
 """
 
 from __future__ import annotations
@@ -152,6 +152,9 @@ def random_moves_scenario(
     """
     cfg = cfg or FlumeConfig()
     lo, hi = envelope_openings_mm(cfg, flow_m3h)
+    if hi - lo < min_move_mm:
+        raise FlumeError(f"scenario {name}: openings {lo:g}-{hi:g} mm leave no move of "
+                         f"{min_move_mm:g} mm at Q = {flow_m3h:g} m³/h")  # fmt: skip
     rng = np.random.default_rng(seed)
     openings = [float(rng.integers(lo, hi + 1))]
     while len(openings) <= n_moves:
