@@ -94,11 +94,12 @@ def test_actuator_moves_at_its_loaded_speed_and_logger_marks_open():
     assert np.all(np.isin(rec.opening_mm[rec.hold], (15.0, 20.0)))
 
 
-def test_reference_record_a_regenerates_from_its_seed():
-    scn = next(s for s in reference_scenarios() if s.name == "A")
-    regenerated = run_scenario(scn).to_csv()
-    bundled = (RECORDS / "A.csv").read_text(encoding="utf-8")
-    assert regenerated == bundled
+@pytest.mark.parametrize("name", ["A", "EflowHigh"])  # a step test; a validation record
+def test_reference_record_regenerates_from_its_seed(name):
+    scn = next(s for s in reference_scenarios() if s.name == name)
+    record = run_scenario(scn)
+    assert record.to_csv() == (RECORDS / f"{name}.csv").read_text(encoding="utf-8")
+    assert record.sidecar == json.loads((RECORDS / f"{name}.json").read_text(encoding="utf-8"))
 
 
 def test_every_bundled_record_has_a_sidecar_that_says_synthetic():

@@ -18,6 +18,9 @@ from gatetwin.errors import RecordError
 
 #: The test types of the data format.
 TEST_TYPES = ("step", "prbs", "free")
+#: Sidecar ``role`` of a record that is read and validated against but never fitted
+#: (the others: ``fit``, the default, and ``held_out``, which checks the fits).
+VALIDATION_ROLE = "validation"
 
 
 @dataclass(frozen=True)

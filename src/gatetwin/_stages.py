@@ -64,23 +64,75 @@ MATRIX_TITLES = {"noise_floor_fit_percent": "noise floor fit %",
 
 
 def applicable_pairs(ctx: Any) -> tuple[dict[str, list[str]], list[dict[str, str]]]:
-    """Records each model applies to (validity range and opening band), and the others."""
-    from gatetwin.modelfile import applies_to, read_model_file
+    """Records each model applies to (validity range and opening band), and the others.
+
+    A record is checked at each of its :func:`operating_points`; the reason of the first
+    one outside the model's validity goes to ``outside_validity``.
+    """
+    from gatetwin.modelfile import read_model_file
 
     ident = ctx.results["ident"]
     pairs: dict[str, list[str]] = {}
     outside: list[dict[str, str]] = []
+    points = {name: operating_points(rec) for name, rec in ident.records.items()}
     for path in ctx.results["model_paths"]:
         model = read_model_file(path)
         pairs[model.name] = []
-        for name, rec in sorted(ident.records.items()):
-            hold_e = rec.opening_mm[rec.hold]
-            ok, why = applies_to(model.content, float(rec.flow_m3h[rec.hold].mean()), hold_e)
+        for name in sorted(ident.records):
+            ok, why = _applies(model.content, points[name])
             if ok:
                 pairs[model.name].append(name)
             else:
                 outside.append({"model": model.name, "record": name, "reason": why})
     return pairs, outside
+
+
+def _applies(content: dict[str, Any], points: list[tuple[float, Any]]) -> tuple[bool, str]:
+    """The first operating point outside the model's validity (with its Q if several)."""
+    from gatetwin.modelfile import applies_to
+
+    for flow_m3h, openings_mm in points:
+        ok, why = applies_to(content, flow_m3h, openings_mm)
+        if not ok:
+            return False, why if len(points) == 1 else f"at Q {flow_m3h:.1f} m³/h: {why}"
+    return True, "within validity"
+
+
+#: Samples of the running median that takes the flow meter's noise (0.16 % of reading) out
+#: of the discharge before a record's held discharges are read (30 s at 1.2 s).
+FLOW_MEDIAN_SAMPLES = 25
+#: Spread of the held discharge below which a record is at one discharge, m³/h (the flow
+#: meter's accuracy, as in :func:`gatetwin.modelfile.applies_to`).
+ONE_FLOW_SPREAD_M3H = 1.0
+
+
+def operating_points(rec: Any) -> list[tuple[float, Any]]:
+    """(discharge m³/h, hold openings mm) pairs at which a model must hold for ``rec``.
+
+    A record held at one discharge (spread of the running median of
+    :data:`FLOW_MEDIAN_SAMPLES` samples within :data:`ONE_FLOW_SPREAD_M3H`) gives one
+    point: its mean hold discharge and all its hold openings. Otherwise each hold segment
+    gives its openings at the lowest and at the highest discharge held during it, so a
+    record whose discharge changes is checked over every discharge it visits, not at its
+    mean (the operating opening of a model rises with Q, so the farthest an opening gets
+    from it over a segment is at one of the two).
+    """
+    import numpy as np
+    from scipy.ndimage import median_filter
+
+    flow = np.asarray(rec.flow_m3h, dtype=float)
+    ok = np.isfinite(flow)
+    smooth = median_filter(np.interp(rec.time_s, rec.time_s[ok], flow[ok]),
+                           size=FLOW_MEDIAN_SAMPLES, mode="nearest")  # fmt: skip
+    held = smooth[rec.hold]
+    if held.size == 0 or np.ptp(held) <= ONE_FLOW_SPREAD_M3H:
+        return [(float(np.nanmean(flow[rec.hold])), rec.opening_mm[rec.hold])]
+    points = []
+    for seg in rec.holds:
+        q = smooth[seg.slice]
+        points += [(float(np.min(q)), rec.opening_mm[seg.slice]),
+                   (float(np.max(q)), rec.opening_mm[seg.slice])]  # fmt: skip
+    return points
 
 
 #: Plants the MPC demo closes the loop on in ``gatetwin run`` (both, 30 minutes each).
@@ -164,9 +216,34 @@ def diagnose_records(ctx: Any) -> None:
                         "baseline_source": model or "identified from the record"})  # fmt: skip
         ctx.progress(f"      {label}: {res['named_effect']} (RMSE {res['rmse_before_mm']:.2f} "
                      f"→ {res['rmse_after_mm']:.2f} mm)")  # fmt: skip
-    write_json_atomic(ctx.out_dir / "diagnose.json", {"diagnoses": results})
+    skipped = not_diagnosed(ctx)
+    for s in skipped:
+        ctx.progress(f"      {s['record']}: not diagnosed ({s['reason']})")
+    write_json_atomic(ctx.out_dir / "diagnose.json",
+                      {"diagnoses": results, "not_diagnosed": skipped})  # fmt: skip
     ctx.results["diagnose"] = results
     ctx.results.setdefault("summary_sections", []).append(_diagnose_markdown(results))
+
+
+def not_diagnosed(ctx: Any) -> list[dict[str, str]]:
+    """The records of the folder that :data:`DIAGNOSE` leaves out, each with why.
+
+    Validation records (several moves, discharge changes, or no move at all) are only
+    validated against; the other fitted step tests repeat what A, B and Q55 show.
+    """
+    from gatetwin._sidecar import VALIDATION_ROLE
+    from gatetwin.identify.suite import role_of
+
+    ident = ctx.results.get("ident")
+    listed = {record for record, _ in DIAGNOSE}
+    out = []
+    for name, rec in sorted(ident.records.items() if ident is not None else ()):
+        if name in listed:
+            continue
+        why = ("validation record: only validated against, in the validation matrix"
+               if role_of(rec) == VALIDATION_ROLE else "not in the run's diagnosis list")
+        out.append({"record": name, "reason": why})
+    return out
 
 
 def _diagnose_rows(results: list[dict[str, Any]]) -> list[list[str]]:

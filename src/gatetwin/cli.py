@@ -123,7 +123,8 @@ def _add_flume_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument(
         "--only", metavar="NAME", nargs="+", default=(),
-        help="reference records to write (A B C D Q40 Q50 Q60 Q85 Q55 static); default all",
+        help="reference records to write (A B C D Q40 Q50 Q60 Q85 Q55, the validation "
+        "records Emoves35 Emoves75 EflowLow EflowHigh Eboth Erandom60, static); default all",
     )  # fmt: skip
 
 

@@ -6,7 +6,8 @@ flume up to steady state at the first inputs, runs it and logs a record.
 
 The reference suite (:func:`reference_scenarios`) is the paper's Table 1 (A, B step tests;
 C, D PRBS tests) plus step tests at Q ≈ 40, 50, 60, 85 m³/h for the schedule on Q and one
-held-out step test at Q ≈ 55 m³/h that no fit may use; :func:`static_table` is the
+held-out step test at Q ≈ 55 m³/h that no fit may use, and the validation records across
+the flume's envelope (:mod:`gatetwin.flume.envelope`); :func:`static_table` is the
 quasi-steady rating grid.
 """
 
@@ -158,8 +159,11 @@ def reference_scenarios() -> list[Scenario]:
     rising linearly from 231.6 mm at 29.5 m³/h to 340.5 mm at 72.5 m³/h, as an operator
     holds the level in a band while the discharge changes): the opening is the whole
     millimetre whose steady 3F level lies nearest that line, so that K, T and L of the
-    conditions form a schedule on Q alone.
+    conditions form a schedule on Q alone. The validation records across the envelope
+    follow them (:func:`gatetwin.flume.envelope.envelope_scenarios`).
     """
+    from gatetwin.flume.envelope import envelope_scenarios  # it builds on Scenario
+
     fit, held = {"role": "fit"}, {"role": "held_out"}
     return [
         step_scenario("A", 29.5, 15.0, 20.0, 101, paper_table="Table 2", **fit),
@@ -171,6 +175,7 @@ def reference_scenarios() -> list[Scenario]:
         step_scenario("Q60", 60.0, 26.0, 31.0, 107, **fit),
         step_scenario("Q85", 85.0, 35.0, 40.0, 108, **fit),
         step_scenario("Q55", 55.0, 25.0, 30.0, 109, **held),
+        *envelope_scenarios(),
     ]
 
 
@@ -221,7 +226,8 @@ def _feasible_points(cfg: FlumeConfig) -> list[tuple[float, float]]:
 def write_reference_records(
     out_dir: str | Path, *, progress: Any = None, only: tuple[str, ...] = ()
 ) -> list[Path]:
-    """Write the reference suite (``A.csv`` … ``Q55.csv``, ``static.csv``) into ``out_dir``."""
+    """Write the reference suite (``A.csv`` … ``Q55.csv``, the envelope's validation records,
+    ``static.csv``) into ``out_dir``."""
     out = Path(out_dir)
     paths = []
     scenarios = [s for s in reference_scenarios() if not only or s.name in only]

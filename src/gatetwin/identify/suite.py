@@ -3,7 +3,9 @@
 The one function behind ``gatetwin models`` and the identification stage of
 ``gatetwin run``. Records are split by their sidecar's ``role``: ``fit`` records build the
 models, ``held_out`` records only check them (the schedule's prediction of K, T, L and a
-free run of the scheduled plant on the held-out record).
+free run of the scheduled plant on the held-out record), ``validation`` records are read
+but not identified at all: they take no part in any model file, whatever their test type,
+and only the run's validation matrix uses them.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from gatetwin._sidecar import VALIDATION_ROLE
 from gatetwin.errors import IdentificationError
 from gatetwin.identify.fopdt_driven import fit_fopdt_driven
 from gatetwin.identify.physical import data_ranges, fit_physical
@@ -55,11 +58,16 @@ class Identified:
 
 
 def role_of(record: Record) -> str:
+    """The sidecar's ``role`` (``fit``, ``held_out`` or ``validation``); ``fit`` without one."""
     return str(record.metadata.get("role", "fit"))
 
 
 def load_folder(folder: Path, progress: Any = None) -> Identified:
-    """Read every record and the static table of ``folder`` and identify each."""
+    """Read every record and the static table of ``folder`` and identify each.
+
+    Records of role ``validation`` are read (``records``) but not identified: they are in
+    neither ``steps`` nor ``prbs``, so no model is fitted or checked on them here.
+    """
     out = Identified()
     for path in sorted(folder.glob("*.csv")):
         if detect_table_kind(path) == "static":
@@ -70,6 +78,10 @@ def load_folder(folder: Path, progress: Any = None) -> Identified:
             continue
         rec = read_record(path)
         out.records[path.stem] = rec
+        if role_of(rec) == VALIDATION_ROLE:
+            if progress:
+                progress(f"      {path.name}: validation record, read and not fitted")
+            continue
         if progress:
             progress(f"      identifying {path.name} ({rec.test})")
         if rec.test == "step":
