@@ -11,10 +11,18 @@ Layout (one concept per module):
 * :mod:`~gatetwin.identify.arx` -- ARX fit, one-step prediction, free-run simulation;
 * :mod:`~gatetwin.identify.metrics` -- fit metrics, residual whiteness, poles;
 * :mod:`~gatetwin.identify.orders` -- order search and choice;
-* :mod:`~gatetwin.identify.prbs` -- PRBS identification of a record.
+* :mod:`~gatetwin.identify.prbs` -- PRBS identification of a record;
+* :mod:`~gatetwin.identify.pem`, :mod:`~gatetwin.identify.pemfit` -- prediction-error
+  fits of the polynomial family (innovations, minimisation, the fitted model);
+* :mod:`~gatetwin.identify.oe`, :mod:`~gatetwin.identify.armax`,
+  :mod:`~gatetwin.identify.bj` -- output-error, ARMAX and Box-Jenkins fits;
+* :mod:`~gatetwin.identify.discrete_select` -- the structure that simulates best.
 """
 
+from gatetwin.identify.armax import fit_armax
 from gatetwin.identify.arx import ArxFit, fit_arx, predict_one_step, simulate_free
+from gatetwin.identify.bj import fit_bj
+from gatetwin.identify.discrete_select import DiscreteSelection, select_discrete
 from gatetwin.identify.fopdt import FopdtFit, PaperStepResult, fit_fopdt, paper_step_method
 from gatetwin.identify.metrics import (
     DominantPole,
@@ -30,7 +38,9 @@ from gatetwin.identify.metrics import (
     residual_whiteness,
     simulation_metrics,
 )
+from gatetwin.identify.oe import fit_oe
 from gatetwin.identify.orders import OrderChoice, OrderRow, choose, search_orders
+from gatetwin.identify.pemfit import PemFit
 from gatetwin.identify.prbs import PrbsIdentification, identify_prbs
 from gatetwin.identify.preprocess import (
     SpikeCorrection,
@@ -45,6 +55,7 @@ from gatetwin.identify.step import GaugeStep, StepIdentification, identify_step
 
 __all__ = [
     "ArxFit",
+    "DiscreteSelection",
     "DominantPole",
     "FopdtFit",
     "GaugeStep",
@@ -52,6 +63,7 @@ __all__ = [
     "OrderChoice",
     "OrderRow",
     "PaperStepResult",
+    "PemFit",
     "PrbsIdentification",
     "SimulationMetrics",
     "SpikeCorrection",
@@ -62,8 +74,11 @@ __all__ = [
     "continuous_segments",
     "dc_gain",
     "dominant_pole",
+    "fit_armax",
     "fit_arx",
+    "fit_bj",
     "fit_fopdt",
+    "fit_oe",
     "free_run_on_segments",
     "hampel_filter",
     "holdout_split",
@@ -77,6 +92,7 @@ __all__ = [
     "record_segments",
     "residual_whiteness",
     "search_orders",
+    "select_discrete",
     "simulate_free",
     "simulation_metrics",
     "split_segments",

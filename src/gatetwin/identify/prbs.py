@@ -249,6 +249,76 @@ def identify_prbs(
         raise IdentificationError(f"{where}, gauge {gauge}: {exc}") from None
 
 
+@dataclass(frozen=True)
+class PrbsSignals:
+    """One gauge of a PRBS record, prepared for fitting (steps 1-3 of the module docstring).
+
+    Attributes
+    ----------
+    u : ndarray
+        Opening, mm, reconstructed during actuator motion (finite everywhere).
+    y : ndarray
+        Level after spike correction, mm.
+    segments : ndarray of shape (n, 2)
+        Segments of the chosen rows (before cutting at NaNs).
+    fit_segments : ndarray of shape (n, 2)
+        ``segments`` cut at every NaN of ``u`` or ``y``.
+    estimation, validation : ndarray of shape (n, 2)
+        ``fit_segments`` split at ``1 - holdout_fraction`` of the record's duration.
+    rows, rows_reason : str
+        ``"hold"`` or ``"all"`` and why.
+    spikes_replaced : int
+        Level samples replaced by the Hampel filter.
+    time_s : ndarray
+        Sample times, s.
+    sample_period_s : float
+        Sample period, s.
+    """
+
+    u: np.ndarray
+    y: np.ndarray
+    segments: np.ndarray
+    fit_segments: np.ndarray
+    estimation: np.ndarray
+    validation: np.ndarray
+    rows: str
+    rows_reason: str
+    spikes_replaced: int
+    time_s: np.ndarray
+    sample_period_s: float
+
+
+def prbs_signals(
+    record: Record, gauge: str, *, rows: str, holdout_fraction: float, spike_floor_mm: float
+) -> PrbsSignals:
+    """Reconstruct the opening, pick the rows, correct spikes and split off the hold-out.
+
+    Parameters are those of :func:`identify_prbs`; ``gauge`` must be in the record.
+    """
+    u = reconstructed_opening(record.time_s, record.opening_mm, record.hold)
+    raw = np.asarray(record.levels_mm[gauge], dtype=float)
+    used, segs, reason = _pick_rows(record, u, raw, rows)
+    spikes = hampel_filter(raw, segs, floor=spike_floor_mm)
+    y = spikes.values
+    fit_segments = split_segments(segs, u, y)
+    est, val = holdout_split(
+        fit_segments, y.size, fraction=holdout_fraction, time_s=record.time_s
+    )
+    return PrbsSignals(
+        u=u,
+        y=y,
+        segments=segs,
+        fit_segments=fit_segments,
+        estimation=est,
+        validation=val,
+        rows=used,
+        rows_reason=reason,
+        spikes_replaced=spikes.n_replaced,
+        time_s=record.time_s,
+        sample_period_s=record.sample_period_s,
+    )
+
+
 def _identify(
     record: Record,
     gauge: str,
@@ -260,12 +330,11 @@ def _identify(
     max_lag: int,
     spike_floor: float,
 ) -> PrbsIdentification:
-    u = reconstructed_opening(record.time_s, record.opening_mm, record.hold)
-    raw = np.asarray(record.levels_mm[gauge], dtype=float)
-    used, segs, reason = _pick_rows(record, u, raw, rows)
-    spikes = hampel_filter(raw, segs, floor=spike_floor)
-    y = spikes.values
-    ts, t = record.sample_period_s, record.time_s
+    sig = prbs_signals(
+        record, gauge, rows=rows, holdout_fraction=fraction, spike_floor_mm=spike_floor
+    )
+    u, y, segs = sig.u, sig.y, sig.segments
+    ts, t = sig.sample_period_s, sig.time_s
     table: tuple[OrderRow, ...] = ()
     choice = None
     if isinstance(orders, str):
@@ -277,24 +346,22 @@ def _identify(
     na, nb, nk = orders
     fit = fit_arx(u, y, segs, na, nb, nk, sample_period_s=ts)
     pred = predict_one_step(fit, u, y, segs)
-    fit_segments = split_segments(segs, u, y)
-    inputs = np.where(segment_mask(fit_segments, y.size), u, np.nan)
-    est, val = holdout_split(fit_segments, y.size, fraction=fraction, time_s=t)
-    fit_est = fit_arx(u, y, est, na, nb, nk, sample_period_s=ts)
+    inputs = np.where(segment_mask(sig.fit_segments, y.size), u, np.nan)
+    fit_est = fit_arx(u, y, sig.estimation, na, nb, nk, sample_period_s=ts)
     return PrbsIdentification(
         gauge=gauge,
-        rows=used,
-        rows_reason=reason,
+        rows=sig.rows,
+        rows_reason=sig.rows_reason,
         fit=fit,
         one_step=one_step_metrics(y, pred),
-        simulation=free_run_on_segments(fit_est, u, y, val)[1],
-        simulation_full=free_run_on_segments(fit, u, y, fit_segments)[1],
+        simulation=free_run_on_segments(fit_est, u, y, sig.validation)[1],
+        simulation_full=free_run_on_segments(fit, u, y, sig.fit_segments)[1],
         whiteness=residual_whiteness(y - pred, inputs, max_lag=max_lag, n_fitted=na),
         dominant=dominant_pole(fit.a, ts),
         criterion=choice.criterion if choice else "fixed",
         choice=choice,
         orders_table=table,
-        spikes_replaced=spikes.n_replaced,
+        spikes_replaced=sig.spikes_replaced,
         flow_m3h=hold_mean_flow(record),
         holdout_fraction=fraction,
     )
