@@ -10,6 +10,13 @@
 
 #include "plant.h"
 
+#if GT_ENVELOPE
+/* Envelope FOPDT: the target is the gate law's steady level at the arrived opening and the
+ * step's discharge, the time constant the storage linearised there (kernel_support.c). */
+#include "kernel_support.h"
+#define KERNEL(m) (&(m)->real[VR_KERNEL_FIRST])
+#endif
+
 #define GAIN(m) (&(m)->real[VR_COL_GAIN_MM_PER_MM])
 #define TIME_CONSTANT(m) (&(m)->real[VR_COL_TIME_CONSTANT_S])
 #define DEAD_TIME(m) (&(m)->real[VR_COL_DEAD_TIME_S])
@@ -45,7 +52,11 @@ PlantStatus dynamics_check_parameters(const ModelData *m, PlantMessage *msg)
             return PLANT_ERROR;
         }
     }
+#if GT_ENVELOPE
+    return kernel_check_parameters(m, msg);
+#else
     return PLANT_OK;
+#endif
 }
 
 PlantStatus dynamics_equilibrium(const ModelData *m, double u_mm, const KnotPosition *at,
@@ -55,7 +66,12 @@ PlantStatus dynamics_equilibrium(const ModelData *m, double u_mm, const KnotPosi
     double tau = plant_interp(at, TIME_CONSTANT(m));
     (void)msg;
     effects_fopdt_parameters(m, m->real[VR_FLOW_M3H], &k, &tau);
+#if GT_ENVELOPE
+    kernel_envelope_point(KERNEL(m), u_mm + m->real[VR_OPENING_REF_MM], m->real[VR_FLOW_M3H],
+                          x0_mm, &tau);
+#else
     *x0_mm = k * u_mm;
+#endif
     return PLANT_OK;
 }
 
@@ -154,15 +170,21 @@ static void piece(ModelData *m, double t_start, double t_end, double u_mm,
         const int j = last_arrived(d, p->delay_s, t);
         double t_next = t_end;
         double target;
+        double tau_s = p->tau_s;
         if (j + 1 < d->count) {
             const double arrival = d->change_t[slot(d, j + 1)] + p->delay_s;
             if (arrival < t_next) {
                 t_next = arrival;
             }
         }
+#if GT_ENVELOPE
+        kernel_envelope_point(KERNEL(m), d->change_u[slot(d, j)] + m->real[VR_OPENING_REF_MM],
+                              m->real[VR_FLOW_M3H], &target, &tau_s);
+#else
         target = p->gain * d->change_u[slot(d, j)];
-        effects_lag_interval(m, p->level_ref_mm + target, d->x - target, t_next - t, p->tau_s);
-        d->x = target + (d->x - target) * exp(-(t_next - t) / p->tau_s);
+#endif
+        effects_lag_interval(m, p->level_ref_mm + target, d->x - target, t_next - t, tau_s);
+        d->x = target + (d->x - target) * exp(-(t_next - t) / tau_s);
         t = t_next;
     }
     prune(d, t_end);

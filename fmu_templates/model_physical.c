@@ -1,39 +1,24 @@
 /* Physical dynamics: the steps of gatetwin.plant.physical.PhysicalSimulator around the kernel
  * generated into physical_kernel.c (gatetwin.plant.physical_kernel): the steady depth by a fixed
  * number of bisection steps, then equal sub-steps of at most max_substep_s per communication
- * step. The parameters are the Real variables from VR_PHYSICAL_FIRST on, in kernel order.
+ * step. The parameters are the Real variables from VR_KERNEL_FIRST on, in kernel order.
  */
 #include <math.h>
 
+#include "kernel_support.h"
 #include "physical_kernel.h"
 #include "plant.h"
 
-#define PHYSICAL(m) (&(m)->real[VR_PHYSICAL_FIRST])
-
-static const int positive_parameters[] = {GT_PHYSICAL_POSITIVE};
+#define PHYSICAL(m) (&(m)->real[VR_KERNEL_FIRST])
 
 PlantStatus dynamics_check_parameters(const ModelData *m, PlantMessage *msg)
 {
-    size_t i;
-    for (i = 0; i < sizeof positive_parameters / sizeof positive_parameters[0]; i++) {
-        const int vr = positive_parameters[i];
-        if (!(m->real[vr] > 0.0)) {
-            plant_message(msg, "parameter %s = %.17g must be > 0", plant_variables[vr].name,
-                          m->real[vr]);
-            return PLANT_ERROR;
-        }
-    }
-    return PLANT_OK;
+    return kernel_check_parameters(m, msg);
 }
 
 static double steady_depth_m(const ModelData *m, double gate_mm, double flow_m3h)
 {
-    double low = GT_DEPTH_LOW_M, high = GT_DEPTH_HIGH_M;
-    int i;
-    for (i = 0; i < GT_BISECTION_STEPS; i++) {
-        gt_bisection_step(low, high, gate_mm, flow_m3h, PHYSICAL(m), &low, &high);
-    }
-    return 0.5 * (low + high);
+    return kernel_steady_depth_m(PHYSICAL(m), gate_mm, flow_m3h);
 }
 
 static double actuator_target(const ModelData *m, double command_mm)
@@ -71,7 +56,7 @@ PlantStatus dynamics_check_step(const ModelData *m, double step_s, double comman
         plant_message(msg,
                       "communication step %.17g s needs %.0f sub-steps of at most %.17g s; "
                       "the limit is %d",
-                      step_s, n, m->real[VR_PHYSICAL_FIRST + GT_PHYSICAL_MAX_SUBSTEP_INDEX],
+                      step_s, n, m->real[VR_KERNEL_FIRST + GT_PHYSICAL_MAX_SUBSTEP_INDEX],
                       GT_PHYSICAL_MAX_SUBSTEPS);
         return PLANT_ERROR;
     }

@@ -124,6 +124,19 @@ static PlantStatus check_flow_range(ModelData *m, double flow_m3h, PlantMessage 
     return PLANT_OK;
 }
 
+/* What the output adds to the family's state: level_ref_mm(Q), or 0 for an envelope FOPDT
+ * (its state is the level itself). */
+static double level_offset(const ModelData *m, const KnotPosition *at)
+{
+#if GT_ENVELOPE
+    (void)m;
+    (void)at;
+    return 0.0;
+#else
+    return plant_interp(at, &m->real[VR_COL_LEVEL_REF_MM]);
+#endif
+}
+
 /* --- the glue's entry points ----------------------------------------------------------------- */
 
 void plant_set_defaults(ModelData *m)
@@ -160,7 +173,7 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
     }
     dynamics_initialize(m, u, x0);
     effects_initialize(m, m->real[VR_OPENING_MM], m->real[VR_FLOW_M3H],
-                       plant_interp(&at, &m->real[VR_COL_LEVEL_REF_MM]) + x0);
+                       level_offset(m, &at) + x0);
     m->flow_in_force_m3h = m->real[VR_FLOW_M3H];
     m->parameters_changed = 0;
     m->initialized = 1;
@@ -201,13 +214,12 @@ PlantStatus plant_output(const ModelData *m, double *level_mm, PlantMessage *msg
     if (m->initialized) {
         at = plant_locate(m, m->flow_in_force_m3h);
         x = m->dyn.x;
-        *level_mm = effects_output(m, plant_interp(&at, &m->real[VR_COL_LEVEL_REF_MM]) + x);
+        *level_mm = effects_output(m, level_offset(m, &at) + x);
         return PLANT_OK;
     }
     if (equilibrium(m, &u, &at, &x, msg) != PLANT_OK) {
         return PLANT_ERROR; /* before initialisation the output is the equilibrium level */
     }
-    *level_mm = effects_output_at_rest(m, plant_interp(&at, &m->real[VR_COL_LEVEL_REF_MM]) + x,
-                                       m->real[VR_FLOW_M3H]);
+    *level_mm = effects_output_at_rest(m, level_offset(m, &at) + x, m->real[VR_FLOW_M3H]);
     return PLANT_OK;
 }

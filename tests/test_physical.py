@@ -47,7 +47,7 @@ def test_c_rendering_of_the_kernel_equals_python(plant, tmp_path):
         cc = find_compiler()
     except Exception:
         pytest.skip("no C compiler")
-    for name, text in generated_kernel("physical").items():
+    for name, text in generated_kernel().items():
         (tmp_path / name).write_text(text)
     lib = tmp_path / "libkernel.so"
     subprocess.run([*cc, "-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-Wall",

@@ -62,37 +62,37 @@ def find_compiler() -> list[str]:
     raise ExportError("no C compiler found (looked for $CC, cc, gcc); use --backend python")
 
 
-#: Families whose arithmetic is generated from a Python kernel, with the kernel's C stem.
-GENERATED_KERNELS = {"physical": "physical_kernel"}
+#: The C rendering of gatetwin.plant.physical_kernel (generated) and its fixed support code.
+KERNEL_SOURCES = ("physical_kernel.c", "kernel_support.c")
+KERNEL_HEADERS = ("physical_kernel.h", "kernel_support.h")
 #: Prefix of the generated kernel functions and macros.
 KERNEL_PREFIX = "gt_"
 
 
-def source_files(family: str) -> tuple[str, ...]:
+def source_files(family: str, with_kernel: bool = False) -> tuple[str, ...]:
     """The C files compiled for one family, in compile order."""
-    generated = (f"{GENERATED_KERNELS[family]}.c",) if family in GENERATED_KERNELS else ()
-    return (*COMMON_SOURCES, *generated, f"model_{family}.c")
+    kernel = KERNEL_SOURCES if with_kernel or family == "physical" else ()
+    return (*COMMON_SOURCES, *kernel, f"model_{family}.c")
 
 
-def generated_kernel(family: str) -> dict[str, str]:
-    """File name -> text of the C rendering of ``family``'s kernel (empty if none)."""
-    if family not in GENERATED_KERNELS:
-        return {}
+def generated_kernel() -> dict[str, str]:
+    """File name -> text of the C rendering of the physical kernel."""
     from gatetwin.plant import physical_kernel
     from gatetwin.plant.kernel_render import c_source
 
-    stem = GENERATED_KERNELS[family]
     source, header = c_source(physical_kernel, KERNEL_PREFIX)
-    return {f"{stem}.c": source, f"{stem}.h": header}
+    return {"physical_kernel.c": source, "physical_kernel.h": header}
 
 
 def write_sources(desc: FmuDescription, sources_dir: Path) -> tuple[str, ...]:
     """Copy the templates one model needs into ``sources_dir`` and generate model_config.h."""
     templates = templates_dir()
     sources_dir.mkdir(parents=True, exist_ok=True)
-    c_files = source_files(desc.family)
-    generated = generated_kernel(desc.family)
-    for name in (*c_files, *COMMON_HEADERS, f"model_{desc.family}.h", LICENSE_FILE):
+    with_kernel = desc.kernel_first is not None
+    c_files = source_files(desc.family, with_kernel)
+    generated = generated_kernel() if with_kernel else {}
+    headers = KERNEL_HEADERS if with_kernel else ()
+    for name in (*c_files, *COMMON_HEADERS, *headers, f"model_{desc.family}.h", LICENSE_FILE):
         if name not in generated:
             shutil.copyfile(templates / name, sources_dir / name)
     for name, text in generated.items():

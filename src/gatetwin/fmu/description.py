@@ -123,7 +123,7 @@ class FmuDescription:
     summary: str
     provenance: dict[str, Any] = field(default_factory=dict)
     effects: dict[str, dict[str, int]] = field(default_factory=dict)
-    physical_first: int | None = None
+    kernel_first: int | None = None
 
     @property
     def output(self) -> VariableSpec:
@@ -167,8 +167,7 @@ def describe(
         summary=summary,
         provenance=dict(provenance),
         effects=effects,
-        physical_first=(_first(specs, f"physical.{physical_kernel.PARAMETERS[0][0]}").vr
-                        if isinstance(plant, PhysicalPlant) else None),
+        kernel_first=_kernel_first(plant, specs),
     )
 
 
@@ -228,9 +227,11 @@ def _variables(plant: Plant) -> list[VariableSpec]:
         for k, value in enumerate(values, start=1):
             rows.append((f"schedule.{name}[{k}]", "parameter", "tunable", "exact", unit,
                          f"{text}, knot {k}", float(value)))
-    if isinstance(plant, PhysicalPlant):
-        rows += [(f"physical.{name}", "parameter", "tunable", "exact", unit, text,
-                  plant.parameters[name]) for name, unit, text in physical_kernel.PARAMETERS]
+    kernel = kernel_parameters(plant)
+    if kernel is not None:
+        prefix, values = kernel
+        rows += [(f"{prefix}.{name}", "parameter", "tunable", "exact", unit, text,
+                  values[name]) for name, unit, text in physical_kernel.PARAMETERS]
     specs = [VariableSpec(r[0], vr, *r[1:]) for vr, r in enumerate(rows)]
     for effect in plant.effects:
         for p in parameter_specs(effect["kind"]):
@@ -241,6 +242,23 @@ def _variables(plant: Plant) -> list[VariableSpec]:
                 initial_dependency=p.equilibrium,
             ))  # fmt: skip
     return specs
+
+
+def kernel_parameters(plant: Plant) -> tuple[str, dict[str, float]] | None:
+    """``(variable prefix, values)`` of the physical kernel's parameters a plant carries:
+    ``physical.*`` for the physical family, ``envelope.*`` for an envelope FOPDT."""
+    if isinstance(plant, PhysicalPlant):
+        return "physical", plant.parameters
+    if isinstance(plant, FopdtPlant) and plant.envelope is not None:
+        return "envelope", plant.envelope
+    return None
+
+
+def _kernel_first(plant: Plant, specs: list[VariableSpec]) -> int | None:
+    kernel = kernel_parameters(plant)
+    if kernel is None:
+        return None
+    return _first(specs, f"{kernel[0]}.{physical_kernel.PARAMETERS[0][0]}").vr
 
 
 def _column_meta(name: str, kind: str) -> tuple[str, str]:
@@ -342,8 +360,7 @@ def model_config_header(desc: FmuDescription) -> str:
               f"#define VR_OPENING_REF_MM {desc.vr('opening_ref_mm')}"]
     if desc.arx_orders is not None:
         lines.append(f"#define VR_SAMPLE_PERIOD_S {desc.vr('sample_period_s')}")
-    if desc.physical_first is not None:
-        lines += _physical_config_lines(desc)
+    lines += _kernel_config_lines(desc)
     lines.append("/* schedule column c at knot k (from 0): VR_COL_c + k */")
     lines += [f"#define {_macro(name)} {vr}" for name, vr in desc.columns.items()]
     lines += _effect_config_lines(desc)
@@ -357,13 +374,18 @@ def model_config_header(desc: FmuDescription) -> str:
     return "\n".join(lines)
 
 
-def _physical_config_lines(desc: FmuDescription) -> list[str]:
-    first = desc.physical_first or 0
+def _kernel_config_lines(desc: FmuDescription) -> list[str]:
+    """The physical kernel's parameter block (physical family, envelope FOPDT)."""
+    envelope = int(desc.family == "fopdt" and desc.kernel_first is not None)
+    lines = [f"#define GT_ENVELOPE {envelope}"]
+    if desc.kernel_first is None:
+        return lines
+    first = desc.kernel_first
     positive = [first + physical_kernel.INDEX[n] for n in POSITIVE]
-    return [
-        "/* physical family: the kernel's parameters from VR_PHYSICAL_FIRST on, kernel order */",
-        f"#define VR_PHYSICAL_FIRST {first}",
-        "#define GT_PHYSICAL_POSITIVE " + ", ".join(str(vr) for vr in positive),
+    return lines + [
+        "/* the physical kernel's parameters from VR_KERNEL_FIRST on, in kernel order */",
+        f"#define VR_KERNEL_FIRST {first}",
+        "#define GT_KERNEL_POSITIVE " + ", ".join(str(vr) for vr in positive),
         f"#define GT_PHYSICAL_MAX_SUBSTEPS {MAX_SUBSTEPS}",
         f"#define GT_PHYSICAL_MAX_SUBSTEP_INDEX {physical_kernel.INDEX['max_substep_s']}",
     ]
@@ -412,7 +434,7 @@ def slave_config(desc: FmuDescription) -> dict[str, Any]:
         "arx_max_substeps": ARX_MAX_SUBSTEPS,
         "communication_point_rtol": COMMUNICATION_POINT_RTOL,
         "effects": desc.effects,
-        "physical_first": desc.physical_first,
+        "kernel_first": desc.kernel_first,
         "physical_positive": list(POSITIVE),
         "physical_max_substeps": MAX_SUBSTEPS,
         "effect_limits": [list(row) for row in _effect_limits(desc)],

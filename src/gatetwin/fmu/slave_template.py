@@ -226,6 +226,8 @@ class GatetwinPlant(Fmi2Slave):
                 )
         if CONFIG["family"] == "fopdt":
             self._fopdt_check_parameters()
+            if self._envelope():
+                self._physical_check_parameters()
         elif CONFIG["family"] == "physical":
             self._physical_check_parameters()
         else:
@@ -244,6 +246,8 @@ class GatetwinPlant(Fmi2Slave):
         return OK, ""
 
     def _equilibrium(self, u: float, q: float) -> float:
+        if self._envelope():
+            return self._envelope_point(u, q)[0]
         if CONFIG["family"] == "fopdt":
             return self._fopdt_parameters(q)[0] * u
         if CONFIG["family"] == "physical":
@@ -263,7 +267,7 @@ class GatetwinPlant(Fmi2Slave):
             self._physical_initialize(u, x0, flow_m3h)
         else:
             self._arx_initialize(u, x0)
-        self._effects_initialize(opening_mm, flow_m3h, self._at("level_ref_mm", flow_m3h) + x0)
+        self._effects_initialize(opening_mm, flow_m3h, self._level_offset(flow_m3h) + x0)
         self.flow_in_force_m3h = flow_m3h
         self.parameters_changed = False
         self.initialized = True
@@ -294,14 +298,12 @@ class GatetwinPlant(Fmi2Slave):
 
     def _output(self) -> float:
         if self.initialized:
-            return self._effects_output(
-                self._at("level_ref_mm", self.flow_in_force_m3h) + self.dyn["x"]
-            )
+            return self._effects_output(self._level_offset(self.flow_in_force_m3h) + self.dyn["x"])
         opening_mm, flow_m3h = self.real[self.vr_opening], self.real[self.vr_flow]
         self._check_inputs(opening_mm, flow_m3h)
         self._check_parameters()
         x0 = self._equilibrium(self._effective_input(opening_mm), flow_m3h)
-        level = self._at("level_ref_mm", flow_m3h) + x0
+        level = self._level_offset(flow_m3h) + x0
         if self._has("inflow_disturbance"):
             level += self._p("inflow_disturbance", "gain_mm_per_m3h") * (
                 flow_m3h - self._p("inflow_disturbance", "flow_ref_m3h")
@@ -310,15 +312,31 @@ class GatetwinPlant(Fmi2Slave):
 
     # -- physical (model_physical.c around physical_kernel) -------------------------------------
     def _physical(self) -> list[float]:
-        first = CONFIG["physical_first"]
+        first = CONFIG["kernel_first"]
         return self.real[first:first + len(physical_kernel.PARAMETERS)]
 
     def _physical_check_parameters(self) -> None:
-        p = self._physical()
+        first = CONFIG["kernel_first"]
         for name in CONFIG["physical_positive"]:
-            value = p[physical_kernel.INDEX[name]]
-            if not value > 0.0:
-                raise PlantError(f"parameter physical.{name} = {_g(value)} must be > 0")
+            vr = first + physical_kernel.INDEX[name]
+            if not self.real[vr] > 0.0:
+                raise PlantError(
+                    f"parameter {self.variables[vr]['name']} = {_g(self.real[vr])} must be > 0"
+                )
+
+    def _envelope(self) -> bool:
+        return CONFIG["family"] == "fopdt" and CONFIG["kernel_first"] is not None
+
+    def _envelope_point(self, u: float, q: float) -> tuple[float, float]:
+        """Steady level and time constant at the opening u + opening_ref (kernel_support.c)."""
+        p = self._physical()
+        e = u + self.real[self.vr_opening_ref]
+        depth = self._physical_depth(e, q)
+        return (physical_kernel.level_mm(depth, e, q, p),
+                physical_kernel.time_constant_s(depth, e, q, p))
+
+    def _level_offset(self, q: float) -> float:
+        return 0.0 if self._envelope() else self._at("level_ref_mm", q)
 
     def _physical_depth(self, gate_mm: float, q: float) -> float:
         p = self._physical()
@@ -416,7 +434,7 @@ class GatetwinPlant(Fmi2Slave):
         level_ref = self._at("level_ref_mm", q)
         for t_start, t_end, gate in self._fopdt_pieces(h, command):
             self._fopdt_piece(t_start, t_end, self._effective_input(gate), (k, tau, delay),
-                              level_ref)  # fmt: skip
+                              level_ref, q)  # fmt: skip
             self._seiche_piece(t_end - t_start, gate)
 
     def _fopdt_pieces(self, h: float, command: float) -> Any:
@@ -444,7 +462,8 @@ class GatetwinPlant(Fmi2Slave):
         self._actuate(fx, command, t1 - t_act)
 
     def _fopdt_piece(
-        self, t0: float, t1: float, u: float, params: tuple[float, float, float], level_ref: float
+        self, t0: float, t1: float, u: float, params: tuple[float, float, float], level_ref: float,
+        q: float,
     ) -> None:
         d = self.dyn
         times, inputs = d["change_t"], d["change_u"]
@@ -461,7 +480,10 @@ class GatetwinPlant(Fmi2Slave):
             t_next = t1
             if j + 1 < len(times):
                 t_next = min(t1, times[j + 1] + delay)
-            target = k * inputs[j]
+            if self._envelope():
+                target, tau = self._envelope_point(inputs[j], q)
+            else:
+                target = k * inputs[j]
             if lag:
                 self.fx["sensed_mm"] = lag_interval(
                     self.fx["sensed_mm"], level_ref + target, d["x"] - target, t_next - t, tau,

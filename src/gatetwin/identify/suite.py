@@ -11,7 +11,7 @@ and only the run's validation matrix uses them.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +33,7 @@ from gatetwin.identify.schedule import (
 )
 from gatetwin.identify.step import StepIdentification, identify_step
 from gatetwin.modelfile import model_document, physical_document
+from gatetwin.plant.model import local_fopdt
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import Record, detect_table_kind, read_record, read_static_table
 
@@ -134,10 +135,34 @@ def free_run_fit(plant: Any, record: Record, gauge: str) -> dict[str, float]:
             "bias_mm": float(np.mean(err)), "flow_clamped": bool(caught)}  # fmt: skip
 
 
-def fopdt_model(ident: Identified, gauge: str) -> dict[str, Any]:
-    """The scheduled FOPDT model file of one gauge, with its held-out check."""
+def fopdt_model(ident: Identified, gauge: str,
+                physical: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
+    """The scheduled FOPDT model file of one gauge, with its held-out check.
+
+    With ``physical`` (that gauge's physical model document) the FOPDT holds across the
+    envelope: its steady level and time constant come from the physical model's gate law and
+    storage (:class:`~gatetwin.plant.model.FopdtPlant`'s ``envelope``), its schedule keeps
+    the step conditions' K, T, L on their operating line, and its validity is the physical
+    model's envelope. The identified conditions are compared with the envelope's local K and
+    T at their (Q, e) in ``provenance.metrics.envelope_at_conditions``.
+    """
     conds = _step_conditions(ident, gauge, "fit")
     plant, report = fopdt_schedule(conds, ident.ratings[gauge], gauge=gauge)
+    envelope_check: dict[str, Any] = {}
+    validity: dict[str, Any] = {}
+    if physical is not None:
+        plant = replace(plant, envelope=dict(physical["plant"]["parameters"]))
+        validity = {k: physical["validity"][k] for k in ("opening_range_mm", "level_range_mm")}
+        validity["flow_m3h"] = physical["validity"]["flow_m3h"]
+        for c in conds:
+            middle = c.opening_mm + 0.5 * c.delta_e_mm  # the step's K is a secant over it
+            local = local_fopdt(plant, c.flow_m3h, middle)
+            envelope_check[c.name] = {
+                "flow_m3h": c.flow_m3h, "opening_mm": middle,
+                "identified": {"gain_mm_per_mm": c.gain_mm_per_mm,
+                               "time_constant_s": c.time_constant_s},
+                "envelope": {k: local[k] for k in ("gain_mm_per_mm", "time_constant_s")},
+            }  # fmt: skip
     held = {}
     for c in _step_conditions(ident, gauge, "held_out"):
         predicted = predict_condition(plant, c.flow_m3h)
@@ -148,10 +173,14 @@ def fopdt_model(ident: Identified, gauge: str) -> dict[str, Any]:
             "free_run": free_run_fit(plant, ident.records[c.name], gauge),
         }
     fits = {c.name: free_run_fit(plant, ident.records[c.name], gauge) for c in conds}
-    return model_document(
+    others = {n: free_run_fit(plant, r, gauge) for n, r in ident.records.items()
+              if role_of(r) == "validation" and gauge in r.levels_mm}  # fmt: skip
+    doc = model_document(
         f"fopdt_{gauge}", plant,
         description=f"FOPDT of the level at gauge {gauge}, scheduled on discharge over "
-        f"{len(conds)} step conditions (least-squares fit, continuous dead time)",
+        f"{len(conds)} step conditions (least-squares fit, continuous dead time)"
+        + ("; across the envelope its steady level and time constant follow the gate law "
+           "and storage of the physical model" if physical is not None else ""),
         conditions=[c.to_dict() for c in sorted(conds, key=lambda c: c.flow_m3h)],
         rating=ident.ratings[gauge].to_dict(),
         operating_openings_mm=[c.opening_mm for c in sorted(conds, key=lambda c: c.flow_m3h)],
@@ -159,11 +188,21 @@ def fopdt_model(ident: Identified, gauge: str) -> dict[str, Any]:
         provenance={
             "method": "FOPDT least squares per step condition, driven by the opening "
             "reconstructed during gate motion; K, T, L smoothed by a "
-            f"degree-{report['degree']} polynomial in Q; level from the rating relation",
+            f"degree-{report['degree']} polynomial in Q; level from the rating relation"
+            + ("; envelope (steady level, T) from the physical model" if physical else ""),
             "records": _records_provenance(ident, [c.name for c in conds] + list(held)),
-            "metrics": {"free_run_fit": fits, "held_out": held, "smoothing": report},
+            "metrics": {"free_run_fit": fits, "held_out": held, "smoothing": report,
+                        "validation_records": others,
+                        "envelope_at_conditions": envelope_check},
         },
     )  # fmt: skip
+    doc["validity"].update(validity)
+    if validity:
+        doc["validity"]["outside"] = (
+            "the gate law and storage are extrapolated; a warning is logged once when the "
+            "discharge leaves the range"
+        )
+    return doc
 
 
 def arx_model(ident: Identified, gauge: str = ARX_GAUGE) -> dict[str, Any]:
@@ -226,15 +265,14 @@ def identify_folder(folder: Path, progress: Any = None) -> Identified:
     ident = load_folder(folder, progress)
     gauges = sorted({g for s in ident.steps.values() for g in s.gauges})
     for gauge in gauges:
-        doc = fopdt_model(ident, gauge)
+        if progress:
+            progress(f"      identifying physical_{gauge} from every record")
+        physical = physical_model(ident, gauge)
+        doc = fopdt_model(ident, gauge, physical)
         ident.models[doc["name"]] = doc
+        ident.models[physical["name"]] = physical
         ident.held_out[gauge] = doc["provenance"]["metrics"]["held_out"]
     if ident.prbs:
         doc = arx_model(ident)
-        ident.models[doc["name"]] = doc
-    for gauge in gauges:
-        if progress:
-            progress(f"      identifying physical_{gauge} from every record")
-        doc = physical_model(ident, gauge)
         ident.models[doc["name"]] = doc
     return ident

@@ -94,12 +94,22 @@ class FopdtPlant:
 
     Schedule columns: ``gain_mm_per_mm`` (K), ``time_constant_s`` (T > 0),
     ``dead_time_s`` (L >= 0), ``level_ref_mm`` (rating level at ``opening_ref_mm``).
+
+    ``envelope`` (optional): the parameters of :mod:`gatetwin.plant.physical_kernel` (gate
+    law, gauge offset, storage). With it the plant holds across the operating envelope: the
+    level relaxes towards the steady level of the gate law at the delayed opening and the
+    present discharge, ``T(Q, e) dy/dt = H_ss(Q, e(t - L)) - y``, with ``T`` the storage
+    linearised at that steady point and ``L`` from the schedule; K is ``∂H_ss/∂e`` there
+    (see :func:`local_fopdt`). The schedule's K, T and ``level_ref_mm`` then describe the
+    operating line the step conditions were identified on (the small-signal meaning the
+    paper's tables and the MPC use); the output no longer adds ``level_ref_mm``.
     """
 
     gauge: str
     opening_ref_mm: float
     schedule: Schedule
     effects: tuple[dict[str, Any], ...] = ()
+    envelope: dict[str, float] | None = None
 
     kind = "fopdt"
     columns = ("gain_mm_per_mm", "time_constant_s", "dead_time_s", "level_ref_mm")
@@ -107,6 +117,15 @@ class FopdtPlant:
     def __post_init__(self) -> None:
         _check_columns(self, self.columns)
         _normalise_effects(self)
+        if self.envelope is not None:
+            vector = check_physical_parameters(self.envelope)
+            names = [n for n, _, _ in kernel.PARAMETERS]
+            object.__setattr__(self, "envelope", dict(zip(names, vector, strict=True)))
+            if self.effects:
+                raise ModelFileError(
+                    "fopdt: effect blocks are not supported on an envelope FOPDT (use its "
+                    "local form, without 'envelope')"
+                )
         if min(self.schedule.values["time_constant_s"]) <= 0:
             raise ModelFileError("fopdt: time_constant_s must be > 0 at every knot")
         if min(self.schedule.values["dead_time_s"]) < 0:
@@ -244,6 +263,32 @@ class PhysicalPlant:
             "level_ref_mm", flow_m3h)
 
 
+def envelope_point(opening_mm: float, flow_m3h: float, p: list[float]) -> tuple[float, float]:
+    """Steady level at the gauge (mm) and small-signal time constant (s) at (Q, e)."""
+    depth = steady_depth_m(opening_mm, flow_m3h, p)
+    return (kernel.level_mm(depth, opening_mm, flow_m3h, p),
+            kernel.time_constant_s(depth, opening_mm, flow_m3h, p))
+
+
+def local_fopdt(plant: FopdtPlant | PhysicalPlant, flow_m3h: float, opening_mm: float
+                ) -> dict[str, float]:  # fmt: skip
+    """K, T, L and the steady level of an envelope FOPDT or a physical plant at (Q, e).
+
+    K is the central difference of the steady level over ±0.5 mm of opening (mm/mm).
+    """
+    if isinstance(plant, PhysicalPlant):
+        p, delay = plant.vector, 0.0
+    elif plant.envelope is not None:
+        p, delay = list(plant.envelope.values()), plant.schedule.at("dead_time_s", flow_m3h)
+    else:
+        raise ModelFileError("local_fopdt needs an envelope FOPDT or a physical plant")
+    level, tau = envelope_point(opening_mm, flow_m3h, p)
+    gain = (envelope_point(opening_mm + 0.5, flow_m3h, p)[0]
+            - envelope_point(opening_mm - 0.5, flow_m3h, p)[0])  # fmt: skip
+    return {"gain_mm_per_mm": gain, "time_constant_s": tau, "dead_time_s": delay,
+            "level_mm": level}
+
+
 def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     """The kernel's bisection, run to its fixed number of steps (as the C FMU runs it)."""
     low, high = kernel.DEPTH_BRACKET_M
@@ -281,6 +326,9 @@ def plant_to_dict(plant: Plant) -> dict[str, Any]:
         "schedule": plant.schedule.to_dict(),
         "effects": [dict(e) for e in plant.effects],
     }
+    if isinstance(plant, FopdtPlant) and plant.envelope is not None:
+        out["envelope"] = {"parameters": dict(plant.envelope),
+                           "equations": "gatetwin.plant.physical_kernel"}
     if isinstance(plant, PhysicalPlant):
         out.update(parameters=dict(plant.parameters), equations="gatetwin.plant.physical_kernel")
     if isinstance(plant, ArxPlant):
@@ -301,7 +349,12 @@ def plant_from_dict(data: dict[str, Any]) -> Plant:
             effects=tuple(dict(e) for e in data.get("effects", ())),
         )
         if data["kind"] == "fopdt":
-            return FopdtPlant(**common)
+            envelope = data.get("envelope")
+            if envelope is not None and not (
+                isinstance(envelope, dict) and isinstance(envelope.get("parameters"), dict)
+            ):
+                raise ModelFileError("fopdt: envelope.parameters must be an object")
+            return FopdtPlant(**common, envelope=envelope and envelope["parameters"])
         if data["kind"] == "physical":
             if not isinstance(data.get("parameters"), dict):
                 raise ModelFileError("physical: parameters must be an object of name: number")

@@ -12,7 +12,7 @@ Semantics shared by every rendering (this simulator, the C FMU, the pythonfmu FM
   sub-steps (:func:`~gatetwin.plant.physical_kernel.substep`); a step that would need more
   than :data:`MAX_SUBSTEPS` is refused;
 * initial state: the gate at the command, the depth at which the gate passes the inflow
-  (64 bisection steps);
+  (:data:`~gatetwin.plant.physical_kernel.BISECTION_STEPS` bisection steps);
 * output: the kernel's gauge level at the current depth, gate position and the inflow in
   force over the last step, plus the schedule's ``level_ref_mm`` (a datum correction, 0 as
   identified; scheduled on Q so that the FMU's discharge knots mark the validity range).

@@ -73,9 +73,11 @@ DEPTH_MIN_M = 1e-4
 RATIO_MIN = 1e-6
 #: The actuator never slows below this fraction of its no-load speed.
 SPEED_FLOOR = 0.05
-#: Bracket and iteration count of the steady-depth bisection (5 m / 2^64 is below round-off).
-DEPTH_BRACKET_M = (1e-4, 5.0)
-BISECTION_STEPS = 64
+#: Bracket and iteration count of the steady-depth bisection (2 m / 2^44 = 1.1e-13 m).
+DEPTH_BRACKET_M = (1e-4, 2.0)
+BISECTION_STEPS = 44
+#: Half-width of the central difference of the gate law in the depth, m.
+DEPTH_DIFFERENCE_M = 1e-6
 
 
 # -- helpers every rendering rebinds -------------------------------------------------------------
@@ -175,6 +177,20 @@ def level_mm(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float])
     return 1000.0 * depth_m - p[10] - p[11] * passing * passing
 
 
+def time_constant_s(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float]) -> float:
+    """Small-signal time constant at a steady point: storage area over ∂Q_g/∂h, s.
+
+    The envelope FOPDT relaxes towards the steady level with this time constant; it is the
+    storage equation linearised at (h, e, Q) (∂Q_g/∂h by a central difference).
+    """
+    d = DEPTH_DIFFERENCE_M
+    upper = gate_flow_m3s(depth_m + d, opening_mm, flow_m3h, p)
+    lower = gate_flow_m3s(depth_m - d, opening_mm, flow_m3h, p)
+    # a closed gate passes nothing at any depth: no finite time constant (the floor keeps the
+    # division defined; the level then barely moves)
+    return storage_area_m2(depth_m, p) * (2.0 * d) / fmax(upper - lower, 1e-15)
+
+
 def substep_count(step_s: float, p: list[float]) -> float:
     """Sub-steps of one communication step: the fewest of at most ``max_substep_s``."""
     return fmax(1.0, -floor(-step_s / p[17]))
@@ -187,4 +203,5 @@ RENDERED = (
     ("level_mm", ("depth_m", "opening_mm", "flow_m3h"), 1),
     ("actuator_target_mm", ("command_mm",), 1),
     ("substep_count", ("step_s",), 1),
+    ("time_constant_s", ("depth_m", "opening_mm", "flow_m3h"), 1),
 )

@@ -17,7 +17,13 @@ import numpy as np
 from gatetwin.plant import blocks
 from gatetwin.plant.effects import EffectSet
 from gatetwin.plant.inputs import SimulationError, check_inputs
-from gatetwin.plant.model import FopdtPlant, PhysicalPlant, Plant, interp_clamped
+from gatetwin.plant.model import (
+    FopdtPlant,
+    PhysicalPlant,
+    Plant,
+    envelope_point,
+    interp_clamped,
+)
 from gatetwin.plant.physical import PhysicalSimulator
 
 #: Capacity of the FOPDT input-change history, as in the C FMU.
@@ -83,6 +89,8 @@ class PlantSimulator:
     warned_range: bool = False
     fx: EffectSet = field(default_factory=EffectSet)
     es: EffectState = field(default_factory=EffectState)
+    envelope_p: list[float] | None = None
+    envelope_memo: dict[tuple[float, float], tuple[float, float]] = field(default_factory=dict)
 
     def initialize(self, opening_mm: float, flow_m3h: float, time_s: float = 0.0) -> None:
         check_inputs(opening_mm, flow_m3h)
@@ -94,7 +102,12 @@ class PlantSimulator:
         u = self._effective_input(opening_mm)
         p = self.plant
         if isinstance(p, FopdtPlant):
-            self.x = self._fopdt_parameters(flow_m3h)[0] * u
+            self.envelope_p = list(p.envelope.values()) if p.envelope is not None else None
+            self.envelope_memo.clear()
+            if self.envelope_p is not None:
+                self.x = self._envelope_point(u, flow_m3h)[0]
+            else:
+                self.x = self._fopdt_parameters(flow_m3h)[0] * u
             self.history_t = [time_s]
             self.history_u = [u]
         else:
@@ -117,7 +130,7 @@ class PlantSimulator:
             es.seiche_x1 = blocks.seiche_equilibrium(v, fx.seiche.period_s, fx.seiche.decay_time_s)
         if fx.inflow:
             es.inflow_mm = fx.inflow.gain_mm_per_m3h * (flow_m3h - fx.inflow.flow_ref_m3h)
-        es.sensed_mm = self.plant.schedule.at("level_ref_mm", flow_m3h) + self.x
+        es.sensed_mm = self._level_ref(flow_m3h) + self.x
 
     @property
     def level_mm(self) -> float:
@@ -130,9 +143,26 @@ class PlantSimulator:
     @property
     def process_level_mm(self) -> float:
         """The water level itself, mm: the output without the sensor lag and drift."""
-        return self._physical_terms(
-            self.plant.schedule.at("level_ref_mm", self.flow_m3h) + self.x
-        )
+        return self._physical_terms(self._level_ref(self.flow_m3h) + self.x)
+
+    def _level_ref(self, flow_m3h: float) -> float:
+        """What the output adds to the state: ``level_ref_mm(Q)``, or 0 for an envelope
+        FOPDT (its state is the level itself)."""
+        if self.envelope_p is not None:
+            return 0.0
+        return self.plant.schedule.at("level_ref_mm", flow_m3h)
+
+    def _envelope_point(self, u: float, q: float) -> tuple[float, float]:
+        """Steady level and time constant of the envelope at the opening ``u + opening_ref``
+        (as the C FMU forms it) and discharge ``q``; remembered for the last few inputs."""
+        key = (u, q)
+        point = self.envelope_memo.get(key)
+        if point is None:
+            if len(self.envelope_memo) > 64:
+                self.envelope_memo.clear()
+            point = envelope_point(u + self.plant.opening_ref_mm, q, self.envelope_p)
+            self.envelope_memo[key] = point
+        return point
 
     def _physical_terms(self, y: float) -> float:
         """``y`` plus the seiche and inflow terms (in the output blocks' order)."""
@@ -285,7 +315,10 @@ class PlantSimulator:
             t_next = t1
             if i + 1 < len(self.history_t):
                 t_next = min(t1, self.history_t[i + 1] + delay)
-            target = k * self.history_u[i]
+            if self.envelope_p is not None:
+                target, tau = self._envelope_point(self.history_u[i], q)
+            else:
+                target = k * self.history_u[i]
             if lag:
                 self.es.sensed_mm = blocks.lag_interval(
                     self.es.sensed_mm, level_ref + target, self.x - target, t_next - t, tau,
