@@ -16,7 +16,7 @@ fitted part of the record (:mod:`gatetwin.diagnose.fitting`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -31,7 +31,7 @@ from gatetwin.diagnose.fitting import (
 from gatetwin.diagnose.grid_sim import simulate_grid
 from gatetwin.errors import IdentificationError
 from gatetwin.identify.prbs import identify_prbs
-from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant, Schedule
+from gatetwin.plant.model import ArxPlant, FopdtPlant, PhysicalPlant, Plant, Schedule
 from gatetwin.records import Record
 
 _T_GRID_S = np.geomspace(3.0, 400.0, 16)
@@ -128,7 +128,20 @@ def identify_baseline(record: Record, data: DiagnosisData) -> Baseline:
 
 
 def model_baseline(plant: Plant, data: DiagnosisData, path: str) -> Baseline:
-    """A model file's plant as the baseline."""
+    """A model file's plant as the baseline.
+
+    An envelope FOPDT is diagnosed in its local form (its schedule on the operating line,
+    without ``envelope``): the effect blocks and the fast simulator render the local FOPDT
+    and ARX only; the source says so. A physical model is refused for the same reason.
+    """
     if plant.gauge != data.gauge:
         raise IdentificationError(f"model {path} is of gauge {plant.gauge}, not {data.gauge}")
-    return Baseline(plant, refit(plant, data), f"model file {path}")
+    if isinstance(plant, PhysicalPlant):
+        raise IdentificationError(
+            f"model {path} is a physical model; the diagnosis takes FOPDT and ARX models"
+        )
+    source = f"model file {path}"
+    if isinstance(plant, FopdtPlant) and plant.envelope is not None:
+        plant = replace(plant, envelope=None)
+        source += " (its local form: the schedule on the operating line, without the envelope)"
+    return Baseline(plant, refit(plant, data), source)
