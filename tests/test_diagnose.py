@@ -225,3 +225,30 @@ def test_diagnose_command_writes_json_and_refuses_bad_input(tmp_path, capsys):
     assert main(["diagnose", str(tmp_path / "missing.csv"), "--json", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("gatetwin: error:") and err.count("\n") == 1
+
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+
+
+def test_a_record_where_only_the_discharge_changes_is_diagnosed_against_a_model():
+    """EflowLow: Q 30 -> 50 -> 35 m³/h with the gate fixed. Against fopdt_3F's local form
+    (the level jumps with level_ref(Q)), the named effect is a discharge effect and it closes
+    most of the gap; the envelope form itself already follows the inflow."""
+    record = bundled_records_dir() / "EflowLow.csv"
+    result = diagnose_record(record, MODELS / "fopdt_3F.json")
+    assert "local form" in result["baseline"]["source"]
+    assert result["named_effect"] in {"inflow_disturbance", "flow_dependent_gain"}
+    assert result["gap_reduction"] >= 0.5
+    skipped = {c["effect"]: c.get("not_fitted", "") for c in result["candidates"]}
+    assert "never moves" in skipped["actuator_rate_limit"]
+    with pytest.raises(IdentificationError, match="--model"):
+        diagnose_record(record)
+
+
+def test_a_record_where_nothing_changes_is_refused():
+    n = 200
+    level = 200.0 + np.random.default_rng(1).normal(0, 0.5, n)
+    rec = record_from_arrays(np.arange(n) * 1.2, np.full(n, 25.0), np.full(n, True),
+                             np.full(n, 40.0), {"3F": level}, sample_period_s=1.2)  # fmt: skip
+    with pytest.raises(IdentificationError, match="neither the opening nor the discharge"):
+        prepare(rec, "3F")

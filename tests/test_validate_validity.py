@@ -1,8 +1,9 @@
 """Validity made visible: the FMU's envelope, records inside and outside it, the warning.
 
-The envelope FMU is ``models/fopdt_3F.json`` exported through ``gatetwin export`` after
-adding ``validity.opening_range_mm = [15, 40]`` and ``validity.level_range_mm = [140, 370]``
-to a copy of it, so the whole path (model file -> FMU provenance -> harness) is exercised.
+The envelope FMU is ``models/fopdt_3F.json`` in its local form (no ``envelope``, no stated
+ranges, the Q range of its knots) exported through ``gatetwin export`` after adding
+``validity.opening_range_mm = [15, 40]`` and ``validity.level_range_mm = [140, 370]`` to it,
+so the whole path (model file -> FMU provenance -> harness) is exercised.
 The bundled A record (openings 15 and 20 mm, Q 29.4-29.7 m³/h, level at 3F 148-232 mm) lies
 inside; A with every logged opening lowered by 3 mm (12 and 17 mm) lies 3 mm below the
 opening range, beyond the 1 mm actuator resolution that still counts as inside.
@@ -47,8 +48,24 @@ OPENING_RANGE_MM, LEVEL_RANGE_MM = [15.0, 40.0], [140.0, 370.0]
 SHIFT_MM = 3.0
 
 
-def _model_with_ranges(folder: Path) -> Path:
+def _local_doc() -> dict:
+    """``models/fopdt_3F.json`` in its local form: no envelope, validity on its knots only."""
     doc = json.loads(MODEL.read_text(encoding="utf-8"))
+    doc["plant"].pop("envelope", None)
+    for key in ("opening_range_mm", "level_range_mm"):
+        doc["validity"].pop(key, None)
+    knots = doc["plant"]["schedule"]["flow_m3h"]
+    doc["validity"]["flow_m3h"] = [knots[0], knots[-1]]
+    return doc
+
+
+def _write(doc: dict, path: Path) -> Path:
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    return path
+
+
+def _model_with_ranges(folder: Path) -> Path:
+    doc = _local_doc()
     doc["validity"]["opening_range_mm"] = OPENING_RANGE_MM
     doc["validity"]["level_range_mm"] = LEVEL_RANGE_MM
     path = folder / "fopdt_3F.json"
@@ -62,7 +79,8 @@ def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     ranged, partial = folder / "ranged" / "fopdt_3F.fmu", folder / "partial" / "fopdt_3F.fmu"
     ranged.parent.mkdir()
     model = _model_with_ranges(ranged.parent)
-    for src, out in ((model, ranged), (MODEL, partial)):
+    local = _write(_local_doc(), folder / "fopdt_3F_local.json")
+    for src, out in ((model, ranged), (local, partial)):
         assert main(["export", str(src), "--backend", BACKEND, "--out", str(out)]) == 0
     plain = FopdtPlant("3F", 20.0, Schedule((29.5,), {
         "gain_mm_per_mm": (-15.4,), "time_constant_s": (71.0,), "dead_time_s": (2.0,),
@@ -91,7 +109,7 @@ def _shifted_record(folder: Path, shift_mm: float = -SHIFT_MM) -> Path:
 
 
 def test_envelope_comes_from_the_model_file_and_prefers_stated_ranges() -> None:
-    doc = json.loads(MODEL.read_text(encoding="utf-8"))
+    doc = _local_doc()
     validity = doc["validity"]
     knots, band = validity["opening_mm_at_knots"], validity["opening_band_mm"]
     derived = validity_envelope(doc)

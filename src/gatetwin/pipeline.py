@@ -203,6 +203,7 @@ STAGES: tuple[PipelineStage, ...] = (
     PipelineStage("exporting FMUs (C and python)", export_fmus),
     PipelineStage("tables and figures", tables_and_figures),
     PipelineStage("validating every FMU against every record (fmpy)", _stages.validate_all),
+    PipelineStage("comparing the model families on every record", _stages.compare_families),
     PipelineStage("MPC demo against PI (FMU and flume in the loop)", _stages.mpc_demo),
     PipelineStage("diagnosing the bundled records", _stages.diagnose_records),
     PipelineStage("writing summary.md", write_summary),

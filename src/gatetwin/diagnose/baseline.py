@@ -116,6 +116,11 @@ def refit(plant: Plant, data: DiagnosisData) -> Fit:
 
 def identify_baseline(record: Record, data: DiagnosisData) -> Baseline:
     """Identify the baseline from the record (see the module docstring)."""
+    if not data.moves:
+        raise IdentificationError(
+            f"{record.path or 'record'}: only the discharge changes, so no baseline can be "
+            "identified from gate moves; give the model to diagnose against (--model)"
+        )
     if record.test == "prbs":
         plant: Plant = _arx_plant(record, data)
         source = ("ARX(2,2,1) identified from the record (identify_prbs), coefficients and level "

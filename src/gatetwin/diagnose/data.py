@@ -22,6 +22,7 @@ import numpy as np
 from gatetwin.diagnose.grid_sim import GridInputs, grid_inputs
 from gatetwin.errors import IdentificationError
 from gatetwin.identify.preprocess import reconstructed_opening
+from gatetwin.noise import flow_steps
 from gatetwin.records import Record
 
 INPUTS = ("command", "reconstructed")
@@ -170,12 +171,14 @@ def prepare(
     t = np.asarray(record.time_s, dtype=float)
     command = commanded_opening(record)
     moves = _moves(record, command)
-    if not moves:
-        raise IdentificationError(f"{where}: the opening never changes; nothing to diagnose")
+    flow = _filled_flow(record)
+    if not moves and not np.any(flow_steps(flow)):
+        raise IdentificationError(
+            f"{where}: neither the opening nor the discharge changes; nothing to diagnose"
+        )
     driven = command
     if input_kind == "reconstructed":
         driven = reconstructed_opening(t, record.opening_mm, record.hold)
-    flow = _filled_flow(record)
     level = np.asarray(record.levels_mm[gauge], dtype=float)
     finite = np.isfinite(level)
     split = t[0] + (1.0 - holdout_fraction) * (t[-1] - t[0])

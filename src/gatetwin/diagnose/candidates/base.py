@@ -83,6 +83,8 @@ class Candidate:
     kind: ClassVar[str] = ""
     #: Free block parameters, in fit order.
     names: ClassVar[tuple[str, ...]] = ()
+    #: The block acts on gate moves: it does not apply where the gate never moves.
+    needs_moves: ClassVar[bool] = False
     #: The parameter the block's output is proportional to, if any (seiche amplitude, inflow
     #: gain, drift rate): solved linearly in the grid starts.
     amplitude: ClassVar[str | None] = None
@@ -93,6 +95,8 @@ class Candidate:
         """Why the candidate does not apply to this record ("" when it does)."""
         if any(e["kind"] == self.kind for e in ctx.base.effects):
             return "the baseline already carries this block"
+        if self.needs_moves and not ctx.data.moves:
+            return "the gate never moves (a record where only the discharge changes)"
         return ""
 
     def bounds(self, ctx: Context) -> tuple[Sequence[float], Sequence[float]]:

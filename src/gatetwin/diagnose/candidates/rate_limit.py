@@ -15,6 +15,7 @@ from gatetwin.diagnose.fitting import Fit
 class RateLimitCandidate(Candidate):
     kind = "actuator_rate_limit"
     names = ("rate_mm_per_s",)
+    needs_moves = True
 
     def applies(self, ctx: Context) -> str:
         if ctx.data.input_kind != "command":

@@ -16,6 +16,7 @@ class SeicheCandidate(Candidate):
     kind = "seiche"
     names = ("period_s", "decay_time_s", "amplitude_mm_per_mm")
     amplitude = "amplitude_mm_per_mm"
+    needs_moves = True
 
     def bounds(self, ctx: Context) -> tuple[list[float], list[float]]:
         ts = ctx.data.sample_period_s
