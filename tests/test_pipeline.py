@@ -118,6 +118,25 @@ def test_run_writes_models_fmus_figures_and_summary(tmp_path):
     listed |= {(o["model"], o["record"]) for o in validation["outside_validity"]}
     for record in ("Q55", "Emoves35", "EflowLow", "Eboth", "Erandom60"):
         assert {(m, record) for m in models} <= listed, record
+    assert {f"physical_{g}" for g in ("1D", "2E", "3F", "4G", "5H")} <= set(models)
+    _check_families(json.loads((out / "families.json").read_text(encoding="utf-8")))
+
+
+def _check_families(doc: dict) -> None:
+    """The envelope FOPDT and the physical model meet the envelope criterion on every step
+    and envelope record: fit >= 90 % or within 5 points of the record's noise floor, and
+    |bias| <= 3 mm (the short-period PRBS records C and D are a stated gap)."""
+    rows = {r["record"]: r for r in doc["rows"]}
+    assert {"A", "B", "C", "D", "Q55", "Emoves75", "EflowHigh"} <= set(rows)
+    for name, row in rows.items():
+        if name in ("C", "D"):
+            continue
+        floor = row["noise_floor_fit_percent"]
+        for family in ("envelope FOPDT", "physical"):
+            fit, bias = row[family]["fit_percent"], row[family]["bias_mm"]
+            assert fit >= min(90.0, floor - 5.0) and abs(bias) <= 3.0, (name, family)
+        if name.startswith("E"):  # off the operating line: the local form cannot follow
+            assert row["local FOPDT"]["fit_percent"] < row["envelope FOPDT"]["fit_percent"]
 
 
 def _bundled_context():
