@@ -190,3 +190,33 @@ def test_identification_recovers_a_known_plant(tmp_path):
     e_h = reconstructed_opening(held.time_s, held.opening_mm, held.hold)
     err = simulate(got, held.time_s, e_h, held.flow_m3h) - held.levels_mm["3F"]
     assert float(np.sqrt(np.mean(err**2))) < 2.0 * NOISE_MM
+
+
+@pytest.mark.parametrize("backend", ["c", "python"])
+def test_fmu_refuses_a_non_positive_parameter_with_an_error_status(plant, tmp_path, backend):
+    from fmpy import extract, read_model_description
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import FMU2Slave
+
+    from gatetwin.fmu import export_fmu
+
+    if backend == "c":
+        try:
+            find_compiler()
+        except Exception:
+            pytest.skip("no C compiler")
+    path = export_fmu(plant, tmp_path / "p.fmu", backend=backend, model_name="physical_3F",
+                      provenance={})  # fmt: skip
+    md = read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path), str(tmp_path / "x")),
+                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="p")  # fmt: skip
+    fmu.instantiate()
+    try:
+        fmu.setReal([vr["physical.width_m"]], [0.0])
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        with pytest.raises(FMICallException):
+            fmu.exitInitializationMode()
+    finally:
+        fmu.freeInstance()
