@@ -75,8 +75,8 @@ def compare_families(ctx: Any) -> None:
     from gatetwin.modelfile import read_model_file
     from gatetwin.validate.families import families_markdown, family_row, local_form
 
-    by_name = {read_model_file(p).name: read_model_file(p).plant
-               for p in ctx.results["model_paths"]}  # fmt: skip
+    models = [read_model_file(p) for p in ctx.results["model_paths"]]
+    by_name = {m.name: m.plant for m in models}
     envelope = by_name[f"fopdt_{FAMILY_GAUGE}"]
     physical = by_name[f"physical_{FAMILY_GAUGE}"]
     plants = dict(zip(FAMILY_NAMES, (local_form(envelope), envelope, physical), strict=True))
