@@ -1,9 +1,10 @@
 """Arithmetic kernels of the effect blocks, shared by the reference simulator and the FMUs.
 
 Standard library only (``math``), and no gatetwin imports: the pythonfmu slave embeds this
-module's source verbatim at export (:mod:`gatetwin.fmu.python_build`), so the Python
-reference (:mod:`gatetwin.plant.simulate`) and the pythonfmu FMU run the very same
-operations. ``fmu_templates/effects.c`` spells the same operations in C, in the same order,
+module's source verbatim at export (:mod:`gatetwin.fmu.python_build`), and the diagnosis'
+fast simulator compiles these functions with numba (:mod:`gatetwin.diagnose.grid_sim`), so the
+Python reference (:mod:`gatetwin.plant.simulate`), the pythonfmu FMU and the fast simulator run
+the very same operations. ``fmu_templates/effects.c`` spells the same operations in C, in the same order,
 so that all three renderings agree to round-off. Change the three together.
 
 What the blocks mean (inputs, outputs, parameters, state) is documented in
@@ -54,6 +55,12 @@ def gain_map_inverse(effective_mm: float, slope_per_mm: float) -> float:
     if not arg > -1.0:
         return math.nan
     return math.log1p(arg) / slope_per_mm
+
+
+def flow_scaled(value: float, slope_per_m3h: float, flow_m3h: float, flow_ref_m3h: float
+                ) -> float:  # fmt: skip
+    """Flow-dependent gain block: ``value * exp(slope * (Q - Q_ref))``."""
+    return value * math.exp(slope_per_m3h * (flow_m3h - flow_ref_m3h))
 
 
 def first_order(state: float, target: float, duration_s: float, time_constant_s: float) -> float:
