@@ -1,11 +1,12 @@
 """Arithmetic kernels of the effect blocks, shared by the reference simulator and the FMUs.
 
 Standard library only (``math``), and no gatetwin imports: the pythonfmu slave embeds this
-module's source verbatim at export (:mod:`gatetwin.fmu.python_build`), and the diagnosis'
-fast simulator compiles these functions with numba (:mod:`gatetwin.diagnose.grid_sim`), so the
-Python reference (:mod:`gatetwin.plant.simulate`), the pythonfmu FMU and the fast simulator run
-the very same operations. ``fmu_templates/effects.c`` spells the same operations in C, in the same order,
-so that all three renderings agree to round-off. Change the three together.
+module's source verbatim at export (:mod:`gatetwin.fmu.python_build`), the diagnosis' fast
+simulator compiles these functions with numba (:mod:`gatetwin.diagnose.grid_sim`), and the C
+FMU's ``blocks.c`` is generated from their syntax tree (:mod:`gatetwin.plant.ast_render`), so
+the Python reference (:mod:`gatetwin.plant.simulate`), both FMUs and the fast simulator run the
+very same operations. Keep to the subset ``ast_render`` translates (scalar arithmetic,
+``math`` functions, ``if``/``while``, early returns).
 
 What the blocks mean (inputs, outputs, parameters, state) is documented in
 :mod:`gatetwin.plant.effects`; this module only advances them.
@@ -14,6 +15,11 @@ What the blocks mean (inputs, outputs, parameters, state) is documented in
 from __future__ import annotations
 
 import math
+
+#: The functions rendered into the C FMU's generated ``blocks.c`` (prefix ``gt_``).
+RENDERED_C = ("move_toward", "play", "gain_map", "gain_map_inverse", "flow_scaled", "first_order",
+              "seiche_advance", "seiche_equilibrium", "seiche_output", "lag_interval",
+              "grid_index_at_or_after")  # fmt: skip
 
 
 def move_toward(position_mm: float, command_mm: float, max_travel_mm: float) -> float:
