@@ -222,7 +222,7 @@ def test_the_steady_level_of_at_is_where_the_simulation_settles(name):
     assert level[-1] == pytest.approx(model.at(q, e).level_mm, abs=1e-6)
 
 
-@pytest.mark.parametrize("dt", [1.2, 0.5, 2.0])
+@pytest.mark.parametrize("dt", [1.2, 0.5, 2.0, 3.0])  # L = 2 s: fraction, whole, one, < dt
 def test_the_discrete_transfer_function_is_the_simulation(delayed, dt):
     import control
 
@@ -232,6 +232,12 @@ def test_the_discrete_transfer_function_is_the_simulation(delayed, dt):
     simulated = delayed.simulate(e, q, t).level_mm
     response = control.forced_response(delayed.to_control(dt=dt), t, e - e0)
     assert np.allclose(response.outputs, simulated - simulated[0], atol=ROUND_OFF_MM)
+
+
+def test_without_dead_time_the_discrete_form_is_first_order(fopdt):
+    assert fopdt.at(*fopdt.operating_point()).dead_time_s == 0.0
+    g = fopdt.to_control(dt=1.2)
+    assert len(g.poles()) == 1 and len(g.zeros()) == 0
 
 
 def test_the_arx_transfer_function_is_the_simulation(arx):

@@ -28,11 +28,14 @@ def zoh_fopdt(gain: float, tau_s: float, delay_s: float, dt_s: float
     With ``L = d·dt + θ`` (``0 <= θ < dt``) and ``a = exp(-dt/T)``, an input held over each
     sample gives ``x(k+1) = a x(k) + b0 u(k-d) + b1 u(k-d-1)`` with
     ``b0 = K (1 - exp(-(dt-θ)/T))`` and ``b1 = K (exp(-(dt-θ)/T) - a)``, that is
-    ``G(z) = (b0 z + b1) / (z^(d+1) (z - a))``.
+    ``G(z) = (b0 z + b1) / (z^(d+1) (z - a))``; with ``θ = 0`` (``b1 = 0``) the common
+    factor ``z`` is cancelled: ``G(z) = b0 / (z^d (z - a))``.
     """
     whole = math.floor(delay_s / dt_s + 1e-12)
     theta = max(delay_s - whole * dt_s, 0.0)
     a = math.exp(-dt_s / tau_s)
+    if theta <= 1e-12 * dt_s:
+        return np.array([gain * (1.0 - a)]), np.polymul(np.r_[1.0, np.zeros(whole)], [1.0, -a])
     rest = math.exp(-(dt_s - theta) / tau_s)
     num = np.array([gain * (1.0 - rest), gain * (rest - a)])
     den = np.polymul(np.r_[1.0, np.zeros(whole + 1)], [1.0, -a])

@@ -261,7 +261,9 @@ class Model:
         An envelope FOPDT and a physical model linearise their gate law and storage there
         (:func:`gatetwin.plant.model.local_fopdt`); a local FOPDT reads its schedule on Q
         (the level on its operating line extended with slope K); an ARX model gives its DC
-        gain and dominant-pole time constant at Q. Effect blocks are not included.
+        gain and dominant-pole time constant at Q. Effect blocks are not included. Outside
+        the schedule's discharge range a schedule's parameters are those of the nearest
+        knot (as the simulation clamps them); check :attr:`validity` first.
 
         Parameters
         ----------

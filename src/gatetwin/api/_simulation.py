@@ -35,7 +35,7 @@ def _read_only(values: np.ndarray) -> np.ndarray:
     return out
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SimulationResult:
     """A model's level over time for given inputs.
 

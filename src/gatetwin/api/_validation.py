@@ -23,7 +23,7 @@ def _limits(value: Mapping[str, float] | Sequence[str]) -> list[str]:
     return [value] if isinstance(value, str) else list(value)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ValidationReport:
     """FMUs validated against records (free run through fmpy, measured vs simulated).
 
