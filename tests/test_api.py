@@ -375,3 +375,14 @@ def test_a_bad_model_file_is_refused(tmp_path):
 def test_a_free_record_needs_a_family_named():
     with pytest.raises(IdentificationError, match="no default family"):
         identify(RECORDS / "EflowLow.csv")
+
+
+def test_importing_gatetwin_leaves_the_heavy_libraries_alone():
+    import subprocess
+
+    heavy = ("scipy", "matplotlib", "fmpy", "control", "numba", "casadi", "pandas")
+    code = ("import sys, gatetwin; print(' '.join(m for m in " + repr(heavy)
+            + " if m in sys.modules))")  # fmt: skip
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, env={"PYTHONPATH": str(Path(gatetwin.__file__).parents[1])})
+    assert done.stdout.strip() == ""

@@ -17,15 +17,16 @@ from collections.abc import Iterator, Mapping
 from dataclasses import asdict, dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from gatetwin.api._simulation import SimulationResult, simulate_plant
 from gatetwin.errors import ExportError
-from gatetwin.modelfile import ModelFile, read_model_file, write_model_file
-from gatetwin.plant.inputs import check_inputs
-from gatetwin.plant.model import ArxPlant, FopdtPlant, PhysicalPlant, Plant, local_fopdt
+
+if TYPE_CHECKING:  # model files and plants pull in scipy: imported where they are used
+    from gatetwin.modelfile import ModelFile
+    from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant
 
 #: FMI versions :meth:`Model.export_fmu` writes.
 FMI_VERSIONS = ("2.0",)
@@ -87,6 +88,7 @@ def model_from_document(content: dict[str, Any], path: str = "") -> Model:
     The document is normalised through JSON, so the model equals the one read back after
     :meth:`Model.save`, hash included.
     """
+    from gatetwin.modelfile import ModelFile
     from gatetwin.plant.model import plant_from_dict
 
     raw = _document_bytes(content)
@@ -212,6 +214,8 @@ class Model:
         >>> load_model(model.save("fopdt_3F.json")).sha256 == model.sha256
         True
         """
+        from gatetwin.modelfile import write_model_file
+
         return write_model_file(os.fspath(path), self.file.content)
 
     def simulate(self, opening_mm: Any, flow_m3h: Any, time_s: Any = None, *,
@@ -283,6 +287,9 @@ class Model:
         >>> point.source, round(point.time_constant_s)
         ('schedule', 75)
         """
+        from gatetwin.plant.inputs import check_inputs
+        from gatetwin.plant.model import ArxPlant, FopdtPlant, PhysicalPlant, local_fopdt
+
         check_inputs(flow_m3h=float(flow_m3h), opening_mm=float(opening_mm))
         q, e = float(flow_m3h), float(opening_mm)
         plant = self.plant
@@ -423,6 +430,8 @@ def load_model(path: str | os.PathLike[str]) -> Model:
     >>> load_model(path).name
     'fopdt_3F'
     """
+    from gatetwin.modelfile import read_model_file
+
     return Model(read_model_file(os.fspath(path)))
 
 

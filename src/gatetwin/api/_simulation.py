@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from gatetwin.errors import GatetwinError
-from gatetwin.plant.inputs import SimulationError
-from gatetwin.plant.model import ArxPlant, Plant
+
+if TYPE_CHECKING:  # the plant package pulls in scipy: imported where it is used
+    from gatetwin.plant.model import Plant
 
 
 def require_pandas() -> Any:
@@ -142,6 +143,9 @@ class SimulationResult:
 
 def _time_axis(n_inputs: int, time_s: Any, sample_period_s: float | None,
                plant: Plant) -> np.ndarray:  # fmt: skip
+    from gatetwin.plant.inputs import SimulationError
+    from gatetwin.plant.model import ArxPlant
+
     if time_s is not None and sample_period_s is not None:
         raise SimulationError("give time_s or sample_period_s, not both")
     if time_s is not None:
@@ -168,6 +172,8 @@ def _time_axis(n_inputs: int, time_s: Any, sample_period_s: float | None,
 
 
 def _input(name: str, values: Any, n: int) -> np.ndarray:
+    from gatetwin.plant.inputs import SimulationError
+
     x = np.asarray(values, dtype=float)
     if x.ndim == 0:
         x = np.full(n, float(x))
@@ -184,6 +190,7 @@ def simulate_plant(
     sample_period_s: float | None, level0: float | None,
 ) -> SimulationResult:  # fmt: skip
     """Shape the inputs, run the reference simulation, shift to ``level0`` if given."""
+    from gatetwin.plant.inputs import SimulationError
     from gatetwin.plant.simulate import simulate
 
     sizes = [np.size(v) for v in (opening_mm, flow_m3h) if np.ndim(v) > 0]
