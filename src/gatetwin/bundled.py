@@ -17,8 +17,9 @@ def bundled_records_dir() -> Path:
     Returns
     -------
     Path
-        A folder of records in the format of ``DATA_FORMAT.md``: the virtual flume's step
-        and PRBS tests, the validation records and the static rating table ``static.csv``.
+        A folder of records in the record format (README, "Record format"): the virtual
+        flume's step and PRBS tests, the validation records and the static rating table
+        ``static.csv``.
 
     Raises
     ------
