@@ -250,8 +250,18 @@ class _Host:
 
 #: How long past the sum of its runs' limits the host may take to answer, or to end, s.
 HOST_GRACE_S = 5.0
-_HOST_CODE = ("import sys; from gatetwin.validate.isolation import host_main; "
-              "host_main(int(sys.argv[1]), int(sys.argv[2]))")  # fmt: skip
+#: The host's program. It imports only the modules a run needs: ``gatetwin.validate`` is
+#: entered as a bare package, without its ``__init__`` (the whole harness: identification,
+#: scipy), which makes the host start in a third of the time and its forks a third the size.
+_HOST_CODE = """
+import importlib.util, sys, types
+spec = importlib.util.find_spec("gatetwin.validate")
+package = types.ModuleType(spec.name)
+package.__path__, package.__spec__ = spec.submodule_search_locations, spec
+sys.modules[spec.name] = package
+from gatetwin.validate.isolation import host_main
+host_main(int(sys.argv[1]), int(sys.argv[2]))
+"""
 
 
 # --------------------------------------------------------------------------- the host
@@ -260,6 +270,9 @@ _HOST_CODE = ("import sys; from gatetwin.validate.isolation import host_main; "
 def host_main(jobs_fd: int, answers_fd: int) -> None:
     """The FMU host's loop: for each job (one FMU, its requests and limits), run the requests
     in children and answer with the results; end when this process's parent goes away."""
+    import fmpy.fmi1
+    import fmpy.fmi2  # noqa: F401 - imported once here, inherited by every forked child
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # an interrupt is the parent's to handle
     jobs = Connection(jobs_fd, writable=False)
     answers = Connection(answers_fd, readable=False)
