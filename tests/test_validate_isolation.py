@@ -32,6 +32,8 @@ from gatetwin.records import read_record
 from gatetwin.validate import (
     ValidationError,
     communication_grid,
+    junit_xml,
+    plot_record,
     validate_fmu,
     validate_matrix,
 )
@@ -199,6 +201,17 @@ def test_nan_output_fails_without_any_threshold(fmus: dict[str, Path]) -> None:
     np.testing.assert_array_equal(on_b.trace.simulated_mm[: AFTER_STEPS + 1],
                                   right[: AFTER_STEPS + 1])  # fmt: skip
     assert np.isnan(on_b.trace.simulated_mm[AFTER_STEPS + 1])
+
+
+def test_a_run_that_gave_nothing_still_renders(fmus: dict[str, Path]) -> None:
+    """Every output of a crashed cell renders here, where warnings are errors."""
+    result = validate_fmu(fmus["abort"], [B], timeout_s=TIMEOUT_S)
+    rec = result.records[0]
+    assert np.all(np.isnan(rec.trace.simulated_mm)) and rec.failure_cause
+    assert plot_record(result, rec).startswith(b"\x89PNG\r\n\x1a\n")
+    assert 'type="FmuRunFailure"' in junit_xml([result])
+    doc = json.loads(json.dumps(result.to_dict(), allow_nan=False))
+    assert doc["records"][0]["failure_cause"] == rec.failure_cause
 
 
 def test_matrix_completes_around_hostile_fmus(fmus: dict[str, Path]) -> None:

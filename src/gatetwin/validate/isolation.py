@@ -232,6 +232,9 @@ class _Host:
                 return self.answers.recv()
         except (OSError, EOFError):
             pass
+        except BaseException:  # interrupted: a later job must not read this one's answer
+            self.close()
+            raise
         self.close()
         return (f"the FMU host process gave no answer within {limit_s + HOST_GRACE_S:g} s "
                 "(it was stopped)")  # fmt: skip
