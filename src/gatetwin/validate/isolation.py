@@ -47,6 +47,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -219,6 +220,7 @@ class _Host:
         os.close(from_host)
         self.jobs = Connection(self._to_host, readable=False)
         self.answers = Connection(self._from_host, writable=False)
+        self.lock = threading.Lock()  # one job at a time, whatever thread sends it
 
     @property
     def alive(self) -> bool:
@@ -226,18 +228,19 @@ class _Host:
 
     def run(self, job: tuple[Any, ...], limit_s: float) -> list[RunResult] | str:
         """Send one FMU's job; its results, or an FMI error message to raise."""
-        try:
-            self.jobs.send(job)
-            if self.answers.poll(limit_s + HOST_GRACE_S):
-                return self.answers.recv()
-        except (OSError, EOFError):
-            pass
-        except BaseException:  # interrupted: a later job must not read this one's answer
+        with self.lock:
+            try:
+                self.jobs.send(job)
+                if self.answers.poll(limit_s + HOST_GRACE_S):
+                    return self.answers.recv()
+            except (OSError, EOFError):
+                pass
+            except BaseException:  # interrupted: a later job must not read this one's answer
+                self.close()
+                raise
             self.close()
-            raise
-        self.close()
-        return (f"the FMU host process gave no answer within {limit_s + HOST_GRACE_S:g} s "
-                "(it was stopped)")  # fmt: skip
+        return (f"the FMU host process ended or gave no answer within "
+                f"{limit_s + HOST_GRACE_S:g} s (it was stopped)")  # fmt: skip
 
     def close(self) -> None:
         """End the host (closing its pipe ends it; killed if it lingers)."""
