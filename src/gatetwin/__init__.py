@@ -13,8 +13,6 @@ The names below are the public API (see README, "Python"). ``identify``, ``valid
 import sys as _sys
 import types as _types
 
-__version__ = "0.1.0"
-
 from gatetwin.api import (  # noqa: E402
     Diagnosis,
     Model,
@@ -46,6 +44,7 @@ from gatetwin.records import (  # noqa: E402
     read_static_table,
     record_from_arrays,
 )
+from gatetwin.version import __version__  # noqa: E402
 
 __all__ = [
     "Diagnosis",

@@ -17,13 +17,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NoReturn
 
-from gatetwin import __version__
 from gatetwin import _commands_diagnose as _diagnose_cmds
 from gatetwin import _commands_model as _model_cmds
 from gatetwin._io import write_json_atomic
 from gatetwin._sidecar import TEST_TYPES
 from gatetwin._summary import format_record_summary, format_static_summary
 from gatetwin.errors import GatetwinError, RecordError
+from gatetwin.version import __version__
 
 #: Exit code for a refused input or a failed command.
 EXIT_ERROR = 2
