@@ -9,6 +9,7 @@ functions into C for the C FMU, statement by statement:
   becomes ``void`` with ``n`` output pointers, otherwise it returns ``double``;
 * every binary operation is written fully parenthesised in the order the syntax tree gives
   it, so C (compiled with ``-ffp-contract=off``) performs the operations Python performs;
+* ``x ** y`` becomes ``pow(x, y)`` (what Python's float power calls);
 * ``math.f(x)`` becomes the C library's ``f(x)`` (the same libm Python calls); ``max``
   and ``min`` of two values become ``fmax``/``fmin``; ``math.pi`` and ``math.nan`` the
   constants Python holds.
@@ -113,6 +114,8 @@ class _Function:
             return e.id
         if isinstance(e, ast.Constant):
             return _literal(e.value)
+        if isinstance(e, ast.BinOp) and isinstance(e.op, ast.Pow):
+            return f"pow({self.expr(e.left)}, {self.expr(e.right)})"
         if isinstance(e, ast.BinOp) and type(e.op) in _BINARY:
             return f"({self.expr(e.left)} {_BINARY[type(e.op)]} {self.expr(e.right)})"
         if isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.USub):

@@ -19,7 +19,7 @@ import math
 #: The functions rendered into the C FMU's generated ``blocks.c`` (prefix ``gt_``).
 RENDERED_C = ("move_toward", "play", "gain_map", "gain_map_inverse", "flow_scaled", "first_order",
               "seiche_advance", "seiche_equilibrium", "seiche_output", "lag_interval",
-              "grid_index_at_or_after")  # fmt: skip
+              "grid_index_at_or_after", "arx_pole_scaled", "arx_gain_rescaled")  # fmt: skip
 
 
 def move_toward(position_mm: float, command_mm: float, max_travel_mm: float) -> float:
@@ -67,6 +67,19 @@ def flow_scaled(value: float, slope_per_m3h: float, flow_m3h: float, flow_ref_m3
                 ) -> float:  # fmt: skip
     """Flow-dependent gain block: ``value * exp(slope * (Q - Q_ref))``."""
     return value * math.exp(slope_per_m3h * (flow_m3h - flow_ref_m3h))
+
+
+def arx_pole_scaled(a1: float, time_constant_ref_s: float, time_constant_s: float) -> float:
+    """An envelope ARX's pole where the pool's time constant is ``time_constant_s``: the pole
+    ``a1`` identified where it was ``time_constant_ref_s``, with time stretched by their
+    ratio (``a1 = exp(-Ts/tau)`` keeps its ``tau / T`` across the envelope)."""
+    return a1 ** (time_constant_ref_s / time_constant_s)
+
+
+def arx_gain_rescaled(b: float, a1: float, a1_scaled: float) -> float:
+    """An envelope ARX's input coefficient at the scaled pole: unit steady gain is kept, so
+    the steady level stays the gate law's."""
+    return b * (1.0 - a1_scaled) / (1.0 - a1)
 
 
 def first_order(state: float, target: float, duration_s: float, time_constant_s: float) -> float:

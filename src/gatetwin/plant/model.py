@@ -118,16 +118,7 @@ class FopdtPlant:
         _check_columns(self, self.columns)
         _normalise_effects(self)
         if self.envelope is not None:
-            vector = check_physical_parameters(self.envelope)
-            names = [n for n, _, _ in kernel.PARAMETERS]
-            object.__setattr__(self, "envelope", dict(zip(names, vector, strict=True)))
-            other = sorted({e["kind"] for e in self.effects} - set(ENVELOPE_EFFECTS))
-            if other:
-                raise ModelFileError(
-                    f"fopdt: effect block {other[0]} is not supported on an envelope FOPDT "
-                    f"(only {', '.join(ENVELOPE_EFFECTS)}; use its local form, without "
-                    "'envelope')"
-                )
+            _set_envelope(self)
         if min(self.schedule.values["time_constant_s"]) <= 0:
             raise ModelFileError("fopdt: time_constant_s must be > 0 at every knot")
         if min(self.schedule.values["dead_time_s"]) < 0:
@@ -148,6 +139,16 @@ class ArxPlant:
     """Scheduled ARX(na, nb, nk) plant of one gauge, paper's sign convention.
 
     Schedule columns: ``a1..a<na>``, ``b1..b<nb>``, ``level_ref_mm``.
+
+    ``envelope`` (optional): the parameters of :mod:`gatetwin.plant.physical_kernel`. With it
+    the model holds across the operating envelope (a Hammerstein, linear-parameter-varying
+    ARX): its input is the steady level of the gate law at the opening and the discharge,
+    ``u(k) = H_ss(Q, e)`` (mm), its steady gain is 1, and its pole follows the pool's time
+    constant, ``a1(Q, e) = a1^(T_ref / T(Q, e))`` with the ``b`` rescaled to keep the gain
+    (:func:`~gatetwin.plant.blocks.arx_pole_scaled`), ``T`` the storage linearised at the
+    steady point and ``T_ref`` (column ``time_constant_ref_s``) its value where ``a1`` was
+    identified. It needs ``na = 1``; the output is the state itself (``level_ref_mm`` then
+    describes the operating line only).
     """
 
     gauge: str
@@ -158,6 +159,7 @@ class ArxPlant:
     nk: int
     schedule: Schedule
     effects: tuple[dict[str, Any], ...] = ()
+    envelope: dict[str, float] | None = None
 
     kind = "arx"
 
@@ -171,6 +173,15 @@ class ArxPlant:
             raise ModelFileError("arx: sample_period_s must be > 0")
         _check_columns(self, self.columns)
         _normalise_effects(self)
+        if self.envelope is not None:
+            _set_envelope(self)
+            if self.na != 1:
+                raise ModelFileError(f"arx: an envelope ARX needs na = 1 (got {self.na})")
+            a1 = self.schedule.values["a1"]
+            if not all(0.0 < a < 1.0 for a in a1):
+                raise ModelFileError("arx: an envelope ARX needs 0 < a1 < 1 at every knot")
+            if not min(self.schedule.values["time_constant_ref_s"]) > 0:
+                raise ModelFileError("arx: time_constant_ref_s must be > 0 at every knot")
 
     @property
     def effect_set(self) -> EffectSet:
@@ -181,7 +192,8 @@ class ArxPlant:
     def columns(self) -> tuple[str, ...]:  # type: ignore[override]
         a = tuple(f"a{i}" for i in range(1, self.na + 1))
         b = tuple(f"b{j}" for j in range(1, self.nb + 1))
-        return (*a, *b, "level_ref_mm")
+        envelope = ("time_constant_ref_s",) if self.envelope is not None else ()
+        return (*a, *b, "level_ref_mm", *envelope)
 
     def coefficients(self, flow_m3h: float) -> tuple[np.ndarray, np.ndarray]:
         a = np.array([self.schedule.at(f"a{i}", flow_m3h) for i in range(1, self.na + 1)])
@@ -288,7 +300,7 @@ def local_fopdt(plant: FopdtPlant | PhysicalPlant, flow_m3h: float, opening_mm: 
     """
     if isinstance(plant, PhysicalPlant):
         p, delay = plant.vector, 0.0
-    elif plant.envelope is not None:
+    elif isinstance(plant, FopdtPlant) and plant.envelope is not None:
         p, delay = list(plant.envelope.values()), plant.schedule.at("dead_time_s", flow_m3h)
     else:
         raise ModelFileError("local_fopdt needs an envelope FOPDT or a physical plant")
@@ -309,6 +321,20 @@ def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
 
 
 Plant = FopdtPlant | ArxPlant | PhysicalPlant
+
+
+def _set_envelope(plant: Any) -> None:
+    """Check an envelope plant's kernel parameters (stored in kernel order) and its blocks."""
+    vector = check_physical_parameters(plant.envelope)
+    names = [n for n, _, _ in kernel.PARAMETERS]
+    object.__setattr__(plant, "envelope", dict(zip(names, vector, strict=True)))
+    other = sorted({e["kind"] for e in plant.effects} - set(ENVELOPE_EFFECTS))
+    if other:
+        raise ModelFileError(
+            f"{plant.kind}: effect block {other[0]} is not supported on an envelope "
+            f"{plant.kind.upper()} (only {', '.join(ENVELOPE_EFFECTS)}; use its local form, "
+            "without 'envelope')"
+        )
 
 
 def _normalise_effects(plant: Any) -> None:
@@ -336,7 +362,7 @@ def plant_to_dict(plant: Plant) -> dict[str, Any]:
         "schedule": plant.schedule.to_dict(),
         "effects": [dict(e) for e in plant.effects],
     }
-    if isinstance(plant, FopdtPlant) and plant.envelope is not None:
+    if isinstance(plant, FopdtPlant | ArxPlant) and plant.envelope is not None:
         out["envelope"] = {"parameters": dict(plant.envelope),
                            "equations": "gatetwin.plant.physical_kernel"}
     if isinstance(plant, PhysicalPlant):
@@ -358,12 +384,12 @@ def plant_from_dict(data: dict[str, Any]) -> Plant:
             schedule=schedule,
             effects=tuple(dict(e) for e in data.get("effects", ())),
         )
+        envelope = data.get("envelope")
+        if envelope is not None and not (
+            isinstance(envelope, dict) and isinstance(envelope.get("parameters"), dict)
+        ):
+            raise ModelFileError(f"{data['kind']}: envelope.parameters must be an object")
         if data["kind"] == "fopdt":
-            envelope = data.get("envelope")
-            if envelope is not None and not (
-                isinstance(envelope, dict) and isinstance(envelope.get("parameters"), dict)
-            ):
-                raise ModelFileError("fopdt: envelope.parameters must be an object")
             return FopdtPlant(**common, envelope=envelope and envelope["parameters"])
         if data["kind"] == "physical":
             if not isinstance(data.get("parameters"), dict):
@@ -377,6 +403,7 @@ def plant_from_dict(data: dict[str, Any]) -> Plant:
                 nb=int(data["nb"]),
                 nk=int(data["nk"]),
                 **common,
+                envelope=envelope and envelope["parameters"],
             )
     except (KeyError, TypeError, ValueError) as exc:
         if isinstance(exc, ModelFileError):
