@@ -52,9 +52,22 @@ from gatetwin.plant.simulate import ARX_MAX_SUBSTEPS, ARX_STEP_RTOL, DELAY_HISTO
 MAX_ARX_ORDER = 8
 #: doStep refuses a currentCommunicationPoint further than this (relative) from the FMU's time.
 COMMUNICATION_POINT_RTOL = 1e-9
+#: Longest communication step the C FMU takes, s (11.6 days; a gate log is sampled in seconds).
+MAX_COMMUNICATION_STEP_S = 1e6
+#: Largest |time| the C FMU keeps, s (317 years): start times and communication points beyond
+#: it are refused, so that the actuator grid's index stays an exact integer in a double.
+MAX_TIME_S = 1e10
+#: Largest |value| of any parameter, in its unit: far beyond any gate, canal or fitted value,
+#: and small enough that level_ref + K * (opening - opening_ref) cannot overflow.
+PARAMETER_MAX_ABS = 1e9
+#: The quantities of a validity envelope (provenance ``validity``): (variable, unit in
+#: messages, macro stem in model_config.h); the level is the FMU's output.
+VALIDITY_QUANTITIES = (("opening_mm", "mm", "OPENING"), ("flow_m3h", "m3/h", "FLOW"),
+                       ("level_mm", "mm", "LEVEL"))  # fmt: skip
 #: Log categories both backends declare.
 LOG_CATEGORIES = {
-    "logStatusWarning": "Warnings (discharge outside the schedule's knots)",
+    "logStatusWarning": "Warnings (an input or the level outside the model's validity, or the "
+                        "discharge outside the schedule's knots)",
     "logStatusError": "Errors: refused inputs, parameters and communication steps",
     "logAll": "Everything, including informational messages",
 }
@@ -144,6 +157,8 @@ def describe(
     """
     _check_exportable(plant, model_name)
     specs = _variables(plant)
+    _check_parameter_values(specs)
+    validity_ranges(provenance)
     columns = {"flow_m3h": _first(specs, "schedule.flow_m3h[1]").vr}
     for name in plant.columns:
         columns[name] = _first(specs, f"schedule.{name}[1]").vr
@@ -185,6 +200,52 @@ def _check_exportable(plant: Plant, model_name: str) -> None:
             f"arx orders (na, nb, nk) = ({plant.na}, {plant.nb}, {plant.nk}) exceed "
             f"{MAX_ARX_ORDER}, the largest the FMU supports"
         )
+
+
+def _check_parameter_values(specs: list[VariableSpec]) -> None:
+    """Every parameter finite and within :data:`PARAMETER_MAX_ABS` (the C FMU checks the same
+    at run time): a larger one would make the level overflow to inf."""
+    for v in specs:
+        if v.causality != "parameter" or v.start is None:
+            continue
+        if not abs(v.start) <= PARAMETER_MAX_ABS:
+            raise ExportError(
+                f"parameter {v.name} = {v.start:g} is beyond the FMU's limit "
+                f"|value| <= {PARAMETER_MAX_ABS:g} (the level would not stay finite)"
+            )
+
+
+def validity_ranges(provenance: dict[str, Any]) -> dict[str, tuple[float, float]]:
+    """The validity envelope ``provenance["validity"]`` states, checked: ``{quantity: (low,
+    high)}`` for the quantities of :data:`VALIDITY_QUANTITIES` it gives (others are ignored).
+
+    Raises
+    ------
+    ExportError
+        ``validity`` is not an object, or a range is not two finite numbers with low <= high.
+    """
+    stated = provenance.get("validity")
+    if stated is None:
+        return {}
+    if not isinstance(stated, dict):
+        raise ExportError(f"provenance.validity must be an object, got {type(stated).__name__}")
+    out: dict[str, tuple[float, float]] = {}
+    for name, _, _ in VALIDITY_QUANTITIES:
+        if name not in stated:
+            continue
+        value = stated[name]
+        try:
+            lo, hi = (float(v) for v in value)
+        except (TypeError, ValueError):
+            raise ExportError(
+                f"provenance.validity.{name} must be [low, high], got {value!r}"
+            ) from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+            raise ExportError(
+                f"provenance.validity.{name} [{lo:g}, {hi:g}] must be finite with low <= high"
+            )
+        out[name] = (lo, hi)
+    return out
 
 
 def _first(specs: list[VariableSpec], name: str) -> VariableSpec:
@@ -345,6 +406,9 @@ def model_config_header(desc: FmuDescription) -> str:
         f"#define GT_FLOW_MIN_M3H {_c_double(FLOW_RANGE_M3H[0])}",
         f"#define GT_FLOW_MAX_M3H {_c_double(FLOW_RANGE_M3H[1])}",
         f"#define GT_COMMUNICATION_POINT_RTOL {_c_double(COMMUNICATION_POINT_RTOL)}",
+        f"#define GT_MAX_COMMUNICATION_STEP_S {_c_double(MAX_COMMUNICATION_STEP_S)}",
+        f"#define GT_MAX_TIME_S {_c_double(MAX_TIME_S)}",
+        f"#define GT_PARAMETER_MAX_ABS {_c_double(PARAMETER_MAX_ABS)}",
         "#define GT_LOG_CATEGORIES {" + ", ".join(f'"{c}"' for c in LOG_CATEGORIES) + "}",
     ]
     if desc.arx_orders is None:
@@ -357,10 +421,12 @@ def model_config_header(desc: FmuDescription) -> str:
     lines += ["", "/* value references (indices into ModelData.real) */",
               f"#define VR_OPENING_MM {desc.vr('opening_mm')}",
               f"#define VR_FLOW_M3H {desc.vr('flow_m3h')}",
-              f"#define VR_OPENING_REF_MM {desc.vr('opening_ref_mm')}"]
+              f"#define VR_OPENING_REF_MM {desc.vr('opening_ref_mm')}",
+              f"#define VR_OUTPUT {desc.output.vr}"]
     if desc.arx_orders is not None:
         lines.append(f"#define VR_SAMPLE_PERIOD_S {desc.vr('sample_period_s')}")
     lines += _kernel_config_lines(desc)
+    lines += _validity_config_lines(desc)
     lines.append("/* schedule column c at knot k (from 0): VR_COL_c + k */")
     lines += [f"#define {_macro(name)} {vr}" for name, vr in desc.columns.items()]
     lines += _effect_config_lines(desc)
@@ -372,6 +438,19 @@ def model_config_header(desc: FmuDescription) -> str:
     ]
     lines += ["", "#endif", ""]
     return "\n".join(lines)
+
+
+def _validity_config_lines(desc: FmuDescription) -> list[str]:
+    """The validity envelope: GT_VALIDITY_<Q> is 1 when the model states the range of Q."""
+    ranges = validity_ranges(desc.provenance)
+    lines = ["/* validity envelope of the model file: 1 when a range is stated, then its ends */"]
+    for name, unit, stem in VALIDITY_QUANTITIES:
+        lines.append(f"#define GT_VALIDITY_{stem} {int(name in ranges)}")
+        lo, hi = ranges.get(name, (0.0, 0.0))
+        lines += [f"#define GT_VALIDITY_{stem}_MIN {_c_double(lo)}",
+                  f"#define GT_VALIDITY_{stem}_MAX {_c_double(hi)}",
+                  f'#define GT_VALIDITY_{stem}_UNIT "{unit}"']
+    return lines
 
 
 def _kernel_config_lines(desc: FmuDescription) -> list[str]:
