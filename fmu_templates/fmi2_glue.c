@@ -408,6 +408,10 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
             return fail(inst, "fmi2SetReal: %s is a fixed parameter, settable only before "
                               "fmi2ExitInitializationMode", plant_variables[vr[i]].name);
         }
+        if (!isfinite(value[i])) { /* every value an FMU state holds stays finite */
+            return fail(inst, "fmi2SetReal: %s = %g is not finite", plant_variables[vr[i]].name,
+                        value[i]);
+        }
         inst->data.real[vr[i]] = value[i];
         if (kind != GT_KIND_INPUT) {
             inst->data.parameters_changed = 1;
