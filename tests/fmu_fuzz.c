@@ -403,10 +403,19 @@ static void op_step(Fuzz *f)
     fmi2Status status;
     api->get_real_status(f->c, fmi2LastSuccessfulTime, &now);
     calls++;
+    double h = step_size();
     if (!below(6)) {
         now = below(2) ? nasty_double() : now + uniform(-1.0, 1.0);
     }
-    status = CALL(f, api->do_step(f->c, now, step_size(), below(2)));
+#ifdef VR_SAMPLE_PERIOD_S
+    if (below(2)) { /* ARX takes whole numbers of samples only */
+        fmi2ValueReference period_vr = VR_SAMPLE_PERIOD_S;
+        if (api->get_real(f->c, &period_vr, 1, &h) == fmi2OK) {
+            h *= 1 + below(below(8) ? 10 : 20000);
+        }
+    }
+#endif
+    status = CALL(f, api->do_step(f->c, now, h, below(2)));
     if (status == fmi2OK || status == fmi2Warning) {
         f->warnings += status == fmi2Warning;
         steps_taken++;
