@@ -21,7 +21,7 @@ from fmpy.fmi2 import fmi2Error
 from fmu_support import PLANTS, compiler, open_fmu
 from gatetwin.errors import ExportError
 from gatetwin.fmu import export_fmu
-from gatetwin.fmu.description import MAX_COMMUNICATION_STEP_S, PARAMETER_MAX_ABS
+from gatetwin.fmu.limits import MAX_COMMUNICATION_STEP_S, PARAMETER_MAX_ABS
 from gatetwin.plant.model import Schedule
 from gatetwin.plant.simulate import ARX_MAX_SUBSTEPS, DELAY_HISTORY_CAPACITY
 

@@ -33,6 +33,14 @@ from typing import Any
 from xml.etree import ElementTree as ET
 
 from gatetwin.errors import ExportError
+from gatetwin.fmu.limits import (
+    MAX_COMMUNICATION_STEP_S,
+    MAX_TIME_S,
+    PARAMETER_MAX_ABS,
+    VALIDITY_QUANTITIES,
+    check_parameter_values,
+    validity_ranges,
+)
 from gatetwin.plant import physical_kernel
 from gatetwin.plant.effects import BLOCK_FIELDS, KINDS, parameter_specs
 from gatetwin.plant.model import (
@@ -52,18 +60,6 @@ from gatetwin.plant.simulate import ARX_MAX_SUBSTEPS, ARX_STEP_RTOL, DELAY_HISTO
 MAX_ARX_ORDER = 8
 #: doStep refuses a currentCommunicationPoint further than this (relative) from the FMU's time.
 COMMUNICATION_POINT_RTOL = 1e-9
-#: Longest communication step the C FMU takes, s (11.6 days; a gate log is sampled in seconds).
-MAX_COMMUNICATION_STEP_S = 1e6
-#: Largest |time| the C FMU keeps, s (317 years): start times and communication points beyond
-#: it are refused, so that the actuator grid's index stays an exact integer in a double.
-MAX_TIME_S = 1e10
-#: Largest |value| of any parameter, in its unit: far beyond any gate, canal or fitted value,
-#: and small enough that level_ref + K * (opening - opening_ref) cannot overflow.
-PARAMETER_MAX_ABS = 1e9
-#: The quantities of a validity envelope (provenance ``validity``): (variable, unit in
-#: messages, macro stem in model_config.h); the level is the FMU's output.
-VALIDITY_QUANTITIES = (("opening_mm", "mm", "OPENING"), ("flow_m3h", "m3/h", "FLOW"),
-                       ("level_mm", "mm", "LEVEL"))  # fmt: skip
 #: Log categories both backends declare.
 LOG_CATEGORIES = {
     "logStatusWarning": "Warnings (an input or the level outside the model's validity, or the "
@@ -159,7 +155,7 @@ def describe(
     """
     _check_exportable(plant, model_name)
     specs = _variables(plant)
-    _check_parameter_values(specs)
+    check_parameter_values(specs)
     validity_ranges(provenance)
     columns = {"flow_m3h": _first(specs, "schedule.flow_m3h[1]").vr}
     for name in plant.columns:
@@ -202,52 +198,6 @@ def _check_exportable(plant: Plant, model_name: str) -> None:
             f"arx orders (na, nb, nk) = ({plant.na}, {plant.nb}, {plant.nk}) exceed "
             f"{MAX_ARX_ORDER}, the largest the FMU supports"
         )
-
-
-def _check_parameter_values(specs: list[VariableSpec]) -> None:
-    """Every parameter finite and within :data:`PARAMETER_MAX_ABS` (the C FMU checks the same
-    at run time): a larger one would make the level overflow to inf."""
-    for v in specs:
-        if v.causality != "parameter" or v.start is None:
-            continue
-        if not abs(v.start) <= PARAMETER_MAX_ABS:
-            raise ExportError(
-                f"parameter {v.name} = {v.start:g} is beyond the FMU's limit "
-                f"|value| <= {PARAMETER_MAX_ABS:g} (the level would not stay finite)"
-            )
-
-
-def validity_ranges(provenance: dict[str, Any]) -> dict[str, tuple[float, float]]:
-    """The validity envelope ``provenance["validity"]`` states, checked: ``{quantity: (low,
-    high)}`` for the quantities of :data:`VALIDITY_QUANTITIES` it gives (others are ignored).
-
-    Raises
-    ------
-    ExportError
-        ``validity`` is not an object, or a range is not two finite numbers with low <= high.
-    """
-    stated = provenance.get("validity")
-    if stated is None:
-        return {}
-    if not isinstance(stated, dict):
-        raise ExportError(f"provenance.validity must be an object, got {type(stated).__name__}")
-    out: dict[str, tuple[float, float]] = {}
-    for name, _, _ in VALIDITY_QUANTITIES:
-        if name not in stated:
-            continue
-        value = stated[name]
-        try:
-            lo, hi = (float(v) for v in value)
-        except (TypeError, ValueError):
-            raise ExportError(
-                f"provenance.validity.{name} must be [low, high], got {value!r}"
-            ) from None
-        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
-            raise ExportError(
-                f"provenance.validity.{name} [{lo:g}, {hi:g}] must be finite with low <= high"
-            )
-        out[name] = (lo, hi)
-    return out
 
 
 def _first(specs: list[VariableSpec], name: str) -> VariableSpec:
