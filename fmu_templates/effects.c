@@ -48,6 +48,30 @@ PlantStatus effects_check_parameters(const ModelData *m, PlantMessage *msg)
 
 /* The blocks' arithmetic is blocks.c, generated from gatetwin/plant/blocks.py (gt_ prefix). */
 
+/* A restored state: every block's value finite, the actuator grid's origin not after the
+ * state's time (the grid is indexed from it). */
+PlantStatus effects_check_state(const ModelData *m, PlantMessage *msg)
+{
+    const EffectState *fx = &m->fx;
+    const double values[] = {fx->actuator_mm, fx->gate_mm,   fx->held_gate_mm,
+                             fx->grid_origin_s, fx->seiche_x1, fx->seiche_x2,
+                             fx->inflow_mm,   fx->drift_mm,  fx->sensed_mm};
+    size_t i;
+    for (i = 0; i < sizeof values / sizeof values[0]; i++) {
+        if (!isfinite(values[i])) {
+            plant_message(msg, "effect-block state value %d is not finite", (int)i);
+            return PLANT_ERROR;
+        }
+    }
+    if (!(fabs(fx->grid_origin_s) <= GT_MAX_TIME_S &&
+          (!m->initialized || fx->grid_origin_s <= m->time_s))) {
+        plant_message(msg, "actuator grid origin %g s lies after the state's time %g s",
+                      fx->grid_origin_s, m->time_s);
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
+}
+
 /* --- input blocks ---------------------------------------------------------------------------- */
 
 double effects_input(const ModelData *m, double gate_mm)

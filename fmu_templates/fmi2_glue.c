@@ -6,8 +6,13 @@
  * Policy, stricter than the Reference-FMUs: a call the FMU cannot honour (wrong state, bad
  * pointer, unknown value reference, bad input, a step size it cannot take) returns fmi2Error
  * with a logged reason and moves the instance to the error state (FMI 2.0, section 2.1.3);
- * fmi2SetFMUstate or fmi2Reset recover from it. Warnings and errors are always logged;
- * informational messages only when logging is on.
+ * fmi2SetFMUstate or fmi2Reset recover from it. A refused FMU state (fmi2SetFMUstate,
+ * fmi2DeSerializeFMUstate) is the exception: the instance stays as it was, in its mode.
+ * Warnings and errors are always logged; informational messages only when logging is on.
+ *
+ * A restored state is checked completely before it is used (plant_check_state): identity
+ * (the GUID in a serialised state's header, the library that made an in-memory one), format
+ * version and size, mode, every flag, index and count, every double finite.
  */
 #include <math.h>
 #include <stdarg.h>
@@ -20,7 +25,7 @@
 
 #define INSTANCE_MAGIC 0x67617465u /* "gate" */
 #define STATE_MAGIC 0x73746174u    /* "stat" */
-#define SERIAL_FORMAT "gatetwin-state-1"
+#define SERIAL_FORMAT "gatetwin-state-2"
 
 typedef enum {
     MODE_INSTANTIATED = 1,
@@ -48,12 +53,21 @@ typedef struct {
     ModelData data;
 } Instance;
 
-/* An FMU state: everything in ModelData plus the mode it was taken in. */
+/* What an FMU state holds and serialises: everything in ModelData and the mode it was taken
+ * in. */
 typedef struct {
-    unsigned magic;
     Mode mode;
     ModelData data;
+} StatePayload;
+
+/* An FMU state in memory; `owner` tells states of this library from another FMU's. */
+typedef struct {
+    unsigned magic;
+    const void *owner;
+    StatePayload payload;
 } StoredState;
+
+#define STATE_OWNER ((const void *)plant_variables)
 
 typedef struct {
     char format[17]; /* SERIAL_FORMAT */
@@ -100,6 +114,8 @@ static void log_message(const LogTarget *sink, fmi2Status status, const char *fo
     __attribute__((format(printf, 3, 4)));
 static fmi2Status fail(Instance *inst, const char *format, ...)
     __attribute__((format(printf, 2, 3)));
+static fmi2Status refuse(Instance *inst, const char *format, ...)
+    __attribute__((format(printf, 2, 3)));
 #endif
 
 static void log_message(const LogTarget *sink, fmi2Status status, const char *format, ...)
@@ -122,6 +138,18 @@ static fmi2Status fail(Instance *inst, const char *format, ...)
     va_end(args);
     log_text(&inst->sink, fmi2Error, text);
     inst->mode = MODE_ERROR;
+    return fmi2Error;
+}
+
+/* Log why and return fmi2Error, leaving the instance as it was (refused FMU states). */
+static fmi2Status refuse(Instance *inst, const char *format, ...)
+{
+    char text[768];
+    va_list args;
+    va_start(args, format);
+    vsnprintf(text, sizeof text, format, args);
+    va_end(args);
+    log_text(&inst->sink, fmi2Error, text);
     return fmi2Error;
 }
 
@@ -269,8 +297,9 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     if (!inst) {
         return fmi2Error;
     }
-    if (!isfinite(startTime)) {
-        return fail(inst, "fmi2SetupExperiment: startTime %g must be finite", startTime);
+    if (!(fabs(startTime) <= GT_MAX_TIME_S)) {
+        return fail(inst, "fmi2SetupExperiment: startTime %g s must be finite with |t| <= %g s",
+                    startTime, GT_MAX_TIME_S);
     }
     inst->data.time_s = startTime;
     return fmi2OK;
@@ -379,6 +408,10 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
             return fail(inst, "fmi2SetReal: %s is a fixed parameter, settable only before "
                               "fmi2ExitInitializationMode", plant_variables[vr[i]].name);
         }
+        if (!isfinite(value[i])) { /* every value an FMU state holds stays finite */
+            return fail(inst, "fmi2SetReal: %s = %g is not finite", plant_variables[vr[i]].name,
+                        value[i]);
+        }
         inst->data.real[vr[i]] = value[i];
         if (kind != GT_KIND_INPUT) {
             inst->data.parameters_changed = 1;
@@ -440,6 +473,47 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 /* --- FMU state ------------------------------------------------------------------------------- */
 
+/* Whether a stored state can be restored into this FMU: its mode and ModelData (plant.h). */
+static fmi2Status check_payload(Instance *inst, const char *function, const StatePayload *p)
+{
+    PlantMessage msg;
+    int initialized;
+    switch (p->mode) {
+    case MODE_INSTANTIATED:
+    case MODE_INITIALIZATION: initialized = 0; break;
+    case MODE_STEP_COMPLETE:
+    case MODE_TERMINATED: initialized = 1; break;
+    default:
+        return refuse(inst, "%s: the state's mode %d is not a mode a state is taken in", function,
+                      (int)p->mode);
+    }
+    if (plant_check_state(&p->data, initialized, &msg) != PLANT_OK) {
+        return refuse(inst, "%s: corrupt state refused, the instance is unchanged: %s", function,
+                      msg.text);
+    }
+    return fmi2OK;
+}
+
+/* The state behind an FMUstate argument if it is one of this library's, else NULL. */
+static StoredState *own_state(fmi2FMUstate FMUstate)
+{
+    StoredState *stored = (StoredState *)FMUstate;
+    if (!stored || stored->magic != STATE_MAGIC || stored->owner != STATE_OWNER) {
+        return NULL;
+    }
+    return stored;
+}
+
+static StoredState *new_state(Instance *inst)
+{
+    StoredState *stored = (StoredState *)allocate(&inst->sink.callbacks, sizeof *stored);
+    if (stored) {
+        stored->magic = STATE_MAGIC;
+        stored->owner = STATE_OWNER;
+    }
+    return stored;
+}
+
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 {
     Instance *inst = checked(c, "fmi2GetFMUstate", ANY_MODE ^ MODE_ERROR);
@@ -450,19 +524,18 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
     if (!FMUstate) {
         return fail(inst, "fmi2GetFMUstate: FMUstate is NULL");
     }
-    stored = (StoredState *)*FMUstate;
-    if (stored && stored->magic != STATE_MAGIC) {
+    stored = own_state(*FMUstate);
+    if (*FMUstate && !stored) {
         return fail(inst, "fmi2GetFMUstate: *FMUstate is not a state of this FMU");
     }
     if (!stored) {
-        stored = (StoredState *)allocate(&inst->sink.callbacks, sizeof *stored);
+        stored = new_state(inst);
         if (!stored) {
             return fail(inst, "fmi2GetFMUstate: out of memory");
         }
     }
-    stored->magic = STATE_MAGIC;
-    stored->mode = inst->mode;
-    memcpy(&stored->data, &inst->data, sizeof inst->data);
+    stored->payload.mode = inst->mode;
+    memcpy(&stored->payload.data, &inst->data, sizeof inst->data);
     *FMUstate = stored;
     return fmi2OK;
 }
@@ -470,15 +543,18 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
 {
     Instance *inst = checked(c, "fmi2SetFMUstate", ANY_MODE);
-    const StoredState *stored = (const StoredState *)FMUstate;
+    const StoredState *stored = own_state(FMUstate);
     if (!inst) {
         return fmi2Error;
     }
-    if (!stored || stored->magic != STATE_MAGIC) {
-        return fail(inst, "fmi2SetFMUstate: FMUstate is NULL or not a state of this FMU");
+    if (!stored) {
+        return refuse(inst, "fmi2SetFMUstate: FMUstate is NULL or not a state of this FMU");
     }
-    memcpy(&inst->data, &stored->data, sizeof inst->data);
-    inst->mode = stored->mode;
+    if (check_payload(inst, "fmi2SetFMUstate", &stored->payload) != fmi2OK) {
+        return fmi2Error;
+    }
+    memcpy(&inst->data, &stored->payload.data, sizeof inst->data);
+    inst->mode = stored->payload.mode;
     return fmi2OK;
 }
 
@@ -492,8 +568,8 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
     if (!FMUstate || !*FMUstate) {
         return fmi2OK;
     }
-    stored = (StoredState *)*FMUstate;
-    if (stored->magic != STATE_MAGIC) {
+    stored = own_state(*FMUstate);
+    if (!stored) {
         return fail(inst, "fmi2FreeFMUstate: *FMUstate is not a state of this FMU");
     }
     stored->magic = 0;
@@ -501,6 +577,9 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
     *FMUstate = NULL;
     return fmi2OK;
 }
+
+/* Bytes of a serialised state: the header, then the payload. */
+#define SERIAL_SIZE (sizeof(SerialHeader) + sizeof(StatePayload))
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
 {
@@ -512,7 +591,7 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, si
     if (!size) {
         return fail(inst, "fmi2SerializedFMUstateSize: size is NULL");
     }
-    *size = sizeof(SerialHeader) + sizeof(StoredState);
+    *size = SERIAL_SIZE;
     return fmi2OK;
 }
 
@@ -520,67 +599,80 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
                                  size_t size)
 {
     Instance *inst = checked(c, "fmi2SerializeFMUstate", ANY_MODE);
-    const StoredState *stored = (const StoredState *)FMUstate;
+    const StoredState *stored = own_state(FMUstate);
     SerialHeader header;
     if (!inst) {
         return fmi2Error;
     }
-    if (!stored || stored->magic != STATE_MAGIC || !serializedState) {
+    if (!stored || !serializedState) {
         return fail(inst, "fmi2SerializeFMUstate: NULL buffer, or FMUstate is not a state of "
                           "this FMU");
     }
-    if (size != sizeof header + sizeof *stored) {
+    if (size != SERIAL_SIZE) {
         return fail(inst, "fmi2SerializeFMUstate: buffer holds %lu bytes, the state needs %lu",
-                    (unsigned long)size, (unsigned long)(sizeof header + sizeof *stored));
+                    (unsigned long)size, (unsigned long)SERIAL_SIZE);
     }
     memset(&header, 0, sizeof header);
     memcpy(header.format, SERIAL_FORMAT, sizeof SERIAL_FORMAT);
     snprintf(header.guid, sizeof header.guid, "%s", GT_GUID);
-    header.payload_size = sizeof *stored;
+    header.payload_size = sizeof stored->payload;
     memcpy(serializedState, &header, sizeof header);
-    memcpy(serializedState + sizeof header, stored, sizeof *stored);
+    memcpy(serializedState + sizeof header, &stored->payload, sizeof stored->payload);
     return fmi2OK;
 }
 
+/* Refused bytes leave *FMUstate and the instance as they were. */
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate)
 {
     Instance *inst = checked(c, "fmi2DeSerializeFMUstate", ANY_MODE);
     SerialHeader header;
-    StoredState *stored;
+    StoredState *target, *decoded;
     if (!inst) {
         return fmi2Error;
     }
     if (!serializedState || !FMUstate) {
-        return fail(inst, "fmi2DeSerializeFMUstate: NULL argument");
+        return refuse(inst, "fmi2DeSerializeFMUstate: NULL argument");
     }
-    if (size != sizeof header + sizeof *stored) {
-        return fail(inst, "fmi2DeSerializeFMUstate: %lu bytes given, a state of this FMU has %lu",
-                    (unsigned long)size, (unsigned long)(sizeof header + sizeof *stored));
+    target = own_state(*FMUstate);
+    if (*FMUstate && !target) {
+        return refuse(inst, "fmi2DeSerializeFMUstate: *FMUstate is not a state of this FMU");
+    }
+    if (size != SERIAL_SIZE) {
+        return refuse(inst, "fmi2DeSerializeFMUstate: %lu bytes given, a state of this FMU has %lu",
+                      (unsigned long)size, (unsigned long)SERIAL_SIZE);
     }
     memcpy(&header, serializedState, sizeof header);
-    if (memcmp(header.format, SERIAL_FORMAT, sizeof SERIAL_FORMAT) != 0 ||
-        strncmp(header.guid, GT_GUID, sizeof header.guid) != 0 ||
-        header.payload_size != sizeof *stored) {
-        return fail(inst, "fmi2DeSerializeFMUstate: the bytes are not a state of this FMU build");
+    if (memcmp(header.format, SERIAL_FORMAT, sizeof SERIAL_FORMAT) != 0) {
+        return refuse(inst, "fmi2DeSerializeFMUstate: not a serialised state of format %s",
+                      SERIAL_FORMAT);
     }
-    stored = (StoredState *)*FMUstate;
-    if (stored && stored->magic != STATE_MAGIC) {
-        return fail(inst, "fmi2DeSerializeFMUstate: *FMUstate is not a state of this FMU");
+    if (strncmp(header.guid, GT_GUID, sizeof header.guid) != 0) {
+        header.guid[sizeof header.guid - 1] = '\0';
+        return refuse(inst, "fmi2DeSerializeFMUstate: the state is of FMU %s, this FMU is %s",
+                      header.guid, GT_GUID);
     }
-    if (!stored) {
-        stored = (StoredState *)allocate(&inst->sink.callbacks, sizeof *stored);
-        if (!stored) {
-            return fail(inst, "fmi2DeSerializeFMUstate: out of memory");
-        }
+    if (header.payload_size != sizeof(StatePayload)) {
+        return refuse(inst, "fmi2DeSerializeFMUstate: payload of %llu bytes, this FMU's has %lu",
+                      header.payload_size, (unsigned long)sizeof(StatePayload));
     }
-    memcpy(stored, serializedState + sizeof header, sizeof *stored);
-    if (stored->magic != STATE_MAGIC) {
-        stored->magic = STATE_MAGIC; /* keep it freeable, but refuse it */
-        *FMUstate = stored;
-        return fail(inst, "fmi2DeSerializeFMUstate: corrupt state payload");
+    decoded = new_state(inst);
+    if (!decoded) {
+        return refuse(inst, "fmi2DeSerializeFMUstate: out of memory");
     }
-    *FMUstate = stored;
+    memcpy(&decoded->payload, serializedState + sizeof header, sizeof decoded->payload);
+    if (check_payload(inst, "fmi2DeSerializeFMUstate", &decoded->payload) != fmi2OK) {
+        decoded->magic = 0;
+        release(&inst->sink.callbacks, decoded);
+        return fmi2Error;
+    }
+    if (target) {
+        memcpy(&target->payload, &decoded->payload, sizeof target->payload);
+        decoded->magic = 0;
+        release(&inst->sink.callbacks, decoded);
+        decoded = target;
+    }
+    *FMUstate = decoded;
     return fmi2OK;
 }
 

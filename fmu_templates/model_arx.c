@@ -74,8 +74,10 @@ static double samples_in_step(const ModelData *m, double step_s, PlantMessage *m
     const double n_float = step_s / m->real[VR_SAMPLE_PERIOD_S];
     double n;
     if (!(n_float <= GT_ARX_MAX_SUBSTEPS)) {
-        plant_message(msg, "communication step %.17g s spans more than %.0e ARX samples", step_s,
-                      GT_ARX_MAX_SUBSTEPS);
+        plant_message(msg,
+                      "communication step %.17g s spans %.17g ARX samples; the limit is %.0e "
+                      "samples per step",
+                      step_s, n_float, GT_ARX_MAX_SUBSTEPS);
         return -1.0;
     }
     n = nearbyint(n_float); /* round half to even, as Python's round() */
@@ -143,4 +145,22 @@ void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPos
     if (GT_HAS_RATE_LIMIT) {
         effects_actuate(m, &m->fx, command_mm, ts);
     }
+}
+
+/* A restored state: every value finite. */
+PlantStatus dynamics_check_state(const ModelData *m, PlantMessage *msg)
+{
+    const DynamicsState *d = &m->dyn;
+    int i, finite = isfinite(d->x);
+    for (i = 0; i < GT_NA; i++) {
+        finite = finite && isfinite(d->x_hist[i]);
+    }
+    for (i = 0; i < GT_ARX_U_LAGS; i++) {
+        finite = finite && isfinite(d->u_hist[i]);
+    }
+    if (!finite) {
+        plant_message(msg, "ARX state (x or its input and output lags) is not finite");
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
 }

@@ -235,3 +235,36 @@ void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPos
     effects_seiche_piece(m, t1 - t0, fx->gate_mm);
 #endif
 }
+
+/* A restored history: ring indices in range, >= 1 change once initialised, every entry finite,
+ * the held change times in order and not after the state's time. */
+PlantStatus dynamics_check_state(const ModelData *m, PlantMessage *msg)
+{
+    const DynamicsState *d = &m->dyn;
+    int j;
+    if (!(d->head >= 0 && d->head < GT_HISTORY_CAPACITY && d->count >= m->initialized &&
+          d->count <= GT_HISTORY_CAPACITY)) {
+        plant_message(msg, "dead-time history head %d / count %d outside 0..%d", d->head,
+                      d->count, GT_HISTORY_CAPACITY);
+        return PLANT_ERROR;
+    }
+    if (!isfinite(d->x) || !(isfinite(d->max_dead_time_s) && d->max_dead_time_s >= 0.0)) {
+        plant_message(msg, "state x = %g or dead-time horizon %g s is not finite and >= 0", d->x,
+                      d->max_dead_time_s);
+        return PLANT_ERROR;
+    }
+    for (j = 0; j < GT_HISTORY_CAPACITY; j++) {
+        if (!isfinite(d->change_t[j]) || !isfinite(d->change_u[j])) {
+            plant_message(msg, "dead-time history entry %d is not finite", j);
+            return PLANT_ERROR;
+        }
+    }
+    for (j = 0; j < d->count; j++) {
+        const double t = d->change_t[slot(d, j)];
+        if (t > m->time_s || (j > 0 && t < d->change_t[slot(d, j - 1)])) {
+            plant_message(msg, "dead-time history time %g s (entry %d) is out of order", t, j);
+            return PLANT_ERROR;
+        }
+    }
+    return PLANT_OK;
+}

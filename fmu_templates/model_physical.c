@@ -81,3 +81,15 @@ void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPos
     }
     gt_level_mm(m->dyn.depth_m, m->dyn.gate_mm, flow_m3h, PHYSICAL(m), &m->dyn.x);
 }
+
+/* A restored state: every value finite. */
+PlantStatus dynamics_check_state(const ModelData *m, PlantMessage *msg)
+{
+    const DynamicsState *d = &m->dyn;
+    if (!(isfinite(d->x) && isfinite(d->depth_m) && isfinite(d->gate_mm))) {
+        plant_message(msg, "physical state (level %g mm, depth %g m, gate %g mm) is not finite",
+                      d->x, d->depth_m, d->gate_mm);
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
+}

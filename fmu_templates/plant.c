@@ -71,15 +71,17 @@ static PlantStatus check_inputs(double opening_mm, double flow_m3h, PlantMessage
     return PLANT_OK;
 }
 
-/* Every parameter finite, knots strictly increasing, then the family's own rules. */
+/* Every parameter finite and within GT_PARAMETER_MAX_ABS, knots strictly increasing, then the
+ * family's own rules. */
 static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
 {
     int vr;
     for (vr = 0; vr < GT_N_REAL; vr++) {
         const VariableKind kind = plant_variables[vr].kind;
-        if ((kind == GT_KIND_TUNABLE || kind == GT_KIND_FIXED) && !isfinite(m->real[vr])) {
-            plant_message(msg, "parameter %s = %.17g must be finite", plant_variables[vr].name,
-                          m->real[vr]);
+        if ((kind == GT_KIND_TUNABLE || kind == GT_KIND_FIXED) &&
+            !(fabs(m->real[vr]) <= GT_PARAMETER_MAX_ABS)) {
+            plant_message(msg, "parameter %s = %.17g must be finite with |value| <= %g",
+                          plant_variables[vr].name, m->real[vr], GT_PARAMETER_MAX_ABS);
             return PLANT_ERROR;
         }
     }
@@ -108,18 +110,67 @@ static PlantStatus check_parameters_if_changed(ModelData *m, PlantMessage *msg)
     return PLANT_OK;
 }
 
-/* Warn once per instance when the discharge leaves the knots' range (parameters clamp). */
-static PlantStatus check_flow_range(ModelData *m, double flow_m3h, PlantMessage *msg)
+/* Warn with `text` when value lies outside [lo, hi]. */
+static int outside(PlantMessage *msg, const char *name, double value, double lo, double hi,
+                   const char *unit)
 {
-    const double lo = m->real[VR_COL_FLOW_M3H];
-    const double hi = m->real[VR_COL_FLOW_M3H + GT_N_KNOTS - 1];
-    if (!(lo <= flow_m3h && flow_m3h <= hi) && !m->warned_flow_range) {
-        m->warned_flow_range = 1;
+    if (lo <= value && value <= hi) {
+        return 0;
+    }
+    plant_message(msg, "%s %g outside the model's validity %g..%g %s; results are extrapolated",
+                  name, value, lo, hi, unit);
+    return 1;
+}
+
+/* Warn once per instance, the first time the opening, the discharge or the level leaves the
+ * model's validity envelope (model_config.h). Without a stated discharge range the schedule's
+ * knots are the discharge's range (outside them the parameters clamp). */
+static PlantStatus check_validity(ModelData *m, double opening_mm, double flow_m3h,
+                                  double level_mm, PlantMessage *msg)
+{
+    const double knot_lo = m->real[VR_COL_FLOW_M3H];
+    const double knot_hi = m->real[VR_COL_FLOW_M3H + GT_N_KNOTS - 1];
+    int left;
+    if (m->warned_validity) {
+        return PLANT_OK;
+    }
+    left = GT_VALIDITY_OPENING &&
+           outside(msg, "opening_mm", opening_mm, GT_VALIDITY_OPENING_MIN,
+                   GT_VALIDITY_OPENING_MAX, GT_VALIDITY_OPENING_UNIT);
+    left = left || (GT_VALIDITY_FLOW &&
+                    outside(msg, "flow_m3h", flow_m3h, GT_VALIDITY_FLOW_MIN,
+                            GT_VALIDITY_FLOW_MAX, GT_VALIDITY_FLOW_UNIT));
+    if (!left && !GT_VALIDITY_FLOW && !(knot_lo <= flow_m3h && flow_m3h <= knot_hi)) {
         plant_message(msg,
                       "flow_m3h = %.17g outside the schedule's validity range [%.17g, %.17g]; "
                       "parameters clamped (warned once per instance)",
-                      flow_m3h, lo, hi);
+                      flow_m3h, knot_lo, knot_hi);
+        left = 1;
+    }
+    left = left || (GT_VALIDITY_LEVEL &&
+                    outside(msg, plant_variables[VR_OUTPUT].name, level_mm,
+                            GT_VALIDITY_LEVEL_MIN, GT_VALIDITY_LEVEL_MAX,
+                            GT_VALIDITY_LEVEL_UNIT));
+    if (left) {
+        m->warned_validity = 1;
         return PLANT_WARNING;
+    }
+    return PLANT_OK;
+}
+
+/* The output after initialisation or a step: finite, or an error saying when. */
+static PlantStatus finite_output(const ModelData *m, const char *when, double *level_mm,
+                                 PlantMessage *msg)
+{
+    if (plant_output(m, level_mm, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    if (!isfinite(*level_mm)) {
+        plant_message(msg,
+                      "%s = %g %s is not finite: the parameters (or an unstable model) drive "
+                      "the level beyond any number; restore a state or reset",
+                      plant_variables[VR_OUTPUT].name, *level_mm, when);
+        return PLANT_ERROR;
     }
     return PLANT_OK;
 }
@@ -167,7 +218,7 @@ static PlantStatus equilibrium(const ModelData *m, double *u, KnotPosition *at, 
 PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
 {
     KnotPosition at;
-    double u, x0;
+    double u, x0, level;
     if (equilibrium(m, &u, &at, &x0, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
@@ -177,7 +228,10 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
     m->flow_in_force_m3h = m->real[VR_FLOW_M3H];
     m->parameters_changed = 0;
     m->initialized = 1;
-    return check_flow_range(m, m->flow_in_force_m3h, msg);
+    if (finite_output(m, "at initialisation", &level, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    return check_validity(m, m->real[VR_OPENING_MM], m->flow_in_force_m3h, level, msg);
 }
 
 PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
@@ -187,8 +241,14 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     if (check_inputs(opening_mm, flow_m3h, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
-    if (!(step_s > 0.0 && step_s < INFINITY)) {
-        plant_message(msg, "communication step %.17g s must be > 0 and finite", step_s);
+    if (!(step_s > 0.0 && step_s <= GT_MAX_COMMUNICATION_STEP_S)) {
+        plant_message(msg, "communication step %.17g s must be > 0 and at most %g s (the limit)",
+                      step_s, GT_MAX_COMMUNICATION_STEP_S);
+        return PLANT_ERROR;
+    }
+    if (!(fabs(m->time_s + step_s) <= GT_MAX_TIME_S)) {
+        plant_message(msg, "communication step to t = %.17g s passes the time limit %g s",
+                      m->time_s + step_s, GT_MAX_TIME_S);
         return PLANT_ERROR;
     }
     if (check_parameters_if_changed(m, msg) != PLANT_OK) {
@@ -201,10 +261,13 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     const KnotPosition at = plant_locate(m, flow_m3h);
     dynamics_step(m, step_s, opening_mm, &at);
     effects_step_end(m, step_s, flow_m3h);
-    const PlantStatus range = check_flow_range(m, flow_m3h, msg);
     m->flow_in_force_m3h = flow_m3h;
     m->time_s += step_s;
-    return range;
+    double level_mm;
+    if (finite_output(m, "after the step", &level_mm, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    return check_validity(m, opening_mm, flow_m3h, level_mm, msg);
 }
 
 PlantStatus plant_output(const ModelData *m, double *level_mm, PlantMessage *msg)
@@ -222,4 +285,52 @@ PlantStatus plant_output(const ModelData *m, double *level_mm, PlantMessage *msg
     }
     *level_mm = effects_output_at_rest(m, level_offset(m, &at) + x, m->real[VR_FLOW_M3H]);
     return PLANT_OK;
+}
+
+/* --- restored states --------------------------------------------------------------------- */
+
+static PlantStatus check_flags(const ModelData *m, int initialized, PlantMessage *msg)
+{
+    const int flags[3] = {m->initialized, m->warned_validity, m->parameters_changed};
+    int i;
+    for (i = 0; i < 3; i++) {
+        if (flags[i] != 0 && flags[i] != 1) {
+            plant_message(msg, "state flag %d is %d, not 0 or 1", i, flags[i]);
+            return PLANT_ERROR;
+        }
+    }
+    if (m->initialized != initialized) {
+        plant_message(msg, "state says initialised = %d, its mode needs %d", m->initialized,
+                      initialized);
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
+}
+
+PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage *msg)
+{
+    int vr;
+    if (check_flags(m, initialized, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    if (!(fabs(m->time_s) <= GT_MAX_TIME_S) || !isfinite(m->flow_in_force_m3h)) {
+        plant_message(msg, "state time %g s or discharge %g m3/h is not finite or beyond %g s",
+                      m->time_s, m->flow_in_force_m3h, GT_MAX_TIME_S);
+        return PLANT_ERROR;
+    }
+    for (vr = 0; vr < GT_N_REAL; vr++) {
+        if (!isfinite(m->real[vr])) {
+            plant_message(msg, "state value of %s = %g is not finite", plant_variables[vr].name,
+                          m->real[vr]);
+            return PLANT_ERROR;
+        }
+    }
+    /* parameters the state says were checked must pass the checks */
+    if (!m->parameters_changed && check_parameters(m, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    if (dynamics_check_state(m, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    return effects_check_state(m, msg);
 }

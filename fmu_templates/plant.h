@@ -39,7 +39,7 @@ typedef struct {
     double real[GT_N_REAL];   /* every Real variable, indexed by value reference */
     double flow_in_force_m3h; /* discharge of the last step: selects level_ref for the output */
     int initialized;          /* plant_initialize succeeded */
-    int warned_flow_range;    /* the out-of-range discharge warning was given */
+    int warned_validity;      /* the validity warning (envelope or schedule range) was given */
     int parameters_changed;   /* parameters were set since they were last checked */
     DynamicsState dyn;        /* the family's state; dyn.x is the deviation from level_ref, mm */
     EffectState fx;           /* the effect blocks' state */
@@ -65,6 +65,9 @@ void plant_set_defaults(ModelData *m);
 PlantStatus plant_initialize(ModelData *m, PlantMessage *msg);
 PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg);
 PlantStatus plant_output(const ModelData *m, double *level_mm, PlantMessage *msg);
+/* Whether m can be restored: every double finite, every index and count in range, flags 0 or
+ * 1, initialised exactly when `initialized` says, checked parameters still valid. */
+PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage *msg);
 
 /* Implemented once per family (model_fopdt.c, model_arx.c); called by plant.c only.
  * dynamics_check_step and dynamics_step get the commanded opening: the family runs the input
@@ -76,9 +79,12 @@ void dynamics_initialize(ModelData *m, double u_mm, double x0_mm);
 PlantStatus dynamics_check_step(const ModelData *m, double step_s, double command_mm,
                                 PlantMessage *msg);
 void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPosition *at);
+/* The family's state of a restored FMU state: finite, indices and counts in range. */
+PlantStatus dynamics_check_state(const ModelData *m, PlantMessage *msg);
 
 /* Implemented in effects.c (identity or no-op for the blocks a model does not carry). */
 PlantStatus effects_check_parameters(const ModelData *m, PlantMessage *msg);
+PlantStatus effects_check_state(const ModelData *m, PlantMessage *msg);
 double effects_input(const ModelData *m, double gate_mm);
 void effects_actuate(const ModelData *m, EffectState *fx, double command_mm, double duration_s);
 void effects_fopdt_parameters(const ModelData *m, double flow_m3h, double *gain,

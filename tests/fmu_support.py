@@ -7,6 +7,7 @@ import subprocess
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from xml.etree import ElementTree as ET
 
 import numpy as np
 from fmpy import calloc, extract, free, read_model_description
@@ -202,3 +203,42 @@ def compile_host(sources: Path, out: Path, extra: tuple[str, ...] = ()) -> None:
          "-I", str(sources), "-o", str(out), str(TESTS / "fmu_host.c"), "-ldl", "-lm"],
         check=True, capture_output=True, text=True,
     )
+
+
+#: Flags of a sanitised build: any address or undefined-behaviour report aborts the process.
+SANITIZE = (
+    "-fsanitize=address,undefined,float-cast-overflow", "-fno-sanitize-recover=all",
+    "-fno-omit-frame-pointer", "-g",
+)
+
+
+def sanitizers_work(folder: Path) -> bool:
+    """Whether the C compiler builds and runs a program with :data:`SANITIZE`."""
+    probe = folder / "probe.c"
+    probe.write_text("int main(void) { return 0; }\n")
+    try:
+        built = subprocess.run([compiler(), *SANITIZE, "-o", str(folder / "probe"), str(probe)],
+                               capture_output=True)  # fmt: skip
+        return built.returncode == 0 and subprocess.run([str(folder / "probe")]).returncode == 0
+    except OSError:
+        return False
+
+
+def build_fuzzer(extracted: Path, out_dir: Path) -> tuple[Path, Path]:
+    """The FMU's binary rebuilt from its ``sources/`` and tests/fmu_fuzz.c compiled against
+    them, both with :data:`SANITIZE`; returns ``(binary, fuzzer)``."""
+    from gatetwin.fmu.c_build import compile_shared
+
+    md = read_model_description(str(extracted))
+    sources = extracted / "sources"
+    binary = out_dir / f"{md.coSimulation.modelIdentifier}_sanitized.so"
+    root = ET.parse(extracted / "modelDescription.xml").getroot()
+    c_files = tuple(e.get("name") for e in root.iter("File"))
+    compile_shared(sources, c_files, binary, SANITIZE)
+    fuzzer = out_dir / f"{md.coSimulation.modelIdentifier}_fuzz"
+    subprocess.run(
+        [compiler(), "-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", *SANITIZE,
+         "-I", str(sources), "-o", str(fuzzer), str(TESTS / "fmu_fuzz.c"), "-ldl", "-lm"],
+        check=True, capture_output=True, text=True,
+    )  # fmt: skip
+    return binary, fuzzer

@@ -30,8 +30,9 @@ from gatetwin.plant.physical import PhysicalSimulator
 DELAY_HISTORY_CAPACITY = 4096
 #: Relative tolerance for "the communication step is a whole number of ARX samples".
 ARX_STEP_RTOL = 1e-9
-#: Most ARX samples one communication step may span (guards against h / Ts overflowing).
-ARX_MAX_SUBSTEPS = 1e9
+#: Most ARX samples one communication step may span: a budget of work per step (1e6 samples
+#: take milliseconds) that also guards against h / Ts overflowing.
+ARX_MAX_SUBSTEPS = 1e6
 
 
 @dataclass
