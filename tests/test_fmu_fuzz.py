@@ -19,8 +19,8 @@ import pytest
 from fmpy import extract, read_model_description
 
 from fmu_support import PLANTS, build_fuzzer, compiler, sanitizers_work
-from gatetwin._commands_model import fmu_provenance
 from gatetwin.fmu import export_fmu
+from gatetwin.fmu.provenance import fmu_provenance
 from gatetwin.modelfile import read_model_file
 from gatetwin.plant.effects import KINDS, effect_dict
 from test_plant_effects import EXAMPLES
