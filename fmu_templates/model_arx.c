@@ -3,10 +3,21 @@
  * stepped at the sample period; a communication step runs a whole number of samples, the input
  * blocks sampled at the start of each. Mirrors PlantSimulator._arx_sample / _arx_pieces in
  * gatetwin/plant/simulate.py.
+ *
+ * Envelope ARX (GT_ENVELOPE): the input is the gate law's steady level at the gate and the
+ * step's discharge, the pole a1 scaled by the pool's time constant there and the b rescaled to
+ * unit gain (blocks.c: gt_arx_pole_scaled, gt_arx_gain_rescaled); mirrors
+ * PlantSimulator._arx_envelope.
  */
 #include <math.h>
 
+#include "blocks.h"
 #include "plant.h"
+
+#if GT_ENVELOPE
+#include "kernel_support.h"
+#define KERNEL(m) (&(m)->real[VR_KERNEL_FIRST])
+#endif
 
 /* column of coefficient a_(i+1) / b_(j+1), i and j counted from 0 */
 #define COLUMN_A(m, i) (&(m)->real[VR_COL_A1 + (i) * GT_N_KNOTS])
@@ -36,6 +47,14 @@ static void coefficients(const ModelData *m, const KnotPosition *at, double a[GT
 PlantStatus dynamics_equilibrium(const ModelData *m, double u_mm, const KnotPosition *at,
                                  double *x0_mm, PlantMessage *msg)
 {
+#if GT_ENVELOPE
+    double tau_s;
+    (void)at;
+    (void)msg;
+    kernel_envelope_point(KERNEL(m), u_mm + m->real[VR_OPENING_REF_MM], m->real[VR_FLOW_M3H],
+                          x0_mm, &tau_s);
+    return PLANT_OK;
+#else
     double a[GT_NA], b[GT_NB];
     double sum_a = 0.0, sum_b = 0.0;
     int i;
@@ -53,6 +72,7 @@ PlantStatus dynamics_equilibrium(const ModelData *m, double u_mm, const KnotPosi
     }
     *x0_mm = sum_b / (1.0 - sum_a) * u_mm;
     return PLANT_OK;
+#endif
 }
 
 void dynamics_initialize(ModelData *m, double u_mm, double x0_mm)
@@ -64,7 +84,7 @@ void dynamics_initialize(ModelData *m, double u_mm, double x0_mm)
         d->x_hist[i] = x0_mm;
     }
     for (i = 0; i < GT_ARX_U_LAGS; i++) {
-        d->u_hist[i] = u_mm;
+        d->u_hist[i] = GT_ENVELOPE ? x0_mm : u_mm; /* an envelope ARX's input is a level */
     }
 }
 
@@ -137,7 +157,23 @@ void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPos
         double x_new;
         effects_actuate(m, &m->fx, command_mm, duration);
         m->fx.held_gate_mm = m->fx.gate_mm;
+#if GT_ENVELOPE
+        {
+            const double tau_ref = plant_interp(at, &m->real[VR_COL_TIME_CONSTANT_REF_S]);
+            double level_mm, tau_s, a_now[GT_NA], b_now[GT_NB];
+            int j;
+            kernel_envelope_point(KERNEL(m),
+                                  effects_input(m, m->fx.gate_mm) + m->real[VR_OPENING_REF_MM],
+                                  m->real[VR_FLOW_M3H], &level_mm, &tau_s);
+            a_now[0] = gt_arx_pole_scaled(a[0], tau_ref, tau_s);
+            for (j = 0; j < GT_NB; j++) {
+                b_now[j] = gt_arx_gain_rescaled(b[j], a[0], a_now[0]);
+            }
+            x_new = sample_step(&m->dyn, a_now, b_now, level_mm);
+        }
+#else
         x_new = sample_step(&m->dyn, a, b, effects_input(m, m->fx.gate_mm));
+#endif
         effects_lag_sample(m, level_ref + x_new, ts);
         effects_seiche_piece(m, ts, m->fx.gate_mm);
         duration = ts;

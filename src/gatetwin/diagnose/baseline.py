@@ -137,13 +137,19 @@ def model_baseline(plant: Plant, data: DiagnosisData, path: str) -> Baseline:
 
     An envelope FOPDT is diagnosed in its local form (its schedule on the operating line,
     without ``envelope``): the effect blocks and the fast simulator render the local FOPDT
-    and ARX only; the source says so. A physical model is refused for the same reason.
+    and ARX only; the source says so. A physical model and an envelope ARX are refused for
+    the same reason.
     """
     if plant.gauge != data.gauge:
         raise IdentificationError(f"model {path} is of gauge {plant.gauge}, not {data.gauge}")
     if isinstance(plant, PhysicalPlant):
         raise IdentificationError(
             f"model {path} is a physical model; the diagnosis takes FOPDT and ARX models"
+        )
+    if isinstance(plant, ArxPlant) and plant.envelope is not None:
+        raise IdentificationError(
+            f"model {path} is an envelope ARX (its input is the gate law's level, not the "
+            "opening); diagnose against the record's own baseline or an FOPDT model"
         )
     source = f"model file {path}"
     if isinstance(plant, FopdtPlant) and plant.envelope is not None:

@@ -259,10 +259,10 @@ def _variables(plant: Plant) -> list[VariableSpec]:
 
 def kernel_parameters(plant: Plant) -> tuple[str, dict[str, float]] | None:
     """``(variable prefix, values)`` of the physical kernel's parameters a plant carries:
-    ``physical.*`` for the physical family, ``envelope.*`` for an envelope FOPDT."""
+    ``physical.*`` for the physical family, ``envelope.*`` for an envelope FOPDT or ARX."""
     if isinstance(plant, PhysicalPlant):
         return "physical", plant.parameters
-    if isinstance(plant, FopdtPlant) and plant.envelope is not None:
+    if isinstance(plant, FopdtPlant | ArxPlant) and plant.envelope is not None:
         return "envelope", plant.envelope
     return None
 
@@ -279,6 +279,8 @@ def _column_meta(name: str, kind: str) -> tuple[str, str]:
         return ("mm", "Datum correction added to the level (0 as identified)")
     if name in _FOPDT_COLUMNS:
         return _FOPDT_COLUMNS[name]
+    if name == "time_constant_ref_s":
+        return ("s", "Envelope ARX: the pool's time constant where a1 was identified")
     if name.startswith("a"):
         return ("mm/mm", f"ARX coefficient {name} of x(k-{name[1:]})")
     return ("mm/mm", f"ARX coefficient {name} of the input, lag nk+{int(name[1:]) - 1}")
@@ -409,8 +411,8 @@ def _validity_config_lines(desc: FmuDescription) -> list[str]:
 
 
 def _kernel_config_lines(desc: FmuDescription) -> list[str]:
-    """The physical kernel's parameter block (physical family, envelope FOPDT)."""
-    envelope = int(desc.family == "fopdt" and desc.kernel_first is not None)
+    """The physical kernel's parameter block (physical family, envelope FOPDT and ARX)."""
+    envelope = int(desc.family in ("fopdt", "arx") and desc.kernel_first is not None)
     lines = [f"#define GT_ENVELOPE {envelope}"]
     if desc.kernel_first is None:
         return lines

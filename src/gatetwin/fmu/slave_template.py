@@ -27,7 +27,10 @@ from gatetwin.plant import physical_kernel  # replaced at export by the module's
 # END gatetwin.plant.physical_kernel
 # BEGIN gatetwin.plant.blocks
 from gatetwin.plant.blocks import (  # replaced by the module's source at export
+    arx_gain_rescaled,
+    arx_pole_scaled,
     first_order,
+    flow_scaled,
     gain_map,
     grid_index_at_or_after,
     lag_interval,
@@ -325,7 +328,7 @@ class GatetwinPlant(Fmi2Slave):
                 )
 
     def _envelope(self) -> bool:
-        return CONFIG["family"] == "fopdt" and CONFIG["kernel_first"] is not None
+        return CONFIG["family"] in ("fopdt", "arx") and CONFIG["kernel_first"] is not None
 
     def _envelope_point(self, u: float, q: float) -> tuple[float, float]:
         """Steady level and time constant at the opening u + opening_ref (kernel_support.c)."""
@@ -400,9 +403,10 @@ class GatetwinPlant(Fmi2Slave):
         k = self._at("gain_mm_per_mm", q)
         tau = self._at("time_constant_s", q)
         if self._has("flow_dependent_gain"):
-            dq = q - self._p("flow_dependent_gain", "flow_ref_m3h")
-            k = k * math.exp(self._p("flow_dependent_gain", "gain_slope_per_m3h") * dq)
-            tau = tau * math.exp(self._p("flow_dependent_gain", "time_constant_slope_per_m3h") * dq)
+            ref = self._p("flow_dependent_gain", "flow_ref_m3h")
+            k = flow_scaled(k, self._p("flow_dependent_gain", "gain_slope_per_m3h"), q, ref)
+            tau = flow_scaled(tau, self._p("flow_dependent_gain", "time_constant_slope_per_m3h"),
+                              q, ref)
         return k, tau
 
     def _fopdt_check_step(self, h: float, command: float) -> None:
@@ -491,7 +495,7 @@ class GatetwinPlant(Fmi2Slave):
                     self.fx["sensed_mm"], level_ref + target, d["x"] - target, t_next - t, tau,
                     self._p("sensor_lag", "time_constant_s"),
                 )
-            d["x"] = target + (d["x"] - target) * math.exp(-(t_next - t) / tau)
+            d["x"] = first_order(d["x"], target, t_next - t, tau)
             t = t_next
         while len(times) > 1 and times[1] + d["max_dead_time_s"] <= t1:
             del times[0]
@@ -510,6 +514,8 @@ class GatetwinPlant(Fmi2Slave):
         return a, b
 
     def _arx_equilibrium(self, u: float, q: float) -> float:
+        if self._envelope():
+            return self._envelope_point(u, q)[0]
         a, b = self._arx_coefficients(q)
         sum_a = 0.0
         for value in a:
@@ -526,7 +532,15 @@ class GatetwinPlant(Fmi2Slave):
 
     def _arx_initialize(self, u: float, x0: float) -> None:
         na, nb, nk = CONFIG["arx_orders"]
-        self.dyn = {"x": x0, "x_hist": [x0] * na, "u_hist": [u] * (nk + nb - 1)}
+        u_in = x0 if self._envelope() else u  # an envelope ARX's input is a level
+        self.dyn = {"x": x0, "x_hist": [x0] * na, "u_hist": [u_in] * (nk + nb - 1)}
+
+    def _arx_envelope(self, u: float, q: float, a: list[float], b: list[float]
+                      ) -> tuple[float, list[float], list[float]]:  # fmt: skip
+        """The gate law's steady level and the coefficients scaled there (model_arx.c)."""
+        level, tau = self._envelope_point(u, q)
+        a1 = arx_pole_scaled(a[0], self._at("time_constant_ref_s", q), tau)
+        return level, [a1], [arx_gain_rescaled(b_j, a[0], a1) for b_j in b]
 
     def _arx_samples(self, h: float) -> int:
         period = self.real[self._vr("sample_period_s")]
@@ -546,7 +560,7 @@ class GatetwinPlant(Fmi2Slave):
 
     def _arx_step(self, n: int, command: float, q: float) -> None:
         _, _, nk = CONFIG["arx_orders"]
-        a, b = self._arx_coefficients(q)
+        a, b = a0, b0 = self._arx_coefficients(q)
         d, fx = self.dyn, self.fx
         ts = self.real[self._vr("sample_period_s")]
         level_ref = self._at("level_ref_mm", q)
@@ -556,6 +570,8 @@ class GatetwinPlant(Fmi2Slave):
             self._actuate(fx, command, duration)
             fx["held_gate_mm"] = fx["gate_mm"]
             u = self._effective_input(fx["gate_mm"])
+            if self._envelope():
+                u, a, b = self._arx_envelope(u, q, a0, b0)
             d["u_hist"] = [u, *d["u_hist"][:-1]]
             x_new = 0.0
             for i, a_i in enumerate(a):

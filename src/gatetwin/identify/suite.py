@@ -19,6 +19,7 @@ import numpy as np
 
 from gatetwin._sidecar import VALIDATION_ROLE
 from gatetwin.errors import IdentificationError
+from gatetwin.identify.arx_envelope import envelope_arx, fit_condition
 from gatetwin.identify.discrete_select import select_discrete
 from gatetwin.identify.fopdt_driven import fit_fopdt_driven
 from gatetwin.identify.physical import data_ranges, fit_physical
@@ -34,7 +35,7 @@ from gatetwin.identify.schedule import (
 )
 from gatetwin.identify.step import StepIdentification, identify_step
 from gatetwin.modelfile import model_document, physical_document
-from gatetwin.plant.model import local_fopdt
+from gatetwin.plant.model import local_fopdt, plant_from_dict
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import Record, detect_table_kind, read_record, read_static_table
 
@@ -122,13 +123,18 @@ def _records_provenance(ident: Identified, names: list[str]) -> list[dict[str, s
     return rows
 
 
-def free_run_fit(plant: Any, record: Record, gauge: str) -> dict[str, float]:
-    """Free run of ``plant`` on ``record`` (reconstructed opening): fit %, RMSE, bias."""
+def free_run_fit(plant: Any, record: Record, gauge: str, grid: bool = False
+                 ) -> dict[str, float]:  # fmt: skip
+    """Free run of ``plant`` on ``record`` (reconstructed opening): fit %, RMSE, bias.
+
+    ``grid``: on the record's nominal sample grid (as the FMU harness drives a discrete
+    model), not its logged times."""
     e = reconstructed_opening(record.time_s, record.opening_mm, record.hold)
     y = record.levels_mm[gauge]
+    t = np.arange(record.n_samples) * record.sample_period_s if grid else record.time_s
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", RuntimeWarning)
-        y_sim = simulate(plant, record.time_s, e, record.flow_m3h)
+        y_sim = simulate(plant, t, e, record.flow_m3h)
     ok = np.isfinite(y)
     err = y_sim[ok] - y[ok]
     fit = 100.0 * (1.0 - np.linalg.norm(err) / np.linalg.norm(y[ok] - np.mean(y[ok])))
@@ -209,7 +215,8 @@ def fopdt_model(ident: Identified, gauge: str,
     return doc
 
 
-def arx_model(ident: Identified, gauge: str = ARX_GAUGE) -> dict[str, Any]:
+def arx_model(ident: Identified, gauge: str = ARX_GAUGE,
+              physical: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
     """The discrete model file of ``gauge``, scheduled over the PRBS conditions.
 
     Beside the paper's equation-error ARX, output error, ARMAX and Box-Jenkins are fitted at
@@ -234,6 +241,8 @@ def arx_model(ident: Identified, gauge: str = ARX_GAUGE) -> dict[str, Any]:
     metrics = {name: {"one_step": res.to_dict()["one_step"],
                       "simulation": res.to_dict()["simulation"]}
                for name, res in ident.prbs.items()}  # fmt: skip
+    if physical is not None:
+        return _envelope_arx_model(ident, gauge, physical, metrics, scores)
     doc = model_document(
         f"arx_{gauge}", plant,
         description=f"Discrete model {ARX_ORDERS} of the level at gauge {gauge} "
@@ -251,6 +260,47 @@ def arx_model(ident: Identified, gauge: str = ARX_GAUGE) -> dict[str, Any]:
                                 "structures": scores}},
     )  # fmt: skip
     doc["structure"] = structure
+    return doc
+
+
+def _envelope_arx_model(ident: Identified, gauge: str, physical: dict[str, Any],
+                        metrics: dict[str, Any], scores: dict[str, Any]) -> dict[str, Any]:
+    """The discrete model across the envelope (:mod:`gatetwin.identify.arx_envelope`), with
+    the local structures' comparison kept in its provenance."""
+    phys_plant = plant_from_dict(physical["plant"])
+    nb, nk = ARX_ORDERS[1], ARX_ORDERS[2]
+    conds = [fit_condition(name, ident.records[name], phys_plant, nb=nb, nk=nk)
+             for name in ident.prbs]  # fmt: skip
+    ts = ident.records[next(iter(ident.prbs))].sample_period_s
+    plant = envelope_arx(conds, phys_plant, ts, nb=nb, nk=nk)
+    fits = {n: free_run_fit(plant, r, gauge, grid=True) for n, r in ident.records.items()
+            if role_of(r) != "fit" and gauge in r.levels_mm}  # fmt: skip
+    doc = model_document(
+        f"arx_{gauge}", plant,
+        description=f"Discrete model of the level at gauge {gauge} across the envelope: "
+        f"ARX(1,{nb},{nk}) on the gate law's steady level (a Hammerstein input) with unit "
+        "gain, its pole following the pool's time constant; fitted by output error at "
+        f"{len(conds)} PRBS conditions and scheduled on discharge between them",
+        conditions=[c.to_dict() for c in sorted(conds, key=lambda c: c.flow_m3h)],
+        rating=ident.ratings[gauge].to_dict(),
+        operating_openings_mm=[c.opening_mm for c in sorted(conds, key=lambda c: c.flow_m3h)],
+        opening_band_mm=OPENING_BAND_MM,
+        provenance={"method": f"ARX(1,{nb},{nk}) by output error (simulation error) at each "
+                    "PRBS condition on the physical model's steady level, unit gain, pole "
+                    "scaled by the storage's time constant across the envelope; beside it the "
+                    f"local ARX, OE, ARMAX and BJ {ARX_ORDERS} fits of each condition",
+                    "records": _records_provenance(ident, list(ident.prbs)),
+                    "metrics": {"per_condition": metrics, "structures": scores,
+                                "envelope_conditions": [c.to_dict() for c in conds],
+                                "validation_records": fits}},
+    )  # fmt: skip
+    doc["validity"].update({k: physical["validity"][k]
+                            for k in ("flow_m3h", "opening_range_mm", "level_range_mm")})
+    doc["validity"]["outside"] = (
+        "the gate law and storage are extrapolated; a warning is logged once when an input "
+        "or the level leaves the range")
+    doc["structure"] = "oe"
+    doc["form"] = "envelope"
     return doc
 
 
@@ -309,6 +359,6 @@ def identify_folder(folder: Path, progress: Any = None) -> Identified:
         ident.models[physical["name"]] = physical
         ident.held_out[gauge] = doc["provenance"]["metrics"]["held_out"]
     if ident.prbs:
-        doc = arx_model(ident)
+        doc = arx_model(ident, physical=ident.models.get(f"physical_{ARX_GAUGE}"))
         ident.models[doc["name"]] = doc
     return ident

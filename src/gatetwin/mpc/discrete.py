@@ -302,6 +302,11 @@ def _lagged_fopdt(gain: float, tau: float, delay: float, lag_s: float, ts: float
 
 
 def _arx_model(plant: ArxPlant, fx: EffectSet, q: float, ts: float) -> DiscreteModel:
+    if plant.envelope is not None:
+        raise ControlError(
+            "arx: an envelope ARX's input is the gate law's steady level, not the opening; "
+            "control on the envelope FOPDT (re-linearised) or a local ARX"
+        )
     if abs(plant.sample_period_s - ts) > DELAY_SPLIT_RTOL * ts:
         raise ControlError(
             f"arx: sample period {plant.sample_period_s} s differs from the control period "

@@ -112,16 +112,21 @@ class PlantSimulator:
             self.history_t = [time_s]
             self.history_u = [u]
         else:
-            a, b = p.coefficients(flow_m3h)
-            sum_a = _sum_in_order(a)
-            if sum_a == 1.0:
-                raise SimulationError(
-                    f"arx: no equilibrium at flow_m3h = {flow_m3h} (sum of a coefficients is 1)"
-                )
-            x0 = _sum_in_order(b) / (1.0 - sum_a) * u
+            self.envelope_p = list(p.envelope.values()) if p.envelope is not None else None
+            self.envelope_memo.clear()
+            if self.envelope_p is not None:
+                # the input is the gate law's steady level: at rest the state equals it
+                x0 = u_in = self._envelope_point(u, flow_m3h)[0]
+            else:
+                a, b = p.coefficients(flow_m3h)
+                sum_a = _sum_in_order(a)
+                if sum_a == 1.0:
+                    raise SimulationError(f"arx: no equilibrium at flow_m3h = {flow_m3h} (sum "
+                                          "of a coefficients is 1)")  # fmt: skip
+                x0, u_in = _sum_in_order(b) / (1.0 - sum_a) * u, u
             self.x = x0
             self.x_hist = [x0] * p.na
-            self.u_hist = [u] * (p.nk + p.nb - 1)
+            self.u_hist = [u_in] * (p.nk + p.nb - 1)
         self._initialize_output_blocks(opening_mm, flow_m3h)
 
     def _initialize_output_blocks(self, opening_mm: float, flow_m3h: float) -> None:
@@ -191,7 +196,11 @@ class PlantSimulator:
             a, b = self.plant.coefficients(flow_m3h)
             level_ref = self.plant.schedule.at("level_ref_mm", flow_m3h)
             for gate in self._arx_pieces(n, opening_mm):
-                self._arx_sample(self._effective_input(gate), a, b, level_ref)
+                u = self._effective_input(gate)
+                if self.envelope_p is None:
+                    self._arx_sample(u, a, b, level_ref)
+                else:
+                    self._arx_sample(*self._arx_envelope(u, flow_m3h, a, b), level_ref)
                 self._seiche_piece(self.plant.sample_period_s, gate)
         self._output_blocks_step(h, flow_m3h)
         self._check_range(flow_m3h)
@@ -366,6 +375,16 @@ class PlantSimulator:
             self.es.sensed_mm = blocks.first_order(self.es.sensed_mm, level_ref + x_new,
                                                    p.sample_period_s,
                                                    self.fx.lag.time_constant_s)  # fmt: skip
+
+    def _arx_envelope(self, u: float, q: float, a: np.ndarray, b: np.ndarray
+                      ) -> tuple[float, np.ndarray, np.ndarray]:  # fmt: skip
+        """An envelope ARX's input (the gate law's steady level) and coefficients at the
+        steady point of ``u`` and ``q``: the pole scaled by the time constant there."""
+        level, tau = self._envelope_point(u, q)
+        tau_ref = self.plant.schedule.at("time_constant_ref_s", q)
+        a1 = blocks.arx_pole_scaled(float(a[0]), tau_ref, tau)
+        scaled = np.array([blocks.arx_gain_rescaled(float(bj), float(a[0]), a1) for bj in b])
+        return level, np.array([a1]), scaled
 
     def _u_lag(self, m: int, u: float) -> float:
         return u if m == 0 else self.u_hist[m]
