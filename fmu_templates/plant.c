@@ -13,49 +13,6 @@
 #include "effects.h"
 #include "plant.h"
 
-#define GT_VARIABLE_ENTRY(name, kind, start) {name, kind, start},
-const PlantVariable plant_variables[GT_N_REAL] = {GT_VARIABLES(GT_VARIABLE_ENTRY)};
-#undef GT_VARIABLE_ENTRY
-
-void plant_message(PlantMessage *msg, const char *format, ...)
-{
-    va_list args;
-    va_start(args, format);
-    vsnprintf(msg->text, sizeof msg->text, format, args);
-    va_end(args);
-}
-
-/* --- schedule: piecewise-linear in the discharge, clamped outside the knots ---------------- */
-
-KnotPosition plant_locate(const ModelData *m, double flow_m3h)
-{
-    const double *knots = &m->real[VR_COL_FLOW_M3H];
-    KnotPosition at = {0, 0.0, 1};
-    if (GT_N_KNOTS == 1 || flow_m3h <= knots[0]) {
-        return at;
-    }
-    if (flow_m3h >= knots[GT_N_KNOTS - 1]) {
-        at.index = GT_N_KNOTS - 1;
-        return at;
-    }
-    while (flow_m3h > knots[at.index + 1]) {
-        at.index++;
-    }
-    at.weight = (flow_m3h - knots[at.index]) / (knots[at.index + 1] - knots[at.index]);
-    at.clamped = 0;
-    return at;
-}
-
-double plant_interp(const KnotPosition *at, const double *column)
-{
-    if (at->clamped) {
-        return column[at->index];
-    }
-    return column[at->index] + at->weight * (column[at->index + 1] - column[at->index]);
-}
-
-/* --- checks ---------------------------------------------------------------------------------- */
-
 static PlantStatus check_inputs(double opening_mm, double flow_m3h, PlantMessage *msg)
 {
     if (!(GT_OPENING_MIN_MM <= opening_mm && opening_mm <= GT_OPENING_MAX_MM)) {

@@ -30,7 +30,7 @@ CFLAGS = (
     "-Wall", "-Wextra", "-Werror",
 )
 #: blocks.c/.h are generated from gatetwin.plant.blocks (:func:`generated_blocks`).
-COMMON_SOURCES = ("fmi2_glue.c", "plant.c", "effects.c", "blocks.c")
+COMMON_SOURCES = ("fmi2_glue.c", "plant.c", "support.c", "effects.c", "blocks.c")
 COMMON_HEADERS = (
     "fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h", "plant.h", "effects.h",
     "blocks.h",
