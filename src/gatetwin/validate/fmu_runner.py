@@ -1,8 +1,9 @@
 """Open an FMI 2.0 co-simulation FMU with fmpy and drive it with a record's inputs.
 
 * :func:`inspect_fmu` checks that a file is an FMU this harness can run (a zip whose
-  members all stay inside its folder, with a readable ``modelDescription.xml``, FMI 2.0 co-simulation, a binary for this platform,
-  Real inputs ``opening_mm`` and ``flow_m3h``) and returns its :class:`FmuInfo`;
+  members all stay inside its folder, with a readable ``modelDescription.xml``, FMI 2.0
+  co-simulation, a binary for this platform, Real inputs ``opening_mm`` and ``flow_m3h``)
+  and returns its :class:`FmuInfo`;
 * :func:`static_findings` runs fmpy's static validator;
 * :func:`communication_grid` lays the record's samples on the FMU's communication grid;
 * :func:`run_fmu` simulates the FMU freely over that grid and returns its output at every
