@@ -34,6 +34,8 @@ GAUGE_NAME = re.compile(r"[A-Za-z0-9_]{1,32}")
 #: Opening moves (mm) and steps of the short run :func:`check_finite_response` makes.
 _PROBE_MOVE_MM = 10.0
 _PROBE_STEPS = 5
+#: Most discharges probed: the knots and the midpoints between them.
+_PROBE_FLOWS = 16
 
 
 def xml_text(text: str) -> str:
@@ -53,14 +55,15 @@ def c_string_literal(text: str) -> str:
     """``"text"`` for model_config.h; :class:`ExportError` for anything but a name."""
     if not _C_LITERAL.fullmatch(text):
         shown = text[:60].encode("unicode_escape").decode("ascii")
-        raise ExportError(f"{shown!r} cannot be a C string literal of the FMU (allowed: "
+        raise ExportError(f"'{shown}' cannot be a C string literal of the FMU (allowed: "
                           "letters, digits, _ . [ ] { } -; at most 200)")  # fmt: skip
     return f'"{text}"'
 
 
 def _probe_points(plant: Plant, provenance: dict[str, Any]) -> list[tuple[float, float]]:
-    """(opening mm, discharge m³/h) where the plant is started: the schedule's end knots at
-    the reference opening (or the ends of a stated opening range)."""
+    """(opening mm, discharge m³/h) where the plant is started: the schedule's knots and the
+    midpoints between them, at the reference opening (or the ends of a stated opening
+    range)."""
     validity = provenance.get("validity") if isinstance(provenance, dict) else None
     stated = validity.get("opening_mm") if isinstance(validity, dict) else None
     if isinstance(stated, (list, tuple)) and len(stated) == 2:
@@ -71,8 +74,12 @@ def _probe_points(plant: Plant, provenance: dict[str, Any]) -> list[tuple[float,
         openings = [plant.opening_ref_mm]
     lo, hi = OPENING_RANGE_MM
     openings = [min(max(e, lo), hi - _PROBE_MOVE_MM) for e in openings if math.isfinite(e)]
-    q_lo, q_hi = plant.schedule.flow_range_m3h
-    return [(e, q) for e in openings for q in (q_lo, q_hi)]
+    knots = list(plant.schedule.flow_m3h)
+    flows = knots + [0.5 * (a + b) for a, b in zip(knots, knots[1:], strict=False)]
+    if len(flows) > _PROBE_FLOWS:  # a long schedule: its ends and evenly spread points
+        flows = [flows[round(i * (len(flows) - 1) / (_PROBE_FLOWS - 1))]
+                 for i in range(_PROBE_FLOWS)]  # fmt: skip
+    return [(e, q) for e in openings for q in sorted(set(flows))]
 
 
 def _run_probe(plant: Plant, opening_mm: float, flow_m3h: float) -> list[float]:
@@ -88,8 +95,8 @@ def _run_probe(plant: Plant, opening_mm: float, flow_m3h: float) -> list[float]:
 
 
 def check_finite_response(plant: Plant, model_name: str, provenance: dict[str, Any]) -> None:
-    """Refuse a plant whose output is not finite when started at its operating points and
-    moved by 10 mm for five steps (:class:`ExportError`, one line).
+    """Refuse a plant whose output is not finite when started at its knots (and between
+    them) and moved by 10 mm for five steps (:class:`ExportError`, one line).
 
     Inputs the plant itself refuses (:class:`~gatetwin.errors.GatetwinError`, e.g. an ARX
     without equilibrium) are left to the FMU, which refuses them the same way.

@@ -183,7 +183,7 @@ def _check_exportable(plant: Plant, model_name: str) -> None:
         )
     if not (isinstance(plant.gauge, str) and GAUGE_NAME.fullmatch(plant.gauge)):
         shown = str(plant.gauge)[:60].encode("unicode_escape").decode("ascii")
-        raise ExportError(f"gauge {shown!r} must be 1 to 32 letters, digits or _")
+        raise ExportError(f"gauge '{shown}' must be 1 to 32 letters, digits or _")
     if isinstance(plant, ArxPlant) and max(plant.na, plant.nb, plant.nk) > MAX_ARX_ORDER:
         raise ExportError(
             f"arx orders (na, nb, nk) = ({plant.na}, {plant.nb}, {plant.nk}) exceed "
