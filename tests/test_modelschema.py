@@ -190,7 +190,7 @@ def test_a_plant_with_non_finite_output_is_refused_at_export(tmp_path, change):
 
 def test_a_gauge_outside_the_name_rule_is_refused_at_export(tmp_path):
     plant = replace(PLANTS["fopdt"](), gauge="3F\x01" + "G" * 100)
-    with pytest.raises(ExportError, match=r"gauge '3F\\x01G+' must be 1 to 32"):
+    with pytest.raises(ExportError, match=r"gauge '3F\\x01G+' must be 1 to 32 characters"):
         export_fmu(plant, tmp_path / "m.fmu", backend="c", model_name="m", provenance={})
     assert list(tmp_path.iterdir()) == []
 

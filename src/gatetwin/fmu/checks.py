@@ -29,13 +29,22 @@ from gatetwin.plant.model import OPENING_RANGE_MM, ArxPlant, PhysicalPlant, Plan
 _NOT_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
 #: What a string literal of model_config.h may contain (variable names, GUID, identifier).
 _C_LITERAL = re.compile(r"[A-Za-z0-9_.\[\]{}\-]{1,200}")
-#: Gauge names an FMU accepts (as in the model-file schema).
-GAUGE_NAME = re.compile(r"[A-Za-z0-9_]{1,32}")
+#: Longest gauge name an FMU takes (its output is ``level_<gauge>_mm``, other characters
+#: than [A-Za-z0-9_] written as ``_``; model files hold only those characters).
+MAX_GAUGE_CHARS = 32
 #: Opening moves (mm) and steps of the short run :func:`check_finite_response` makes.
 _PROBE_MOVE_MM = 10.0
 _PROBE_STEPS = 5
 #: Most discharges probed: the knots and the midpoints between them.
 _PROBE_FLOWS = 16
+
+
+def gauge_name_ok(gauge: object) -> bool:
+    """A gauge name an FMU can carry: 1 to 32 characters, none a control character."""
+    from gatetwin.modelschema import text_problem
+
+    return isinstance(gauge, str) and 0 < len(gauge) <= MAX_GAUGE_CHARS and not text_problem(
+        gauge)
 
 
 def xml_text(text: str) -> str:

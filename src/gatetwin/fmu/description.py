@@ -33,7 +33,13 @@ from typing import Any
 from xml.etree import ElementTree as ET
 
 from gatetwin.errors import ExportError
-from gatetwin.fmu.checks import GAUGE_NAME, c_string_literal, check_well_formed, xml_text
+from gatetwin.fmu.checks import (
+    MAX_GAUGE_CHARS,
+    c_string_literal,
+    check_well_formed,
+    gauge_name_ok,
+    xml_text,
+)
 from gatetwin.plant import physical_kernel
 from gatetwin.plant.effects import BLOCK_FIELDS, KINDS, parameter_specs
 from gatetwin.plant.model import (
@@ -181,9 +187,10 @@ def _check_exportable(plant: Plant, model_name: str) -> None:
         raise ExportError(
             f"model_name {model_name!r} must be a C identifier (letters, digits, _; <= 64 chars)"
         )
-    if not (isinstance(plant.gauge, str) and GAUGE_NAME.fullmatch(plant.gauge)):
+    if not gauge_name_ok(plant.gauge):
         shown = str(plant.gauge)[:60].encode("unicode_escape").decode("ascii")
-        raise ExportError(f"gauge '{shown}' must be 1 to 32 letters, digits or _")
+        raise ExportError(f"gauge '{shown}' must be 1 to {MAX_GAUGE_CHARS} characters without "
+                          "control characters (the output is level_<gauge>_mm)")  # fmt: skip
     if isinstance(plant, ArxPlant) and max(plant.na, plant.nb, plant.nk) > MAX_ARX_ORDER:
         raise ExportError(
             f"arx orders (na, nb, nk) = ({plant.na}, {plant.nb}, {plant.nk}) exceed "
