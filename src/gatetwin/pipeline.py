@@ -16,7 +16,6 @@ import os
 import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +29,7 @@ from gatetwin._outdir import (
     make_world_readable,
     replace_output,
 )
+from gatetwin.bundled import bundled_records_dir
 from gatetwin.errors import PipelineError
 from gatetwin.records import detect_table_kind, read_record, read_static_table
 
@@ -68,14 +68,6 @@ class PipelineStage:
 
     title: str
     run: Callable[[PipelineContext], None]
-
-
-def bundled_records_dir() -> Path:
-    """The package data directory of bundled records (``gatetwin/data/records``)."""
-    root = resources.files("gatetwin").joinpath("data", "records")
-    if not isinstance(root, Path):
-        raise PipelineError(f"bundled records at {root} are not on the file system")
-    return root
 
 
 # --------------------------------------------------------------------------- stages
@@ -153,8 +145,8 @@ def identify_models(ctx: PipelineContext) -> None:
 
 def export_fmus(ctx: PipelineContext) -> None:
     """Export every model with both backends: ``fmus/c/NAME.fmu``, ``fmus/python/NAME.fmu``."""
-    from gatetwin._commands_model import fmu_provenance
     from gatetwin.fmu import export_fmu
+    from gatetwin.fmu.provenance import fmu_provenance
     from gatetwin.modelfile import read_model_file
 
     fmus: dict[str, list[Path]] = {"c": [], "python": []}
