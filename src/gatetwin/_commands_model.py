@@ -7,7 +7,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from gatetwin._io import write_json_atomic, write_text_atomic
+from gatetwin._io import check_writable, write_json_atomic, write_text_atomic
 from gatetwin.errors import GatetwinError, IdentificationError
 
 TEST_CHOICES = ("step", "prbs")
@@ -46,6 +46,7 @@ def run_identify(args: argparse.Namespace) -> int:
     from gatetwin.identify import identify_prbs, identify_step
     from gatetwin.records import read_record
 
+    check_writable(args.json)
     record = read_record(args.path, test=args.test)
     if record.test == "step" and args.orders is not None:
         raise GatetwinError(f"{args.path}: --orders applies to PRBS records, this is a step test")
@@ -95,6 +96,7 @@ def run_models(args: argparse.Namespace) -> int:
     from gatetwin.identify.suite import identify_folder
 
     folder = Path(args.records) if args.records else bundled_records_dir()
+    check_writable(args.out, folder=True)
     ident = identify_folder(folder)
     for path in write_models(ident.models, Path(args.out)):
         print(f"wrote {path}")
@@ -113,6 +115,7 @@ def run_export(args: argparse.Namespace) -> int:
     from gatetwin.modelfile import read_model_file
 
     model = read_model_file(args.model)
+    check_writable(args.out)
     path = export_fmu(model.plant, args.out, backend=args.backend, model_name=model.name,
                       provenance=fmu_provenance(model))  # fmt: skip
     print(f"wrote {path}")

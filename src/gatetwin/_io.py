@@ -8,17 +8,32 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from gatetwin.errors import OutputError
+
 
 def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file renamed into place."""
+    """Write ``data`` to ``path`` through a temporary file renamed into place.
+
+    Raises
+    ------
+    OutputError
+        The file cannot be written (read-only or unusable folder, disk full): one line
+        naming it; nothing is left behind.
+    """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+    except OSError as exc:
+        raise OutputError(f"{target}: cannot write ({exc.strerror or exc})") from None
     try:
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
         os.chmod(tmp, 0o644)
         os.replace(tmp, target)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise OutputError(f"{target}: cannot write ({exc.strerror or exc})") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -33,3 +48,28 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
 def write_json_atomic(path: str | os.PathLike[str], data: Any) -> Path:
     """Write ``data`` as indented JSON (NaN refused) through a temporary file."""
     return write_text_atomic(path, json.dumps(data, indent=2, allow_nan=False) + "\n")
+
+
+def check_writable(path: str | os.PathLike[str], *, folder: bool = False) -> None:
+    """Refuse early an output that cannot be written: ``path`` (a file, or a folder when
+    ``folder``) must be creatable in its nearest existing ancestor, which is probed with a
+    temporary file (permissions alone miss read-only mounts and immutable folders).
+
+    Raises
+    ------
+    OutputError
+        One line naming the output and why.
+    """
+    target = Path(path)
+    probe_dir = target if folder else target.parent
+    probe_dir = Path(os.path.abspath(probe_dir))
+    while not probe_dir.exists() and probe_dir != probe_dir.parent:
+        probe_dir = probe_dir.parent
+    if not probe_dir.is_dir():
+        raise OutputError(f"{target}: cannot write ({probe_dir} is not a folder)")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".gatetwin-probe.", dir=probe_dir)
+    except OSError as exc:
+        raise OutputError(f"{target}: cannot write ({probe_dir}: {exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(tmp)

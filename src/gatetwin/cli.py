@@ -373,6 +373,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.run(args))
     except GatetwinError as exc:
         print(f"gatetwin: error: {_one_line(str(exc))}", file=sys.stderr)
+    except OSError as exc:  # an output or input the system refuses (read-only, disk full)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"gatetwin: error: {_one_line(where + (exc.strerror or str(exc)))}",
+              file=sys.stderr)  # fmt: skip
     except KeyboardInterrupt:
         print("gatetwin: error: interrupted", file=sys.stderr)
     return EXIT_ERROR

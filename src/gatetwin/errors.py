@@ -35,5 +35,12 @@ class ExportError(GatetwinError, RuntimeError):
     """An FMU could not be built (no compiler, build failure, bad model)."""
 
 
+class OutputError(GatetwinError, OSError):
+    """An output cannot be written (read-only destination, disk full, ...).
+
+    Also an :class:`OSError`, so code catching write failures keeps doing so.
+    """
+
+
 class PipelineError(GatetwinError, RuntimeError):
     """The ``gatetwin run`` pipeline cannot run or cannot write its output directory."""

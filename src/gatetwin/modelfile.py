@@ -3,25 +3,27 @@
 A model file holds the plant (parameters with units, schedule on Q, operating point,
 validity range), the per-condition identifications it was built from, the rating relation,
 and provenance (records with their hashes, method, metrics). Its JSON Schema is
-``models/schema.json`` in the repository (and :data:`SCHEMA` here); :func:`read_model_file`
-checks a file against the parts of it that the exporters rely on.
+``models/schema.json`` in the repository (``gatetwin/data/model_schema.json`` in the
+package); :func:`read_model_file` checks a file against it, and against the size and text
+rules of :mod:`gatetwin.modelschema`, before building anything from it.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from gatetwin._io import write_json_atomic
 from gatetwin.errors import ModelFileError
+from gatetwin.modelschema import MAX_FILE_BYTES, check_model_document, parse_model_json, show
 from gatetwin.plant.model import Plant, plant_from_dict, plant_to_dict
 from gatetwin.version import __version__
 
 SCHEMA_ID = "https://gatetwin.invalid/schema/model-1.json"
 SCHEMA_VERSION = "1.0"
+SCHEMA_MAJOR = SCHEMA_VERSION.split(".")[0]
 #: The flow meter's accuracy, m³/h: a discharge this close to the validity range is inside it.
 FLOW_METER_ACCURACY_M3H = 1.0
 
@@ -195,31 +197,32 @@ def write_model_file(path: str | Path, content: dict[str, Any]) -> Path:
 
 
 def read_model_file(path: str | Path) -> ModelFile:
-    """Read and check a model file; :class:`ModelFileError` names the file and the fault."""
+    """Read and check a model file; :class:`ModelFileError` names the file and the fault.
+
+    Every rule of :mod:`gatetwin.modelschema` (size, nesting, text, the JSON Schema with its
+    physical bounds) is checked before any plant is built from the content.
+    """
     p = Path(path)
     try:
-        raw = p.read_bytes()
-        content = json.loads(raw.decode("utf-8"))
+        with p.open("rb") as handle:
+            raw = handle.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise ModelFileError(f"{p}: cannot read ({exc.strerror or exc})") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ModelFileError(f"{p}: not a JSON model file ({exc})") from None
-    if not isinstance(content, dict):
-        raise ModelFileError(f"{p}: a model file is a JSON object")
-    version = str(content.get("schema_version", ""))
-    if version.split(".")[0] != SCHEMA_VERSION.split(".")[0]:
-        raise ModelFileError(
-            f"{p}: schema_version {version or '(missing)'}; this gatetwin reads {SCHEMA_VERSION}"
-        )
-    for key in ("name", "plant", "validity", "provenance"):
-        if key not in content:
-            raise ModelFileError(f"{p}: key {key!r} missing")
     try:
+        content = parse_model_json(raw)
+        if not isinstance(content, dict):
+            raise ModelFileError("a model file is a JSON object")
+        version = content.get("schema_version", "")
+        if not (isinstance(version, str) and version.split(".")[0] == SCHEMA_MAJOR):
+            raise ModelFileError(
+                f"schema_version {show(version) if version else '(missing)'}; this gatetwin "
+                f"reads {SCHEMA_VERSION}"
+            )
+        check_model_document(content)
         plant = plant_from_dict(content["plant"])
     except ModelFileError as exc:
         raise ModelFileError(f"{p}: {exc}") from None
-    return ModelFile(str(content["name"]), plant, content, hashlib.sha256(raw).hexdigest(),
-                     str(p))  # fmt: skip
+    return ModelFile(content["name"], plant, content, hashlib.sha256(raw).hexdigest(), str(p))
 
 
 def applies_to(content: dict[str, Any], flow_m3h: float, openings_mm: Any) -> tuple[bool, str]:

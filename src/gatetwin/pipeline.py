@@ -5,7 +5,7 @@ in ``ctx.results`` and adds its own; extend the pipeline by appending a
 :class:`PipelineStage` to :data:`STAGES`. Outputs are written into a temporary sibling of
 the output directory, which is renamed into place only when every stage has succeeded:
 a failed run leaves no partial output, and an existing output directory is replaced only
-after success.
+after success and only if it is still the run's own (:mod:`gatetwin._outdir`).
 
 This module orchestrates; checking, identification and so on live in their own modules.
 """
@@ -14,19 +14,26 @@ from __future__ import annotations
 
 import os
 import shutil
-import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from gatetwin import _stages
+from gatetwin._outdir import (
+    MARKER,
+    RUN_PID_FILE,
+    check_replaceable,
+    clean_stale_work,
+    make_work_dir,
+    make_world_readable,
+    replace_output,
+)
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.errors import PipelineError
 from gatetwin.records import detect_table_kind, read_record, read_static_table
 
-#: File marking a directory as written by ``gatetwin run`` (only such are replaced).
-MARKER = ".gatetwin-run"
+__all__ = ["MARKER", "STAGES", "PipelineContext", "PipelineStage", "run_pipeline"]
 
 
 @dataclass
@@ -219,7 +226,8 @@ def run_pipeline(
     ----------
     out_dir : path
         Output directory. An existing one is replaced after success, provided it was
-        written by an earlier run (or is empty).
+        written by an earlier run (or is empty) -- checked at the start and again at the
+        moment it is replaced (see :func:`replace_output`).
     progress : callable, optional
         Receives progress lines such as ``"[2/3] checking records ..."``.
     stages : sequence of PipelineStage, optional
@@ -236,58 +244,25 @@ def run_pipeline(
     ------
     GatetwinError
         From any stage, or :class:`~gatetwin.errors.PipelineError` if ``out_dir`` cannot
-        be (re)placed. Nothing is left behind on failure.
+        be written or (re)placed. Nothing is left behind on failure, except this run's
+        output kept in a named sibling folder when ``out_dir`` changed hands meanwhile.
     """
     target = Path(out_dir).resolve()
     say = progress or (lambda _line: None)
-    _check_replaceable(target)
+    owner = check_replaceable(target)
     inputs = Path(records_dir) if records_dir is not None else bundled_records_dir()
-    target.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    clean_stale_work(target, say)
+    work = make_work_dir(target)
     try:
         ctx = PipelineContext(out_dir=work, records_dir=inputs, progress=say)
         for number, stage in enumerate(stages, 1):
             say(f"[{number}/{len(stages)}] {stage.title} ...")
             stage.run(ctx)
         (work / MARKER).write_text("written by gatetwin run\n", encoding="utf-8")
-        _make_world_readable(work)
-        _replace_directory(work, target)
+        (work / RUN_PID_FILE).unlink()
+        make_world_readable(work)
+        replace_output(work, target, owner)
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)
         raise
     return target
-
-
-def _check_replaceable(target: Path) -> None:
-    if not target.exists():
-        return
-    if not target.is_dir():
-        raise PipelineError(f"{target}: exists and is not a directory; expected an output dir")
-    if (target / MARKER).is_file() or not any(target.iterdir()):
-        return
-    raise PipelineError(
-        f"{target}: exists and was not written by 'gatetwin run'; refusing to replace it "
-        "(remove it or choose another --out)"
-    )
-
-
-def _make_world_readable(path: Path) -> None:
-    """mkdtemp makes a private directory; give it the usual permissions."""
-    umask = os.umask(0)
-    os.umask(umask)
-    path.chmod(0o777 & ~umask)
-
-
-def _replace_directory(work: Path, target: Path) -> None:
-    if not target.exists():
-        work.rename(target)
-        return
-    old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
-    old.rmdir()
-    target.rename(old)
-    try:
-        work.rename(target)
-    except OSError:
-        old.rename(target)
-        raise
-    shutil.rmtree(old, ignore_errors=True)

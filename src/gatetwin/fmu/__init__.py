@@ -15,7 +15,8 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
-from gatetwin.errors import ExportError
+from gatetwin.errors import ExportError, OutputError
+from gatetwin.fmu.checks import check_finite_response
 from gatetwin.fmu.description import FmuDescription, describe
 from gatetwin.plant.model import ArxPlant, FopdtPlant, PhysicalPlant, Plant, plant_to_dict
 
@@ -55,7 +56,10 @@ def export_fmu(
     Raises
     ------
     ExportError
-        Unknown backend, bad model name or plant, no C compiler, build failure.
+        Unknown backend, bad model name, gauge or plant, a plant whose output is not finite,
+        no C compiler, build failure.
+    OutputError
+        The FMU cannot be written where asked (read-only or missing folder, disk full).
     """
     if backend not in BACKENDS:
         raise ExportError(f"backend must be one of {', '.join(BACKENDS)} (got {backend!r})")
@@ -67,19 +71,26 @@ def export_fmu(
     if target.suffix.lower() != ".fmu":
         raise ExportError(f"output {target} must end in .fmu")
     desc = describe(plant, model_name, provenance, f"{backend}:{_code_digest(backend)}")
-    target.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
-        work = Path(tmp)
-        resources = _write_resources(plant, desc, backend, work / "resources")
-        built = work / target.name
-        if backend == "c":
-            _build_c(desc, work / "fmu", resources, built)
-        else:
-            from gatetwin.fmu.python_build import build_python_fmu
-
-            build_python_fmu(desc, work, resources, built)
-        os.replace(built, target)
+    check_finite_response(plant, model_name, provenance)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
+            _build(plant, desc, backend, Path(tmp), target)
+    except OSError as exc:
+        raise OutputError(f"{target}: cannot write the FMU ({exc.strerror or exc})") from None
     return target
+
+
+def _build(plant: Plant, desc: FmuDescription, backend: str, work: Path, target: Path) -> None:
+    resources = _write_resources(plant, desc, backend, work / "resources")
+    built = work / target.name
+    if backend == "c":
+        _build_c(desc, work / "fmu", resources, built)
+    else:
+        from gatetwin.fmu.python_build import build_python_fmu
+
+        build_python_fmu(desc, work, resources, built)
+    os.replace(built, target)
 
 
 def _code_digest(backend: str) -> str:

@@ -33,6 +33,13 @@ from typing import Any
 from xml.etree import ElementTree as ET
 
 from gatetwin.errors import ExportError
+from gatetwin.fmu.checks import (
+    MAX_GAUGE_CHARS,
+    c_string_literal,
+    check_well_formed,
+    gauge_name_ok,
+    xml_text,
+)
 from gatetwin.fmu.limits import (
     MAX_COMMUNICATION_STEP_S,
     MAX_TIME_S,
@@ -161,7 +168,7 @@ def describe(
     for name in plant.columns:
         columns[name] = _first(specs, f"schedule.{name}[1]").vr
     orders = (plant.na, plant.nb, plant.nk) if isinstance(plant, ArxPlant) else None
-    summary = _summary(plant, provenance)
+    summary = xml_text(_summary(plant, provenance))
     effects = {
         e["kind"]: {p.name: _first(specs, f"effect.{e['kind']}.{p.name}").vr
                     for p in parameter_specs(e["kind"])}
@@ -193,6 +200,10 @@ def _check_exportable(plant: Plant, model_name: str) -> None:
         raise ExportError(
             f"model_name {model_name!r} must be a C identifier (letters, digits, _; <= 64 chars)"
         )
+    if not gauge_name_ok(plant.gauge):
+        shown = str(plant.gauge)[:60].encode("unicode_escape").decode("ascii")
+        raise ExportError(f"gauge '{shown}' must be 1 to {MAX_GAUGE_CHARS} characters without "
+                          "control characters (the output is level_<gauge>_mm)")  # fmt: skip
     if isinstance(plant, ArxPlant) and max(plant.na, plant.nb, plant.nk) > MAX_ARX_ORDER:
         raise ExportError(
             f"arx orders (na, nb, nk) = ({plant.na}, {plant.nb}, {plant.nk}) exceed "
@@ -353,8 +364,8 @@ def model_config_header(desc: FmuDescription) -> str:
         "#ifndef GATETWIN_MODEL_CONFIG_H",
         "#define GATETWIN_MODEL_CONFIG_H",
         "",
-        f'#define GT_MODEL_IDENTIFIER "{desc.model_identifier}"',
-        f'#define GT_GUID "{desc.guid}"',
+        f"#define GT_MODEL_IDENTIFIER {c_string_literal(desc.model_identifier)}",
+        f"#define GT_GUID {c_string_literal(desc.guid)}",
         f'#define GT_DYNAMICS_HEADER "model_{desc.family}.h"',
         f"#define GT_N_KNOTS {desc.n_knots}",
         f"#define GT_N_REAL {len(desc.variables)}",
@@ -390,7 +401,7 @@ def model_config_header(desc: FmuDescription) -> str:
     lines += ["", "/* every Real variable in value-reference order: name, kind, start */",
               "#define GT_VARIABLES(X) \\"]
     lines += [
-        f'    X("{v.name}", {kinds[v.kind]}, {_c_double(v.start or 0.0)}) \\'
+        f"    X({c_string_literal(v.name)}, {kinds[v.kind]}, {_c_double(v.start or 0.0)}) \\"
         for v in desc.variables
     ]
     lines += ["", "#endif", ""]
@@ -494,7 +505,11 @@ class CoSimulationFlags:
 
 
 def model_description_xml(desc: FmuDescription, flags: CoSimulationFlags, tool: str) -> bytes:
-    """``modelDescription.xml`` (FMI 2.0, co-simulation) for either backend."""
+    """``modelDescription.xml`` (FMI 2.0, co-simulation) for either backend.
+
+    Every attribute passes through :func:`~gatetwin.fmu.checks.xml_text` and the result is
+    parsed back, so the file is well-formed XML whatever text the model carried.
+    """
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "2.0",
         "modelName": desc.model_identifier,
@@ -530,8 +545,13 @@ def model_description_xml(desc: FmuDescription, flags: CoSimulationFlags, tool: 
                                               "stepSize": repr(desc.step_size_s)})
     _model_variables(root, desc)
     _model_structure(root, desc)
+    for element in root.iter():
+        for key, value in element.attrib.items():
+            element.set(key, xml_text(value))
     ET.indent(root)
-    return ET.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
+    xml = ET.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
+    check_well_formed(xml, f"{desc.model_identifier}: modelDescription.xml")
+    return xml
 
 
 def _xml_bool(value: bool) -> str:

@@ -36,6 +36,8 @@ from gatetwin.plant.effects import EffectSet, parse_effects
 #: Inputs outside these bounds are physically impossible for any gate we model.
 OPENING_RANGE_MM = (0.0, 2000.0)
 FLOW_RANGE_M3H = (0.0, 5000.0)
+#: Largest ARX order a plant holds (the model-file schema's limit; the FMUs take up to 8).
+ARX_ORDER_LIMIT = 50
 
 
 @dataclass(frozen=True)
@@ -164,6 +166,12 @@ class ArxPlant:
     kind = "arx"
 
     def __post_init__(self) -> None:
+        for name in ("na", "nb", "nk"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise ModelFileError(f"arx: {name} must be an integer (got {value!r:.60})")
+            if value > ARX_ORDER_LIMIT:
+                raise ModelFileError(f"arx: {name} {value} is above the limit {ARX_ORDER_LIMIT}")
         if not (self.na >= 1 and self.nb >= 1 and self.nk >= 1):
             raise ModelFileError(
                 "arx: an exported plant needs na >= 1, nb >= 1 and nk >= 1 "
@@ -373,7 +381,15 @@ def plant_to_dict(plant: Plant) -> dict[str, Any]:
 
 
 def plant_from_dict(data: dict[str, Any]) -> Plant:
-    """Inverse of :func:`plant_to_dict`; raises :class:`ModelFileError` on bad content."""
+    """Inverse of :func:`plant_to_dict`; raises :class:`ModelFileError` on bad content.
+
+    The section is checked against the model-file schema first
+    (:func:`gatetwin.modelschema.check_plant_section`: types, integer orders, physical
+    bounds, gauge name), so nothing is built from a malformed one.
+    """
+    from gatetwin.modelschema import check_plant_section
+
+    check_plant_section(data)
     try:
         sched = dict(data["schedule"])
         knots = tuple(float(v) for v in sched.pop("flow_m3h"))
@@ -399,9 +415,9 @@ def plant_from_dict(data: dict[str, Any]) -> Plant:
         if data["kind"] == "arx":
             return ArxPlant(
                 sample_period_s=float(data["sample_period_s"]),
-                na=int(data["na"]),
-                nb=int(data["nb"]),
-                nk=int(data["nk"]),
+                na=data["na"],
+                nb=data["nb"],
+                nk=data["nk"],
                 **common,
                 envelope=envelope and envelope["parameters"],
             )

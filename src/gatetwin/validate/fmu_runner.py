@@ -1,8 +1,9 @@
 """Open an FMI 2.0 co-simulation FMU with fmpy and drive it with a record's inputs.
 
-* :func:`inspect_fmu` checks that a file is an FMU this harness can run (a zip with a
-  readable ``modelDescription.xml``, FMI 2.0 co-simulation, a binary for this platform,
-  Real inputs ``opening_mm`` and ``flow_m3h``) and returns its :class:`FmuInfo`;
+* :func:`inspect_fmu` checks that a file is an FMU this harness can run (a zip whose
+  members all stay inside its folder, with a readable ``modelDescription.xml``, FMI 2.0
+  co-simulation, a binary for this platform, Real inputs ``opening_mm`` and ``flow_m3h``)
+  and returns its :class:`FmuInfo`;
 * :func:`static_findings` runs fmpy's static validator;
 * :func:`communication_grid` lays the record's samples on the FMU's communication grid;
 * :func:`run_fmu` simulates the FMU freely over that grid, in this process, and returns its
@@ -113,14 +114,34 @@ class FmuInfo:
         }
 
 
+def unsafe_member(name: str) -> str:
+    """Why an archive member name could land outside the folder it is extracted to ("" when
+    it cannot): an absolute path, a drive letter, a ``..`` part, a NUL byte."""
+    parts = name.replace("\\", "/").split("/")
+    if name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":"):
+        return "is an absolute path"
+    if ".." in parts:
+        return "climbs out of the FMU's folder ('..')"
+    if "\0" in name:
+        return "holds a NUL byte"
+    return ""
+
+
 def _archive_names(fmu: Path) -> set[str]:
     if not fmu.is_file():
         raise ValidationError(f"{fmu}: no such file; expected an FMI 2.0 co-simulation FMU")
     try:
         with zipfile.ZipFile(fmu) as archive:
-            return set(archive.namelist())
+            names = archive.namelist()
     except (zipfile.BadZipFile, OSError) as exc:
         raise ValidationError(f"{fmu}: not an FMU (not a readable zip archive: {exc})") from None
+    for name in names:
+        why = unsafe_member(name)
+        if why:
+            shown = name[:60].encode("unicode_escape", "backslashreplace").decode("ascii")
+            raise ValidationError(f"{fmu}: refused: the archive member '{shown}' {why}; "
+                                  "an FMU's files stay inside its folder")  # fmt: skip
+    return set(names)
 
 
 def _model_description(fmu: Path) -> Any:
@@ -172,9 +193,9 @@ def inspect_fmu(path: str | Path) -> FmuInfo:
     Raises
     ------
     ValidationError
-        Missing file, not a zip archive, no or unreadable ``modelDescription.xml``, not
-        FMI 2.0 co-simulation, no binary for this platform, no Real inputs ``opening_mm``
-        and ``flow_m3h``.
+        Missing file, not a zip archive, a member with an absolute path or a ``..`` part,
+        no or unreadable ``modelDescription.xml``, not FMI 2.0 co-simulation, no binary for
+        this platform, no Real inputs ``opening_mm`` and ``flow_m3h``.
     """
     fmu = Path(path)
     names = _archive_names(fmu)
