@@ -293,7 +293,7 @@ class Model:
         check_inputs(flow_m3h=float(flow_m3h), opening_mm=float(opening_mm))
         q, e = float(flow_m3h), float(opening_mm)
         plant = self.plant
-        if isinstance(plant, ArxPlant):
+        if isinstance(plant, ArxPlant) and plant.envelope is None:
             return _arx_point(plant, q, e)
         if isinstance(plant, FopdtPlant) and plant.envelope is None:
             return _local_point(plant, q, e)

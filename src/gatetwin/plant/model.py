@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from gatetwin.errors import ModelFileError
+from gatetwin.plant import blocks
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import EffectSet, parse_effects
 
@@ -300,19 +301,27 @@ def envelope_point(opening_mm: float, flow_m3h: float, p: list[float]) -> tuple[
             kernel.time_constant_s(depth, opening_mm, flow_m3h, p))
 
 
-def local_fopdt(plant: FopdtPlant | PhysicalPlant, flow_m3h: float, opening_mm: float
-                ) -> dict[str, float]:  # fmt: skip
-    """K, T, L and the steady level of an envelope FOPDT or a physical plant at (Q, e).
+def local_fopdt(plant: FopdtPlant | ArxPlant | PhysicalPlant, flow_m3h: float,
+                opening_mm: float) -> dict[str, float]:  # fmt: skip
+    """K, T, L and the steady level of an envelope FOPDT or ARX or a physical plant at (Q, e).
 
-    K is the central difference of the steady level over ±0.5 mm of opening (mm/mm).
+    K is the central difference of the steady level over ±0.5 mm of opening (mm/mm). For an
+    envelope ARX, T is its scaled pole's time constant ``-Ts / ln a1(Q, e)`` and L its input
+    delay beyond one sample, ``(nk - 1) Ts``.
     """
     if isinstance(plant, PhysicalPlant):
         p, delay = plant.vector, 0.0
     elif isinstance(plant, FopdtPlant) and plant.envelope is not None:
         p, delay = list(plant.envelope.values()), plant.schedule.at("dead_time_s", flow_m3h)
+    elif isinstance(plant, ArxPlant) and plant.envelope is not None:
+        p, delay = list(plant.envelope.values()), (plant.nk - 1) * plant.sample_period_s
     else:
-        raise ModelFileError("local_fopdt needs an envelope FOPDT or a physical plant")
+        raise ModelFileError("local_fopdt needs an envelope FOPDT or ARX or a physical plant")
     level, tau = envelope_point(opening_mm, flow_m3h, p)
+    if isinstance(plant, ArxPlant):
+        a1 = blocks.arx_pole_scaled(plant.schedule.at("a1", flow_m3h),
+                                    plant.schedule.at("time_constant_ref_s", flow_m3h), tau)
+        tau = -plant.sample_period_s / math.log(a1)
     gain = (envelope_point(opening_mm + 0.5, flow_m3h, p)[0]
             - envelope_point(opening_mm - 0.5, flow_m3h, p)[0])  # fmt: skip
     return {"gain_mm_per_mm": gain, "time_constant_s": tau, "dead_time_s": delay,
