@@ -21,9 +21,9 @@ from gatetwin import __version__
 from gatetwin import _commands_diagnose as _diagnose_cmds
 from gatetwin import _commands_model as _model_cmds
 from gatetwin._io import write_json_atomic
-from gatetwin._sidecar import TEST_TYPES
-from gatetwin._summary import format_record_summary, format_static_summary
 from gatetwin.errors import GatetwinError, RecordError
+from gatetwin.records.sidecar import TEST_TYPES
+from gatetwin.records.summary import format_record_summary, format_static_summary
 
 #: Exit code for a refused input or a failed command.
 EXIT_ERROR = 2

@@ -1,8 +1,8 @@
 """Hold segments, step onsets, test-type detection and method sufficiency checks.
 
 Works on plain arrays (segment boundaries as index arrays) so it can be vectorised for
-records of a million samples; :mod:`gatetwin.records` wraps the results in its frozen
-classes. The rules are those of ``records.py``'s docstrings:
+records of a million samples; :mod:`gatetwin.records.record` wraps the results in its
+frozen classes. The rules are those of :func:`~gatetwin.records.read_record`:
 
 * a hold segment is a maximal run of ``hold`` samples, split where the time step exceeds
   ``GAP_FACTOR`` nominal periods (segments never bridge a logging gap) and where the
@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gatetwin._checks import Origin, column
-from gatetwin._sidecar import TEST_TYPES
+from gatetwin.records.checks import Origin, column
+from gatetwin.records.sidecar import TEST_TYPES
 
 if TYPE_CHECKING:
-    from gatetwin.records import Record, StepOnset
+    from gatetwin.records.record import Record, StepOnset
 
 #: Actuator position resolution, mm: smaller opening differences are not steps.
 RESOLUTION_MM = 1.0

@@ -11,7 +11,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
-    from gatetwin.records import Record, StaticTable
+    from gatetwin.records.record import Record
+    from gatetwin.records.static import StaticTable
 
 
 def _range(values: np.ndarray) -> dict[str, float] | None:

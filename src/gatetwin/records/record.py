@@ -1,38 +1,38 @@
-"""Test records: the one reader every command uses.
+"""Time-series records: the one reader every command uses.
 
-A record is a CSV file in the format of ``DATA_FORMAT.md`` (plus an optional JSON sidecar
-of the same stem). :func:`read_record` turns it into a frozen :class:`Record` with its hold
-segments and step onsets found, or refuses it with a :class:`~gatetwin.errors.RecordError`
-whose one-line message names the file and the row or column at fault.
-:func:`record_from_arrays` does the same for in-memory arrays (synthetic data), and
-:func:`read_static_table` reads a quasi-steady rating table.
+A record is a CSV (or Parquet) file in the format of ``DATA_FORMAT.md`` plus an optional
+JSON sidecar of the same stem. :func:`read_record` turns it into a frozen :class:`Record`
+with its hold segments and step onsets found, or refuses it with a
+:class:`~gatetwin.errors.RecordError` whose one-line message names the file and the row
+or column at fault. :func:`record_from_arrays` does the same for in-memory arrays, and
+:meth:`Record.from_pandas` for a DataFrame.
 
 This module does not identify anything; it only reads, checks and segments.
 """
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from gatetwin import _checks, _segments
-from gatetwin._checks import Origin
-from gatetwin._segments import (
-    GAP_FACTOR,
-    PRBS_MIN_STEPS,
-    PRBS_MIN_USABLE_SAMPLES,
-    RESOLUTION_MM,
-    STEP_WINDOW_SAMPLES,
+from gatetwin.errors import GatetwinError, RecordError
+from gatetwin.records import checks, segments
+from gatetwin.records.checks import FLOW_MAX_M3H, OPENING_MAX_MM, TIME_ABS_MAX_S, Origin
+from gatetwin.records.columns import (
+    TableColumns,
+    arrow_columns,
+    frozen,
+    gauge_names,
+    is_record_column,
+    require_record_columns,
 )
-from gatetwin._sidecar import TEST_TYPES, Sidecar, read_sidecar, sidecar_from_dict
-from gatetwin._summary import record_summary, static_summary
-from gatetwin._table import TableColumns, read_header, read_table
-from gatetwin.errors import RecordError
-
-_REQUIRED = ("time_s", "opening_mm", "state", "flow_m3h")
+from gatetwin.records.limits import ReadLimits
+from gatetwin.records.sidecar import Sidecar, read_sidecar, sidecar_from_dict
+from gatetwin.records.summary import record_summary
+from gatetwin.records.table import read_table
 
 
 @dataclass(frozen=True)
@@ -165,46 +165,69 @@ class Record:
         """A JSON-ready summary (what ``gatetwin check`` reports)."""
         return record_summary(self)
 
+    def to_pandas(self) -> Any:
+        """The record as a ``pandas.DataFrame`` in the columns of the data format.
 
-@dataclass(frozen=True)
-class StaticTable:
-    """A quasi-steady rating table: one row per steady operating point.
+        Columns ``time_s``, ``opening_mm``, ``state`` (``"hold"``/``"open"``),
+        ``flow_m3h`` and ``level_<G>_mm``; missing values are NaN.
 
-    Attributes
-    ----------
-    flow_m3h : ndarray
-        Discharge of each point, m³/h.
-    opening_mm : ndarray
-        Gate opening of each point, mm.
-    levels_mm : dict[str, ndarray]
-        Steady mean level per gauge, mm (NaN where not measured).
-    level_sd_mm : dict[str, ndarray]
-        Standard deviation of the level per gauge, mm, for the gauges whose
-        ``level_<G>_sd_mm`` column is present.
-    path : str
-        File the table was read from.
-    sha256 : str
-        Hash of the CSV bytes.
-    """
+        Raises
+        ------
+        GatetwinError
+            If pandas is not installed (it is not a dependency of gatetwin).
+        """
+        pandas = _import_pandas("Record.to_pandas")
+        data: dict[str, Any] = {
+            "time_s": self.time_s,
+            "opening_mm": self.opening_mm,
+            "state": np.where(self.hold, "hold", "open"),
+            "flow_m3h": self.flow_m3h,
+        }
+        data.update({f"level_{g}_mm": v for g, v in self.levels_mm.items()})
+        return pandas.DataFrame({name: np.array(v) for name, v in data.items()})
 
-    flow_m3h: np.ndarray
-    opening_mm: np.ndarray
-    levels_mm: dict[str, np.ndarray]
-    level_sd_mm: dict[str, np.ndarray]
-    path: str = ""
-    sha256: str = ""
+    @classmethod
+    def from_pandas(
+        cls,
+        frame: Any,
+        *,
+        sample_period_s: float | None = None,
+        gauges: dict[str, float] | None = None,
+        test: str | None = None,
+        metadata: dict[str, Any] | None = None,
+        path: str = "<DataFrame>",
+    ) -> Record:
+        """Check and segment a DataFrame holding the columns of the data format.
 
-    @property
-    def n_points(self) -> int:
-        return int(self.flow_m3h.size)
+        Parameters
+        ----------
+        frame : pandas.DataFrame
+            Columns ``time_s``, ``opening_mm``, ``state``, ``flow_m3h`` and one or more
+            ``level_<G>_mm`` (numbers; NaN or None for missing values); others ignored.
+        sample_period_s : float, optional
+            Nominal sample period, s; else ``metadata["sample_period_s"]``, else the
+            median time step.
+        gauges : dict[str, float], optional
+            Gauge distance upstream of the gate, m.
+        test : {"step", "prbs", "free"}, optional
+            Test type; else ``metadata["test"]``, else detected.
+        metadata : dict, optional
+            Sidecar-like contents kept on the record.
+        path : str, optional
+            Label for error messages (rows are counted from 1).
 
-    @property
-    def gauges(self) -> tuple[str, ...]:
-        return tuple(self.levels_mm)
-
-    def summary(self) -> dict[str, Any]:
-        """A JSON-ready summary (what ``gatetwin check`` reports)."""
-        return static_summary(self)
+        Raises
+        ------
+        RecordError
+            As :func:`read_record`.
+        """
+        table = _frame_columns(frame, path)
+        meta = dict(metadata or {})
+        if sample_period_s is not None:
+            meta["sample_period_s"] = sample_period_s
+        if gauges is not None:
+            meta["gauges"] = dict(gauges)
+        return _record_from_table(table, sidecar_from_dict(path, meta), test)
 
 
 @dataclass(frozen=True)
@@ -221,15 +244,25 @@ class _Columns:
 # --------------------------------------------------------------------------- public API
 
 
-def read_record(path: str | Path, test: str | None = None) -> Record:
+def read_record(
+    path: str | os.PathLike[str] | Any,
+    test: str | None = None,
+    *,
+    limits: ReadLimits | None = None,
+) -> Record:
     """Read, check and segment a time-series record.
 
     Parameters
     ----------
-    path : str or Path
-        The record's CSV file; a sidecar ``NAME.json`` next to it is read if present.
+    path : str, os.PathLike or pandas.DataFrame
+        The record's CSV file (Parquet if it ends in ``.parquet`` or ``.pq``); a sidecar
+        ``NAME.json`` next to it is read if present. A DataFrame is taken as
+        :meth:`Record.from_pandas` takes it.
     test : {"step", "prbs", "free"}, optional
         Test type from the command line; overrides the sidecar and detection.
+    limits : ReadLimits, optional
+        File size and line length limits; default :class:`ReadLimits` with the
+        ``GATETWIN_MAX_BYTES``/``GATETWIN_MAX_LINE_BYTES`` overrides.
 
     Returns
     -------
@@ -254,16 +287,21 @@ def read_record(path: str | Path, test: str | None = None) -> Record:
       segment.
     * Test type: ``test`` argument, else sidecar, else detected (no step: ``free``; 1–3
       steps between holds of ≥ 40 samples: ``step``; ≥ 4 steps: ``prbs``; else ``free``).
+    * Values beyond physics are refused: ``|time_s|`` above 1e10 s, a time step above
+      one day (``GAP_MAX_S``), an opening above 1e5 mm, a flow above 1e6 m³/h, a level
+      outside -100..2000 mm.
     * A ``step`` record needs ≥ 40 valid (finite-level) hold samples at every gauge
       before and after its first step; a ``prbs`` record ≥ 2 steps and ≥ 30 usable hold
       samples at every gauge (the first 2 of each hold segment are not usable).
     """
-    table = read_table(path, keep=_is_record_column, text_columns=("state",))
-    _require_record_columns(table)
-    origin = Origin(table.path, first_line=2)
-    columns = _record_columns(origin, table)
-    sidecar = read_sidecar(path)
-    return _build_record(origin, columns, sidecar, test, table.sha256, table.path)
+    if _is_frame(path):
+        return Record.from_pandas(path, test=test)
+    if not isinstance(path, (str, os.PathLike)):
+        raise RecordError(
+            f"{type(path).__name__} given as a record; expected a file path or a DataFrame"
+        )
+    table = read_table(path, keep=is_record_column, text_columns=("state",), limits=limits)
+    return _record_from_table(table, read_sidecar(path), test)
 
 
 def record_from_arrays(
@@ -323,133 +361,56 @@ def record_from_arrays(
     return _build_record(origin, columns, sidecar, test, "", path)
 
 
-def read_static_table(path: str | Path) -> StaticTable:
-    """Read and check a quasi-steady rating table.
-
-    Parameters
-    ----------
-    path : str or Path
-        CSV with ``flow_m3h``, ``opening_mm``, one or more ``level_<G>_mm`` and optional
-        ``level_<G>_sd_mm`` columns, one row per steady operating point.
-
-    Raises
-    ------
-    RecordError
-        With a one-line message naming the file, row or column, as :func:`read_record`.
-    """
-    table = read_table(path, keep=_is_static_column, text_columns=())
-    origin = Origin(table.path, first_line=2)
-    _require_static_columns(table)
-    flow = table.columns["flow_m3h"]
-    opening = table.columns["opening_mm"]
-    for name, values, unit in (("flow_m3h", flow, "m³/h"), ("opening_mm", opening, "mm")):
-        _checks.check_no_missing(origin, name, values)
-        _checks.check_non_negative(origin, name, values, unit)
-    levels = {g: table.columns[f"level_{g}_mm"] for g in _gauge_names(table.header)}
-    for gauge, values in levels.items():
-        _checks.check_level(origin, f"level_{gauge}_mm", values)
-    sds = {
-        g: table.columns[f"level_{g}_sd_mm"]
-        for g in levels
-        if f"level_{g}_sd_mm" in table.columns
-    }
-    for gauge, values in sds.items():
-        _checks.check_non_negative(origin, f"level_{gauge}_sd_mm", values, "mm")
-    return StaticTable(
-        flow_m3h=_frozen(flow),
-        opening_mm=_frozen(opening),
-        levels_mm={g: _frozen(v) for g, v in levels.items()},
-        level_sd_mm={g: _frozen(v) for g, v in sds.items()},
-        path=table.path,
-        sha256=table.sha256,
-    )
+def _record_from_table(table: TableColumns, sidecar: Sidecar, test: str | None) -> Record:
+    require_record_columns(table.path, table.header, tuple(table.columns))
+    origin = Origin(table.path, first_line=table.first_line)
+    columns = _record_columns(origin, table)
+    return _build_record(origin, columns, sidecar, test, table.sha256, table.path)
 
 
-def detect_table_kind(path: str | Path) -> str:
-    """``"static"`` if the header is that of a rating table, else ``"record"``.
-
-    A rating table has no ``time_s`` column but ``flow_m3h``, ``opening_mm`` and a level
-    column. Anything unreadable is called a ``"record"`` so that :func:`read_record`
-    reports what is wrong with it.
-    """
-    header = read_header(path)
-    names = set(header)
-    if "time_s" in names or not {"flow_m3h", "opening_mm"} <= names:
-        return "record"
-    return "static" if _gauge_names(header) else "record"
+def _is_frame(value: Any) -> bool:
+    """Whether ``value`` is a pandas DataFrame (without importing pandas)."""
+    kind = type(value)
+    return kind.__name__ == "DataFrame" and kind.__module__.split(".")[0] == "pandas"
 
 
-# --------------------------------------------------------------------------- columns
+def _import_pandas(what: str) -> Any:
+    try:
+        import pandas
+    except ImportError:
+        raise GatetwinError(
+            f"{what} needs pandas, which is not installed; expected 'pip install pandas'"
+        ) from None
+    return pandas
 
 
-def gauge_of_column(name: str) -> str | None:
-    """The gauge name of a level column (``"level_3F_mm"`` → ``"3F"``), else None.
+def _frame_columns(frame: Any, path: str) -> TableColumns:
+    """The record columns of a DataFrame, through Arrow like a Parquet file."""
+    import pyarrow as pa
 
-    ``level_<G>_sd_mm`` columns are not level columns.
-    """
-    if not (name.startswith("level_") and name.endswith("_mm")):
-        return None
-    gauge = name[len("level_") : -len("_mm")]
-    if not gauge or gauge.endswith("_sd"):
-        return None
-    return gauge
-
-
-def _gauge_names(header: tuple[str, ...]) -> list[str]:
-    return [g for g in map(gauge_of_column, header) if g is not None]
-
-
-def _is_record_column(name: str) -> bool:
-    return name in _REQUIRED or gauge_of_column(name) is not None
-
-
-def _is_static_column(name: str) -> bool:
-    if name in ("flow_m3h", "opening_mm") or gauge_of_column(name) is not None:
-        return True
-    return name.startswith("level_") and name.endswith("_sd_mm")
-
-
-def _require_record_columns(table: TableColumns) -> None:
-    for name in _REQUIRED:
-        if name not in table.columns:
-            raise RecordError(
-                f"{table.path}: column '{name}': missing; expected columns time_s, "
-                f"opening_mm, state, flow_m3h and level_<G>_mm (found {_listing(table)})"
-            )
-    if not _gauge_names(table.header):
-        raise RecordError(
-            f"{table.path}: column 'level_<G>_mm': missing; expected at least one level "
-            f"column such as level_3F_mm (found {_listing(table)})"
-        )
-
-
-def _require_static_columns(table: TableColumns) -> None:
-    for name in ("flow_m3h", "opening_mm"):
-        if name not in table.columns:
-            raise RecordError(
-                f"{table.path}: column '{name}': missing; expected a rating table with "
-                f"columns flow_m3h, opening_mm and level_<G>_mm (found {_listing(table)})"
-            )
-    if not _gauge_names(table.header):
-        raise RecordError(
-            f"{table.path}: column 'level_<G>_mm': missing; expected at least one level "
-            f"column such as level_3F_mm (found {_listing(table)})"
-        )
-
-
-def _listing(table: TableColumns) -> str:
-    text = ", ".join(table.header)
-    return text if len(text) <= 120 else text[:117] + "..."
+    if not _is_frame(frame):
+        raise RecordError(f"{path}: {type(frame).__name__}; expected a pandas DataFrame")
+    names = [str(name) for name in frame.columns]
+    kept = [k for k, name in enumerate(names) if is_record_column(name.strip())]
+    try:
+        table = pa.Table.from_pandas(frame.iloc[:, kept], preserve_index=False)
+    except (pa.ArrowException, TypeError, ValueError) as exc:
+        text = " ".join(str(exc).split())[:120]
+        raise RecordError(f"{path}: a column cannot be read as numbers or text ({text}); "
+                          "expected the columns of the data format") from None
+    table = table.rename_columns([names[k] for k in kept])
+    columns = arrow_columns(path, table, keep=is_record_column, text_columns=("state",))
+    return TableColumns(path, tuple(n.strip() for n in names), columns.columns, "", 1)
 
 
 def _record_columns(origin: Origin, table: TableColumns) -> _Columns:
-    cols = table.columns
+    state = table.words("state")
     return _Columns(
-        time_s=cols["time_s"],
-        opening_mm=cols["opening_mm"],
-        hold=_checks.hold_from_state(origin, cols["state"]),
-        flow_m3h=cols["flow_m3h"],
-        levels_mm={g: cols[f"level_{g}_mm"] for g in _gauge_names(table.header)},
+        time_s=table.floats("time_s"),
+        opening_mm=table.floats("opening_mm"),
+        hold=checks.hold_from_codes(origin, state.vocabulary, state.codes),
+        flow_m3h=table.floats("flow_m3h"),
+        levels_mm={g: table.floats(f"level_{g}_mm") for g in gauge_names(table.header)},
     )
 
 
@@ -463,15 +424,15 @@ def _array_columns(
     arrays = {name: _float_array(origin, name, v) for name, v in floats.items()}
     hold_arr = np.asarray(hold)
     if hold_arr.dtype != bool:
-        raise origin.error(_checks.column("state"), "hold: expected an array of bool")
+        raise origin.error(checks.column("state"), "hold: expected an array of bool")
     n = arrays["time_s"].size
     for name, values in [*arrays.items(), ("state", hold_arr)]:
         if values.shape != (n,):
             raise origin.error(
-                _checks.column(name), f"shape {values.shape}; expected ({n},) like time_s"
+                checks.column(name), f"shape {values.shape}; expected ({n},) like time_s"
             )
     for name, values in arrays.items():
-        _checks.check_finite_or_missing(origin, name, values)
+        checks.check_finite_or_missing(origin, name, values)
     return _Columns(
         time_s=arrays["time_s"],
         opening_mm=arrays["opening_mm"],
@@ -485,7 +446,7 @@ def _float_array(origin: Origin, name: str, values: Any) -> np.ndarray:
     try:
         return np.array(values, dtype=np.float64)
     except (TypeError, ValueError):
-        raise origin.error(_checks.column(name), "expected an array of numbers") from None
+        raise origin.error(checks.column(name), "expected an array of numbers") from None
 
 
 # --------------------------------------------------------------------------- building
@@ -496,26 +457,26 @@ def _build_record(
 ) -> Record:
     _check_values(origin, cols)
     period = _sample_period(origin, cols.time_s, sidecar.sample_period_s)
-    seg = _segments.segment_holds(origin, cols.time_s, cols.opening_mm, cols.hold, period)
+    seg = segments.segment_holds(origin, cols.time_s, cols.opening_mm, cols.hold, period)
     holds = tuple(
         HoldSegment(int(a), int(b), float(e))
         for a, b, e in zip(seg.starts, seg.stops, seg.openings_mm, strict=True)
     )
-    pairs, unobserved = _segments.find_steps(seg, cols.time_s, period)
+    pairs, unobserved = segments.find_steps(seg, cols.time_s, period)
     steps = tuple(
         StepOnset(
             holds[k].stop, float(cols.time_s[holds[k].stop]), holds[k], holds[k + 1]
         )
         for k in pairs
     )
-    chosen, source = _segments.choose_test(origin, test, sidecar.test, steps)
+    chosen, source = segments.choose_test(origin, test, sidecar.test, steps)
     record = Record(
         path=path,
-        time_s=_frozen(cols.time_s),
-        opening_mm=_frozen(seg.opening_mm),
-        hold=_frozen(cols.hold),
-        flow_m3h=_frozen(cols.flow_m3h),
-        levels_mm={g: _frozen(v) for g, v in cols.levels_mm.items()},
+        time_s=frozen(cols.time_s),
+        opening_mm=frozen(seg.opening_mm),
+        hold=frozen(cols.hold),
+        flow_m3h=frozen(cols.flow_m3h),
+        levels_mm={g: frozen(v) for g, v in cols.levels_mm.items()},
         gauges_m={g: d for g, d in sidecar.gauges_m.items() if g in cols.levels_mm},
         test=chosen,
         test_source=source,
@@ -524,10 +485,10 @@ def _build_record(
         steps=steps,
         metadata=dict(sidecar.metadata),
         sha256=sha256,
-        opening_filled=_frozen(seg.filled),
+        opening_filled=frozen(seg.filled),
         unobserved_steps=unobserved,
     )
-    _segments.check_method(origin, record)
+    segments.check_method(origin, record)
     return record
 
 
@@ -536,7 +497,7 @@ def _sample_period(origin: Origin, time_s: np.ndarray, given_s: float | None) ->
     median_s = float(np.median(np.diff(time_s)))
     if given_s is None:
         return median_s
-    if median_s > _segments.GAP_FACTOR * given_s:
+    if median_s > segments.GAP_FACTOR * given_s:
         raise origin.error(
             f"sample period {given_s:g} s (sidecar field 'sample_period_s') but the median "
             f"time step is {median_s:g} s; expected the nominal sample period"
@@ -544,40 +505,21 @@ def _sample_period(origin: Origin, time_s: np.ndarray, given_s: float | None) ->
     return given_s
 
 
-def _frozen(values: np.ndarray) -> np.ndarray:
-    out = np.array(values, copy=True)
-    out.flags.writeable = False
-    return out
-
-
 def _check_values(origin: Origin, cols: _Columns) -> None:
     n = cols.time_s.size
     if n < 2:
         raise origin.error(f"{n} sample(s); expected at least 2")
-    _checks.check_no_missing(origin, "time_s", cols.time_s)
-    _checks.check_time(origin, cols.time_s)
-    _checks.check_no_missing(origin, "flow_m3h", cols.flow_m3h)
-    _checks.check_non_negative(origin, "flow_m3h", cols.flow_m3h, "m³/h")
-    _checks.check_non_negative(origin, "opening_mm", cols.opening_mm, "mm")
+    checks.check_no_missing(origin, "time_s", cols.time_s)
+    checks.check_bounds(origin, "time_s", cols.time_s, TIME_ABS_MAX_S, "s")
+    checks.check_time(origin, cols.time_s)
+    checks.check_gaps(origin, cols.time_s)
+    checks.check_no_missing(origin, "flow_m3h", cols.flow_m3h)
+    checks.check_non_negative(origin, "flow_m3h", cols.flow_m3h, "m³/h")
+    checks.check_bounds(origin, "flow_m3h", cols.flow_m3h, FLOW_MAX_M3H, "m³/h")
+    checks.check_non_negative(origin, "opening_mm", cols.opening_mm, "mm")
+    checks.check_bounds(origin, "opening_mm", cols.opening_mm, OPENING_MAX_MM, "mm")
     for gauge, values in cols.levels_mm.items():
-        _checks.check_level(origin, f"level_{gauge}_mm", values)
-    _checks.check_hold_words(origin, cols.hold)
+        checks.check_level(origin, f"level_{gauge}_mm", values)
+    checks.check_hold_words(origin, cols.hold)
 
 
-__all__ = [
-    "GAP_FACTOR",
-    "PRBS_MIN_STEPS",
-    "PRBS_MIN_USABLE_SAMPLES",
-    "RESOLUTION_MM",
-    "STEP_WINDOW_SAMPLES",
-    "TEST_TYPES",
-    "HoldSegment",
-    "Record",
-    "StaticTable",
-    "StepOnset",
-    "detect_table_kind",
-    "gauge_of_column",
-    "read_record",
-    "read_static_table",
-    "record_from_arrays",
-]

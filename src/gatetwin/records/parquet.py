@@ -1,0 +1,84 @@
+"""Parquet records: the same columns, sidecar and checks as CSV, in a binary container.
+
+A Parquet record holds the columns of ``DATA_FORMAT.md`` with numeric types (any integer
+or floating type) and ``state`` as text; null and NaN are missing values. Its rows are
+counted from 1 in messages (there is no header line). The file's uncompressed size must
+respect the same byte limit as a CSV, so a small file cannot expand without bound.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable, Sequence
+from typing import BinaryIO
+
+from gatetwin.errors import RecordError
+from gatetwin.records.checks import QUOTE_CHARS
+from gatetwin.records.columns import TableColumns, arrow_columns, check_header
+from gatetwin.records.limits import ENV_MAX_BYTES
+
+#: File name endings read as Parquet.
+PARQUET_SUFFIXES = (".parquet", ".pq")
+
+
+def read_parquet(
+    name: str,
+    handle: BinaryIO,
+    max_bytes: int,
+    *,
+    keep: Callable[[str], bool],
+    text_columns: Sequence[str],
+) -> TableColumns:
+    """Read the kept columns of an open Parquet file.
+
+    Raises
+    ------
+    RecordError
+        For a file Arrow cannot read as Parquet, one whose data would exceed
+        ``max_bytes`` uncompressed, a file without rows, or a column of the wrong type.
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    data = handle.read()
+    sha256 = hashlib.sha256(data).hexdigest()
+    try:
+        parquet = pq.ParquetFile(pa.BufferReader(data))
+        header = check_header(name, parquet.schema_arrow.names)
+        _check_size(name, parquet.metadata, max_bytes)
+        table = parquet.read(columns=[col for col in header if keep(col)])
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        raise RecordError(
+            f"{name}: not a readable Parquet file ({_short(exc)}); expected a Parquet "
+            "record with the columns of the data format"
+        ) from None
+    if table.num_rows == 0:
+        raise RecordError(f"{name}: no data rows; expected one row per sample")
+    columns = arrow_columns(name, table, keep=keep, text_columns=text_columns, sha256=sha256)
+    return TableColumns(name, header, columns.columns, sha256, first_line=1)
+
+
+def parquet_header(handle: BinaryIO) -> tuple[str, ...]:
+    """Column names of an open Parquet file; empty if it cannot be read."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        return tuple(pq.ParquetFile(handle).schema_arrow.names)
+    except (pa.ArrowException, OSError, ValueError):
+        return ()
+
+
+def _check_size(name: str, metadata: object, max_bytes: int) -> None:
+    groups = range(metadata.num_row_groups)  # type: ignore[attr-defined]
+    size = sum(metadata.row_group(i).total_byte_size for i in groups)  # type: ignore[attr-defined]
+    if size > max_bytes:
+        raise RecordError(
+            f"{name}: {size} bytes of data uncompressed, more than the limit of {max_bytes} "
+            f"bytes; raise it with --max-bytes or {ENV_MAX_BYTES} for a longer history"
+        )
+
+
+def _short(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text if len(text) <= 2 * QUOTE_CHARS else text[: 2 * QUOTE_CHARS] + "..."
