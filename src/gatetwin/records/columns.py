@@ -219,7 +219,6 @@ def arrow_columns(
 
 def _arrow_words(path: str, name: str, data: pa.ChunkedArray) -> Words:
     import pyarrow as pa_
-    import pyarrow.compute as pc_
 
     kind = data.type
     if pa_.types.is_dictionary(kind):
@@ -230,10 +229,8 @@ def _arrow_words(path: str, name: str, data: pa.ChunkedArray) -> Words:
         raise RecordError(f"{path}: {column(name)}: values of type {kind}; expected text")
     if pa_.types.is_null(kind):
         return Words(("",), np.zeros(len(data), np.int64))
-    coded = pc_.dictionary_encode(data.fill_null("")).combine_chunks()
-    vocabulary = tuple(str(word) for word in coded.dictionary.to_pylist())
-    codes = coded.indices.to_numpy(zero_copy_only=False).astype(np.int64)
-    return Words(vocabulary, codes)
+    data = data.cast(pa_.string())
+    return Words.concatenate([arrow_codes(chunk) for chunk in data.chunks])
 
 
 def _arrow_floats(path: str, name: str, data: pa.ChunkedArray) -> np.ndarray:
@@ -243,8 +240,11 @@ def _arrow_floats(path: str, name: str, data: pa.ChunkedArray) -> np.ndarray:
     if not (pa_.types.is_integer(kind) or pa_.types.is_floating(kind)
             or pa_.types.is_decimal(kind) or pa_.types.is_null(kind)):  # fmt: skip
         raise RecordError(f"{path}: {column(name)}: values of type {kind}; expected numbers")
-    values = data.cast(pa_.float64()).to_numpy()
-    values = np.array(values, dtype=np.float64, copy=not values.flags.writeable)
+    values = np.empty(len(data))
+    start = 0
+    for chunk in data.cast(pa_.float64()).chunks:
+        arrow_floats(chunk, values[start : start + len(chunk)])
+        start += len(chunk)
     bad = np.flatnonzero(np.isinf(values))
     if bad.size:
         i = int(bad[0])
@@ -260,3 +260,34 @@ def frozen(values: np.ndarray) -> np.ndarray:
     out = values if values.flags.owndata and values.base is None else np.array(values)
     out.flags.writeable = False
     return out
+
+
+def arrow_floats(array: pa.Array, out: np.ndarray) -> int:
+    """Copy a float64 Arrow array into ``out`` with NaN for nulls; returns the null count.
+
+    Reads the array's buffers directly: Arrow's own conversion of an array with nulls
+    imports pandas, which gatetwin does not depend on.
+    """
+    size = len(array)
+    validity, data = array.buffers()[:2]
+    stop = array.offset + size
+    out[:] = np.frombuffer(data, dtype=np.float64, count=stop)[array.offset :]
+    nulls = int(array.null_count)
+    if nulls and validity is not None:
+        bits = np.frombuffer(validity, dtype=np.uint8)
+        valid = np.unpackbits(bits, count=stop, bitorder="little")[array.offset :]
+        out[valid == 0] = np.nan
+    return nulls
+
+
+def arrow_codes(array: pa.Array) -> Words:
+    """Dictionary-code a string Arrow array (nulls as empty words), vocabulary stripped."""
+    import pyarrow.compute as pc
+
+    coded = pc.dictionary_encode(pc.fill_null(array, "") if array.null_count else array)
+    indices = coded.indices
+    stop = indices.offset + len(indices)
+    width = indices.type.bit_width // 8
+    codes = np.frombuffer(indices.buffers()[1], dtype=f"<i{width}", count=stop)
+    vocabulary = tuple(str(word).strip() for word in coded.dictionary.to_pylist())
+    return Words(vocabulary, codes[indices.offset :].astype(np.int64))

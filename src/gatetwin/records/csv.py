@@ -18,35 +18,42 @@ import codecs
 import hashlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import numpy as np
 
 from gatetwin.errors import RecordError
-from gatetwin.records.columns import TableColumns, Words
+from gatetwin.records.columns import TableColumns, Words, arrow_codes, arrow_floats
 from gatetwin.records.csvtext import parse_header, parse_table
 from gatetwin.records.limits import ENV_MAX_LINE_BYTES
 
 #: Bytes the pre-scan reads at a time.
 _BLOCK_BYTES = 8 << 20
-#: Bytes Arrow parses per block (and per thread).
-_ARROW_BLOCK_BYTES = 4 << 20
+#: Bytes Arrow parses per block (small blocks keep the transient memory small).
+_ARROW_BLOCK_BYTES = 512 << 10
 
 
 @dataclass
 class _Scan:
-    """What the pre-scan learnt about a file."""
+    """What the pre-scan learnt about a file (offsets in bytes from its start)."""
 
-    digest: hashlib._Hash
+    digest: Any
     header: bytes = b""
     header_done: bool = False
     clean: bool = True
     first_blank: int = -1
     last_content: int = -1
+    rows_before_last: int = 0
     line_start: int = 0
-    line_no: int = 1
+    newlines: int = 0
     offset: int = 0
     pending_cr: bool = False
+    sha256: str = ""
+
+    @property
+    def n_rows(self) -> int:
+        """Data rows of a clean file (line breaks before its last content)."""
+        return self.rows_before_last
 
 
 def read_csv(
@@ -76,11 +83,11 @@ def read_csv(
         For a line over the limit or anything :mod:`~gatetwin.records.csvtext` refuses.
     """
     scan = _prescan(name, handle, max_line_bytes)
-    sha256 = scan.digest.hexdigest()
+    sha256 = scan.sha256
     if scan.clean:
         header = parse_header(name, scan.header.decode("utf-8-sig").rstrip("\r"))
         handle.seek(0)
-        table = _read_arrow(name, handle, header, sha256, keep, text_columns)
+        table = _read_arrow(name, handle, scan, header, keep, text_columns)
         if table is not None:
             return table
     handle.seek(0)
@@ -91,21 +98,29 @@ def read_csv(
 def _prescan(name: str, handle: BinaryIO, max_line_bytes: int) -> _Scan:
     scan = _Scan(hashlib.sha256())
     decoder = codecs.getincrementaldecoder("utf-8")()
+    tail = b""
     while block := handle.read(_BLOCK_BYTES):
         scan.digest.update(block)
         if scan.clean and not _plain_text(block, decoder):
             scan.clean = False
-        _scan_lines(name, scan, block, max_line_bytes)
-        stripped = len(block.rstrip())
-        if stripped:
-            scan.last_content = scan.offset + stripped - 1
+        raw = np.frombuffer(block, dtype=np.uint8)
+        newline = raw == 10
+        has_cr = b"\r" in block
+        ends = newline | (raw == 13) if has_cr else newline
+        _check_line_lengths(name, scan, block, ends, max_line_bytes)
+        _scan_breaks(scan, tail, block, newline, has_cr)
+        _last_content(scan, block, newline)
+        scan.newlines += int(np.count_nonzero(newline))
         scan.offset += len(block)
+        tail = block[-2:]
     if scan.offset - scan.line_start > max_line_bytes:
-        _refuse_line(name, scan.line_no, scan.offset - scan.line_start, max_line_bytes)
+        _refuse_line(name, scan, b"", scan.line_start, scan.offset - scan.line_start,
+                     max_line_bytes)  # fmt: skip
     if scan.pending_cr or scan.last_content < 0:
         scan.clean = False
     if 0 <= scan.first_blank < scan.last_content:
         scan.clean = False
+    scan.sha256 = scan.digest.hexdigest()
     return scan
 
 
@@ -122,56 +137,85 @@ def _plain_text(block: bytes, decoder: codecs.IncrementalDecoder) -> bool:
     return True
 
 
-def _scan_lines(name: str, scan: _Scan, block: bytes, max_line_bytes: int) -> None:
-    """Line lengths, blank lines and lone carriage returns of one block."""
-    raw = np.frombuffer(block, dtype=np.uint8)
-    newlines = np.flatnonzero(raw == 10)
-    returns = np.flatnonzero(raw == 13)
-    if scan.pending_cr and raw[0] != 10:
-        scan.clean = False
-    inner = returns[returns + 1 < raw.size]
-    if np.any(raw[inner + 1] != 10):
-        scan.clean = False
-    scan.pending_cr = bool(returns.size and returns[-1] == raw.size - 1)
-    ends = newlines + scan.offset
-    starts = np.concatenate(([scan.line_start], ends[:-1] + 1))
-    lengths = ends - starts
-    too_long = np.flatnonzero(lengths > max_line_bytes)
+def _check_line_lengths(
+    name: str, scan: _Scan, block: bytes, ends: np.ndarray, limit: int
+) -> None:
+    """Refuse a line longer than ``limit`` bytes (``ends`` marks line ends in ``block``)."""
+    raw = ends
+    if not scan.header_done:
+        stop = block.find(b"\n")
+        scan.header += block if stop < 0 else block[:stop]
+        scan.header_done = stop >= 0
+    chunk = max((limit + 1) // 2, 1)
+    whole = raw.size // chunk * chunk
+    if whole and ends[:whole].reshape(-1, chunk).any(axis=1).all():
+        if _line_before(scan, ends) <= limit:
+            scan.line_start = scan.offset + int(raw.size - 1 - np.argmax(ends[::-1])) + 1
+            return
+    positions = np.flatnonzero(ends) + scan.offset
+    starts = np.concatenate(([scan.line_start], positions + 1))
+    stops = np.concatenate((positions, [scan.offset + raw.size]))
+    too_long = np.flatnonzero(stops[:-1] - starts[:-1] > limit)
     if too_long.size:
         k = int(too_long[0])
-        _refuse_line(name, scan.line_no + k, int(lengths[k]), max_line_bytes)
-    if not scan.header_done:
-        _take_header(scan, block, newlines)
-    if scan.first_blank < 0 and newlines.size:
-        _find_blank(scan, raw, newlines, lengths)
-    if newlines.size:
-        scan.line_start = int(ends[-1]) + 1
-        scan.line_no += int(newlines.size)
+        _refuse_line(name, scan, block, int(starts[k]), int(stops[k] - starts[k]), limit)
+    scan.line_start = int(starts[-1])
+    if int(stops[-1] - starts[-1]) > limit:
+        _refuse_line(name, scan, block, int(starts[-1]), int(stops[-1] - starts[-1]), limit)
 
 
-def _take_header(scan: _Scan, block: bytes, newlines: np.ndarray) -> None:
-    if newlines.size:
-        scan.header += block[: int(newlines[0])]
-        scan.header_done = True
+def _line_before(scan: _Scan, ends: np.ndarray) -> int:
+    """Length of the line running into this block up to its first line end."""
+    return scan.offset + int(np.argmax(ends)) - scan.line_start
+
+
+def _scan_breaks(
+    scan: _Scan, tail: bytes, block: bytes, newline: np.ndarray, has_cr: bool
+) -> None:
+    """Blank lines (inside is not clean) and lone carriage returns (not clean)."""
+    blank = newline[1:] & newline[:-1]
+    if has_cr:
+        blank[1:] |= newline[2:] & (np.frombuffer(block, np.uint8)[1:-1] == 13) & newline[:-2]
+    seam = tail + block[:2]
+    found = int(np.argmax(blank)) if blank.any() else -1
+    for pattern in (b"\n\n", b"\n\r\n"):
+        at_seam = seam.find(pattern)
+        if 0 <= at_seam < len(tail):
+            found = at_seam - len(tail)
+    if found != -1 and (scan.first_blank < 0 or scan.offset + found < scan.first_blank):
+        scan.first_blank = scan.offset + found
+    if not has_cr:
+        if scan.pending_cr and not block.startswith(b"\n"):
+            scan.clean = False
+        scan.pending_cr = False
+        return
+    if scan.pending_cr and not block.startswith(b"\n"):
+        scan.clean = False
+    scan.pending_cr = block.endswith(b"\r")
+    returns = block.count(b"\r") - (1 if scan.pending_cr else 0)
+    if returns > block.count(b"\r\n"):
+        scan.clean = False
+
+
+def _last_content(scan: _Scan, block: bytes, newline: np.ndarray) -> None:
+    """Where the last non-blank byte is, and how many line breaks precede it."""
+    tail = block[-4096:].rstrip()
+    if tail:
+        stop = len(block) - 4096 + len(tail) if len(block) > 4096 else len(tail)
     else:
-        scan.header += block
+        stop = len(block.rstrip())
+    if stop:
+        scan.last_content = scan.offset + stop - 1
+        scan.rows_before_last = scan.newlines + int(np.count_nonzero(newline[:stop]))
 
 
-def _find_blank(scan: _Scan, raw: np.ndarray, newlines: np.ndarray, lengths: np.ndarray) -> None:
-    """Remember where the first blank line (empty, or a lone ``\\r``) ends."""
-    blank = lengths == 0
-    ones = np.flatnonzero(lengths == 1)
-    blank[ones] = raw[newlines[ones] - 1] == 13
-    hits = np.flatnonzero(blank[1:] if scan.line_no == 1 else blank)
-    if hits.size:
-        k = int(hits[0]) + (1 if scan.line_no == 1 else 0)
-        scan.first_blank = int(newlines[k]) + scan.offset
-
-
-def _refuse_line(name: str, line_no: int, length: int, limit: int) -> None:
+def _refuse_line(name: str, scan: _Scan, block: bytes, start: int, length: int,
+                 limit: int) -> None:  # fmt: skip
+    inside = max(start - scan.offset, 0)
+    row = scan.newlines + block.count(b"\n", 0, inside) + 1
     raise RecordError(
-        f"{name}: row {line_no}: line of {length} bytes, longer than the limit of {limit} "
-        f"bytes; expected one sample per line (raise --max-line-bytes or "
+        f"{name}: row {row}: line of {length} bytes or more, longer than the limit of "
+        f"{limit} bytes; expected one sample per line (raise --max-line-bytes or "
         f"{ENV_MAX_LINE_BYTES} for very wide records)"
     )
 
@@ -179,12 +223,17 @@ def _refuse_line(name: str, line_no: int, length: int, limit: int) -> None:
 def _read_arrow(
     name: str,
     handle: BinaryIO,
+    scan: _Scan,
     header: tuple[str, ...],
-    sha256: str,
     keep: Callable[[str], bool],
     text_columns: Sequence[str],
 ) -> TableColumns | None:
-    """The kept columns parsed by Arrow, or None if Arrow cannot read them as the format says."""
+    """The kept columns parsed by Arrow, or None if Arrow cannot read them as the format says.
+
+    Arrow parses small blocks in parallel into memory it frees at once (the system
+    allocator); each column is then copied out and released before the next, so the
+    peak is the parsed table plus one column.
+    """
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
@@ -203,10 +252,11 @@ def _read_arrow(
                 column_types=types, include_columns=list(kept), null_values=[""],
                 strings_can_be_null=False, quoted_strings_can_be_null=True,
             ),
+            memory_pool=pa.system_memory_pool(),
         )  # fmt: skip
     except (pa.ArrowException, ValueError):
         return None
-    if table.num_rows == 0:
+    if table.num_rows != scan.n_rows or table.num_rows == 0:
         return None
     parts = {label: table.column(label) for label in kept}
     del table
@@ -214,30 +264,23 @@ def _read_arrow(
     for label, col in kept.items():
         data = parts.pop(label)
         if col in text_columns:
-            columns[col] = _words(data)
+            columns[col] = Words.concatenate([arrow_codes(chunk) for chunk in data.chunks])
             continue
         values = _floats(data)
         if values is None:
             return None
         columns[col] = values
-    return TableColumns(name, header, columns, sha256)
+    return TableColumns(name, header, columns, scan.sha256)
 
 
-def _floats(data: object) -> np.ndarray | None:
-    """A float column with nulls as NaN; None if a cell was a ``nan``/``inf`` word."""
-    values = np.asarray(data.to_numpy(), dtype=np.float64)  # type: ignore[attr-defined]
-    if not values.flags.writeable:
-        values = values.copy()
+def _floats(data: Any) -> np.ndarray | None:
+    """A float column with NaN for empty cells; None if a cell was a ``nan``/``inf`` word."""
+    values = np.empty(len(data))
+    start = nulls = 0
+    for chunk in data.chunks:
+        nulls += arrow_floats(chunk, values[start : start + len(chunk)])
+        start += len(chunk)
     finite = np.isfinite(values)
-    if not finite.all() and np.count_nonzero(~finite) != data.null_count:  # type: ignore[attr-defined]
+    if not finite.all() and np.count_nonzero(~finite) != nulls:
         return None
     return values
-
-
-def _words(data: object) -> Words:
-    import pyarrow.compute as pc
-
-    coded = pc.dictionary_encode(data).combine_chunks()
-    vocabulary = tuple(str(word).strip() for word in coded.dictionary.to_pylist())
-    codes = coded.indices.to_numpy(zero_copy_only=False).astype(np.int64)
-    return Words(vocabulary, codes)
