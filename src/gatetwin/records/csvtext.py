@@ -30,7 +30,9 @@ from gatetwin.records.columns import TableColumns, Words, check_header
 _CHUNK_ROWS = 65536
 _FOREIGN_SEPARATORS = (";", "\t", "|")
 #: One cell of a numeric column: empty, or a number of the format's grammar.
-_NUMBER = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+#: Written so that a cell matches in one way only: an ambiguous pattern backtracks
+#: exponentially over a chunk of cells when one of them fails.
+_NUMBER = r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
 _CELL = re.compile(rf"[ \t]*(?:{_NUMBER}[ \t]*)?")
 _CELLS = re.compile(rf"(?:{_CELL.pattern}\n)*{_CELL.pattern}")
 

@@ -2,8 +2,9 @@
 
 A Parquet record holds the columns of ``DATA_FORMAT.md`` with numeric types (any integer
 or floating type) and ``state`` as text; null and NaN are missing values. Its rows are
-counted from 1 in messages (there is no header line). The file's uncompressed size must
-respect the same byte limit as a CSV, so a small file cannot expand without bound.
+counted from 1 in messages (there is no header line). Both the file and its decoded
+columns (rows × kept columns × 8 bytes) must respect the byte limit of a CSV, so a small,
+highly compressed file cannot expand without bound.
 """
 
 from __future__ import annotations
@@ -45,8 +46,9 @@ def read_parquet(
     try:
         parquet = pq.ParquetFile(pa.BufferReader(data))
         header = check_header(name, parquet.schema_arrow.names)
-        _check_size(name, parquet.metadata, max_bytes)
-        table = parquet.read(columns=[col for col in header if keep(col)])
+        kept = [col for col in header if keep(col)]
+        _check_size(name, parquet.metadata.num_rows * max(len(kept), 1) * 8, max_bytes)
+        table = parquet.read(columns=kept)
     except (pa.ArrowException, OSError, ValueError) as exc:
         raise RecordError(
             f"{name}: not a readable Parquet file ({_short(exc)}); expected a Parquet "
@@ -69,13 +71,13 @@ def parquet_header(handle: BinaryIO) -> tuple[str, ...]:
         return ()
 
 
-def _check_size(name: str, metadata: object, max_bytes: int) -> None:
-    groups = range(metadata.num_row_groups)  # type: ignore[attr-defined]
-    size = sum(metadata.row_group(i).total_byte_size for i in groups)  # type: ignore[attr-defined]
-    if size > max_bytes:
+def _check_size(name: str, decoded_bytes: int, max_bytes: int) -> None:
+    """Refuse a file whose kept columns would decode to more than ``max_bytes``."""
+    if decoded_bytes > max_bytes:
         raise RecordError(
-            f"{name}: {size} bytes of data uncompressed, more than the limit of {max_bytes} "
-            f"bytes; raise it with --max-bytes or {ENV_MAX_BYTES} for a longer history"
+            f"{name}: {decoded_bytes} bytes of data decoded (rows x columns x 8), more than "
+            f"the limit of {max_bytes} bytes; raise it with --max-bytes or {ENV_MAX_BYTES} "
+            "for a longer history"
         )
 
 

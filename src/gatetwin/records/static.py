@@ -113,14 +113,14 @@ def read_static_table(path: str | Path, *, limits: ReadLimits | None = None) -> 
     )
 
 
-def detect_table_kind(path: str | Path) -> str:
+def detect_table_kind(path: str | Path, *, limits: ReadLimits | None = None) -> str:
     """``"static"`` if the header is that of a rating table, else ``"record"``.
 
     A rating table has no ``time_s`` column but ``flow_m3h``, ``opening_mm`` and a level
     column. Anything unreadable is called a ``"record"`` so that
     :func:`~gatetwin.records.read_record` reports what is wrong with it.
     """
-    header = read_header(path)
+    header = read_header(path, limits)
     names = set(header)
     if "time_s" in names or not {"flow_m3h", "opening_mm"} <= names:
         return "record"
