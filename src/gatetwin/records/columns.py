@@ -291,3 +291,15 @@ def arrow_codes(array: pa.Array) -> Words:
     codes = np.frombuffer(indices.buffers()[1], dtype=f"<i{width}", count=stop)
     vocabulary = tuple(str(word).strip() for word in coded.dictionary.to_pylist())
     return Words(vocabulary, codes[indices.offset :].astype(np.int64))
+
+
+def value_range(values: np.ndarray) -> dict[str, float] | None:
+    """Mean, min and max of the finite values; None if there are none."""
+    finite = values[np.isfinite(values)]
+    if not finite.size:
+        return None
+    return {
+        "mean": float(finite.mean()),
+        "min": float(finite.min()),
+        "max": float(finite.max()),
+    }

@@ -18,72 +18,22 @@ from typing import Any
 
 import numpy as np
 
-from gatetwin.errors import GatetwinError, RecordError
+from gatetwin.errors import RecordError
 from gatetwin.records import checks, segments
 from gatetwin.records.checks import FLOW_MAX_M3H, OPENING_MAX_MM, TIME_ABS_MAX_S, Origin
 from gatetwin.records.columns import (
     TableColumns,
-    arrow_columns,
     frozen,
     gauge_names,
     is_record_column,
     require_record_columns,
+    value_range,
 )
+from gatetwin.records.frame import frame_columns, import_pandas, is_frame
 from gatetwin.records.limits import ReadLimits
+from gatetwin.records.segments import HoldSegment, StepOnset
 from gatetwin.records.sidecar import Sidecar, read_sidecar, sidecar_from_dict
-from gatetwin.records.summary import record_summary
 from gatetwin.records.table import read_table
-
-
-@dataclass(frozen=True)
-class HoldSegment:
-    """A run of consecutive ``hold`` samples at one constant opening.
-
-    Attributes
-    ----------
-    start, stop : int
-        Sample indices, ``stop`` exclusive (Python slice convention).
-    opening_mm : float
-        The (median) opening over the segment, mm.
-    """
-
-    start: int
-    stop: int
-    opening_mm: float
-
-    @property
-    def n_samples(self) -> int:
-        return self.stop - self.start
-
-    @property
-    def slice(self) -> slice:
-        """The segment as a slice into the record's arrays."""
-        return slice(self.start, self.stop)
-
-
-@dataclass(frozen=True)
-class StepOnset:
-    """A change of gate opening between two hold segments.
-
-    Attributes
-    ----------
-    index : int
-        Index of the first sample after the last sample of the previous hold segment
-        (the first ``open`` sample when the logger saw the motion).
-    time_s : float
-        Onset time, s: the time of that sample (start of gate motion as logged).
-    before, after : HoldSegment
-        The hold segments on either side of the step.
-    """
-
-    index: int
-    time_s: float
-    before: HoldSegment
-    after: HoldSegment
-
-    @property
-    def delta_e_mm(self) -> float:
-        return self.after.opening_mm - self.before.opening_mm
 
 
 @dataclass(frozen=True)
@@ -163,7 +113,7 @@ class Record:
 
     def summary(self) -> dict[str, Any]:
         """A JSON-ready summary (what ``gatetwin check`` reports)."""
-        return record_summary(self)
+        return _record_summary(self)
 
     def to_pandas(self) -> Any:
         """The record as a ``pandas.DataFrame`` in the columns of the data format.
@@ -176,7 +126,7 @@ class Record:
         GatetwinError
             If pandas is not installed (it is not a dependency of gatetwin).
         """
-        pandas = _import_pandas("Record.to_pandas")
+        pandas = import_pandas("Record.to_pandas")
         data: dict[str, Any] = {
             "time_s": self.time_s,
             "opening_mm": self.opening_mm,
@@ -221,7 +171,7 @@ class Record:
         RecordError
             As :func:`read_record`.
         """
-        table = _frame_columns(frame, path)
+        table = frame_columns(frame, path)
         meta = dict(metadata or {})
         if sample_period_s is not None:
             meta["sample_period_s"] = sample_period_s
@@ -294,7 +244,7 @@ def read_record(
       before and after its first step; a ``prbs`` record ≥ 2 steps and ≥ 30 usable hold
       samples at every gauge (the first 2 of each hold segment are not usable).
     """
-    if _is_frame(path):
+    if is_frame(path):
         return Record.from_pandas(path, test=test)
     if not isinstance(path, (str, os.PathLike)):
         raise RecordError(
@@ -366,41 +316,6 @@ def _record_from_table(table: TableColumns, sidecar: Sidecar, test: str | None) 
     origin = Origin(table.path, first_line=table.first_line)
     columns = _record_columns(origin, table)
     return _build_record(origin, columns, sidecar, test, table.sha256, table.path)
-
-
-def _is_frame(value: Any) -> bool:
-    """Whether ``value`` is a pandas DataFrame (without importing pandas)."""
-    kind = type(value)
-    return kind.__name__ == "DataFrame" and kind.__module__.split(".")[0] == "pandas"
-
-
-def _import_pandas(what: str) -> Any:
-    try:
-        import pandas
-    except ImportError:
-        raise GatetwinError(
-            f"{what} needs pandas, which is not installed; expected 'pip install pandas'"
-        ) from None
-    return pandas
-
-
-def _frame_columns(frame: Any, path: str) -> TableColumns:
-    """The record columns of a DataFrame, through Arrow like a Parquet file."""
-    import pyarrow as pa
-
-    if not _is_frame(frame):
-        raise RecordError(f"{path}: {type(frame).__name__}; expected a pandas DataFrame")
-    names = [str(name) for name in frame.columns]
-    kept = [k for k, name in enumerate(names) if is_record_column(name.strip())]
-    try:
-        table = pa.Table.from_pandas(frame.iloc[:, kept], preserve_index=False)
-    except (pa.ArrowException, TypeError, ValueError) as exc:
-        text = " ".join(str(exc).split())[:120]
-        raise RecordError(f"{path}: a column cannot be read as numbers or text ({text}); "
-                          "expected the columns of the data format") from None
-    table = table.rename_columns([names[k] for k in kept])
-    columns = arrow_columns(path, table, keep=is_record_column, text_columns=("state",))
-    return TableColumns(path, tuple(n.strip() for n in names), columns.columns, "", 1)
 
 
 def _record_columns(origin: Origin, table: TableColumns) -> _Columns:
@@ -488,7 +403,10 @@ def _build_record(
         opening_filled=frozen(seg.filled),
         unobserved_steps=unobserved,
     )
-    segments.check_method(origin, record)
+    segments.check_method(origin, segments.Segmented(
+        record.test, record.test_source, record.holds, record.steps, record.unobserved_steps,
+        record.levels_mm,
+    ))  # fmt: skip
     return record
 
 
@@ -523,3 +441,52 @@ def _check_values(origin: Origin, cols: _Columns) -> None:
     checks.check_hold_words(origin, cols.hold)
 
 
+def _record_summary(record: Record) -> dict[str, Any]:
+    """Summarise a :class:`~gatetwin.records.Record`."""
+    lengths = np.array([h.n_samples for h in record.holds])
+    return {
+        "kind": "record",
+        "path": record.path,
+        "sha256": record.sha256,
+        "test": record.test,
+        "test_source": record.test_source,
+        "n_samples": record.n_samples,
+        "sample_period_s": record.sample_period_s,
+        "time_s": {"start": float(record.time_s[0]), "stop": float(record.time_s[-1])},
+        "duration_s": float(record.time_s[-1] - record.time_s[0]),
+        "gauges": [_gauge_summary(record, g) for g in record.gauges],
+        "flow_m3h": value_range(record.flow_m3h),
+        "opening_mm": value_range(record.opening_mm),
+        "hold_segments": {
+            "count": int(lengths.size),
+            "samples_total": int(lengths.sum()),
+            "samples_min": int(lengths.min()),
+            "samples_median": float(np.median(lengths)),
+            "samples_max": int(lengths.max()),
+        },
+        "opening_filled_samples": int(np.count_nonzero(record.opening_filled))
+        if record.opening_filled is not None
+        else 0,
+        "steps": [
+            {
+                "index": s.index,
+                "time_s": s.time_s,
+                "opening_before_mm": s.before.opening_mm,
+                "opening_after_mm": s.after.opening_mm,
+                "delta_e_mm": s.delta_e_mm,
+            }
+            for s in record.steps
+        ],
+        "unobserved_steps": record.unobserved_steps,
+        "metadata": record.metadata,
+    }
+
+
+def _gauge_summary(record: Record, gauge: str) -> dict[str, Any]:
+    level = record.levels_mm[gauge]
+    return {
+        "name": gauge,
+        "distance_m": record.gauges_m.get(gauge),
+        "valid_samples": int(np.count_nonzero(np.isfinite(level))),
+        "level_mm": value_range(level),
+    }

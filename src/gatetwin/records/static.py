@@ -20,9 +20,9 @@ from gatetwin.records.columns import (
     gauge_names,
     is_static_column,
     require_static_columns,
+    value_range,
 )
 from gatetwin.records.limits import ReadLimits
-from gatetwin.records.summary import static_summary
 from gatetwin.records.table import read_header, read_table
 
 
@@ -64,7 +64,7 @@ class StaticTable:
 
     def summary(self) -> dict[str, Any]:
         """A JSON-ready summary (what ``gatetwin check`` reports)."""
-        return static_summary(self)
+        return _static_summary(self)
 
 
 def read_static_table(path: str | Path, *, limits: ReadLimits | None = None) -> StaticTable:
@@ -126,3 +126,22 @@ def detect_table_kind(path: str | Path, *, limits: ReadLimits | None = None) -> 
         return "record"
     return "static" if gauge_names(header) else "record"
 
+
+def _static_summary(table: StaticTable) -> dict[str, Any]:
+    """Summarise a :class:`~gatetwin.records.StaticTable`."""
+    return {
+        "kind": "static",
+        "path": table.path,
+        "sha256": table.sha256,
+        "n_points": table.n_points,
+        "flow_m3h": value_range(table.flow_m3h),
+        "opening_mm": value_range(table.opening_mm),
+        "gauges": [
+            {
+                "name": g,
+                "level_mm": value_range(table.levels_mm[g]),
+                "has_sd": g in table.level_sd_mm,
+            }
+            for g in table.gauges
+        ],
+    }
