@@ -166,10 +166,10 @@ def hold_from_codes(
     refused naming the first row that has one.
     """
     lowered = [word.strip().lower() for word in vocabulary]
-    hold_codes = [k for k, word in enumerate(lowered) if word == "hold"]
-    bad_codes = [k for k, word in enumerate(lowered) if word not in ("hold", "open")]
-    if bad_codes:
-        bad = np.flatnonzero(np.isin(codes, bad_codes))
+    is_hold = np.array([word == "hold" for word in lowered] or [False])
+    is_known = np.array([word in ("hold", "open") for word in lowered] or [False])
+    if not is_known.all():
+        bad = np.flatnonzero(~is_known[codes])
         if bad.size:
             i = int(bad[0])
             word = vocabulary[int(codes[i])].strip()
@@ -177,7 +177,7 @@ def hold_from_codes(
             raise origin.error(
                 origin.row(i), column("state"), f"{found}; expected 'hold' or 'open'"
             )
-    return np.isin(codes, hold_codes)
+    return is_hold[codes]
 
 
 def check_bounds(origin: Origin, name: str, values: np.ndarray, limit: float, unit: str) -> None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import codecs
 import hashlib
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, BinaryIO
 
@@ -30,7 +31,7 @@ from gatetwin.records.limits import ENV_MAX_LINE_BYTES
 #: Bytes the pre-scan reads at a time.
 _BLOCK_BYTES = 8 << 20
 #: Bytes Arrow parses per block (small blocks keep the transient memory small).
-_ARROW_BLOCK_BYTES = 512 << 10
+_ARROW_BLOCK_BYTES = 256 << 10
 
 
 @dataclass
@@ -97,10 +98,30 @@ def read_csv(
 
 def _prescan(name: str, handle: BinaryIO, max_line_bytes: int) -> _Scan:
     scan = _Scan(hashlib.sha256())
+    with ThreadPoolExecutor(max_workers=1) as hasher:  # hashing releases the GIL
+        hashed = _scan_blocks(name, handle, max_line_bytes, scan, hasher)
+        for job in hashed:
+            job.result()
+    if scan.offset - scan.line_start > max_line_bytes:
+        _refuse_line(name, scan, b"", scan.line_start, scan.offset - scan.line_start,
+                     max_line_bytes)  # fmt: skip
+    if scan.pending_cr or scan.last_content < 0:
+        scan.clean = False
+    if 0 <= scan.first_blank < scan.last_content:
+        scan.clean = False
+    scan.sha256 = scan.digest.hexdigest()
+    return scan
+
+
+def _scan_blocks(
+    name: str, handle: BinaryIO, max_line_bytes: int, scan: _Scan, hasher: ThreadPoolExecutor
+) -> list[Future[None]]:
+    """Scan the file block by block while ``hasher`` hashes the same blocks in order."""
+    hashed = []
     decoder = codecs.getincrementaldecoder("utf-8")()
     tail = b""
     while block := handle.read(_BLOCK_BYTES):
-        scan.digest.update(block)
+        hashed.append(hasher.submit(scan.digest.update, block))
         if scan.clean and not _plain_text(block, decoder):
             scan.clean = False
         raw = np.frombuffer(block, dtype=np.uint8)
@@ -113,15 +134,7 @@ def _prescan(name: str, handle: BinaryIO, max_line_bytes: int) -> _Scan:
         scan.newlines += int(np.count_nonzero(newline))
         scan.offset += len(block)
         tail = block[-2:]
-    if scan.offset - scan.line_start > max_line_bytes:
-        _refuse_line(name, scan, b"", scan.line_start, scan.offset - scan.line_start,
-                     max_line_bytes)  # fmt: skip
-    if scan.pending_cr or scan.last_content < 0:
-        scan.clean = False
-    if 0 <= scan.first_blank < scan.last_content:
-        scan.clean = False
-    scan.sha256 = scan.digest.hexdigest()
-    return scan
+    return hashed
 
 
 def _plain_text(block: bytes, decoder: codecs.IncrementalDecoder) -> bool:
@@ -230,9 +243,9 @@ def _read_arrow(
 ) -> TableColumns | None:
     """The kept columns parsed by Arrow, or None if Arrow cannot read them as the format says.
 
-    Arrow parses small blocks in parallel into memory it frees at once (the system
-    allocator); each column is then copied out and released before the next, so the
-    peak is the parsed table plus one column.
+    Arrow streams the file in small blocks (parsing ahead on a second thread, into memory
+    the system allocator takes back); each block's columns are copied into arrays sized
+    from the pre-scan's row count, so the peak is the result plus a few blocks.
     """
     import pyarrow as pa
     import pyarrow.csv as pacsv
@@ -241,8 +254,13 @@ def _read_arrow(
     kept = {labels[j]: col for j, col in enumerate(header) if keep(col)}
     types = {label: pa.string() if col in text_columns else pa.float64()
              for label, col in kept.items()}  # fmt: skip
+    rows = scan.n_rows
+    floats = {label: np.empty(rows) for label, col in kept.items() if col not in text_columns}
+    words: dict[str, list[Words]] = {label: [] for label in kept if label not in floats}
+    nulls = dict.fromkeys(floats, 0)
+    done = 0
     try:
-        table = pacsv.read_csv(
+        reader = pacsv.open_csv(
             handle,
             read_options=pacsv.ReadOptions(
                 column_names=labels, skip_rows=1, block_size=_ARROW_BLOCK_BYTES
@@ -254,33 +272,25 @@ def _read_arrow(
             ),
             memory_pool=pa.system_memory_pool(),
         )  # fmt: skip
+        for batch in reader:
+            size = batch.num_rows
+            if done + size > rows:
+                return None
+            for label, out in floats.items():
+                nulls[label] += arrow_floats(batch.column(label), out[done : done + size])
+            for label, parts in words.items():
+                parts.append(arrow_codes(batch.column(label)))
+            done += size
     except (pa.ArrowException, ValueError):
         return None
-    if table.num_rows != scan.n_rows or table.num_rows == 0:
+    if done != rows or rows == 0 or not all(_finite(floats[k], nulls[k]) for k in floats):
         return None
-    parts = {label: table.column(label) for label in kept}
-    del table
-    columns: dict[str, np.ndarray | Words] = {}
-    for label, col in kept.items():
-        data = parts.pop(label)
-        if col in text_columns:
-            columns[col] = Words.concatenate([arrow_codes(chunk) for chunk in data.chunks])
-            continue
-        values = _floats(data)
-        if values is None:
-            return None
-        columns[col] = values
-    return TableColumns(name, header, columns, scan.sha256)
+    columns: dict[str, np.ndarray | Words] = {kept[k]: v for k, v in floats.items()}
+    columns.update({kept[k]: Words.concatenate(parts) for k, parts in words.items()})
+    return TableColumns(name, header, {c: columns[c] for c in kept.values()}, scan.sha256)
 
 
-def _floats(data: Any) -> np.ndarray | None:
-    """A float column with NaN for empty cells; None if a cell was a ``nan``/``inf`` word."""
-    values = np.empty(len(data))
-    start = nulls = 0
-    for chunk in data.chunks:
-        nulls += arrow_floats(chunk, values[start : start + len(chunk)])
-        start += len(chunk)
+def _finite(values: np.ndarray, nulls: int) -> bool:
+    """Whether every NaN of ``values`` is an empty cell (not a ``nan``/``inf`` word)."""
     finite = np.isfinite(values)
-    if not finite.all() and np.count_nonzero(~finite) != nulls:
-        return None
-    return values
+    return bool(finite.all()) or int(np.count_nonzero(~finite)) == nulls
