@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import codecs
 import hashlib
+import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -28,8 +29,9 @@ from gatetwin.records.columns import TableColumns, Words, arrow_codes, arrow_flo
 from gatetwin.records.csvtext import parse_header, parse_table
 from gatetwin.records.limits import ENV_MAX_LINE_BYTES
 
-#: Bytes the pre-scan reads at a time.
+#: Bytes the pre-scan reads at a time (alone, and while Arrow parses).
 _BLOCK_BYTES = 8 << 20
+_SMALL_BLOCK = 2 << 20
 #: Bytes Arrow parses per block (small blocks keep the transient memory small).
 _ARROW_BLOCK_BYTES = 256 << 10
 
@@ -83,23 +85,86 @@ def read_csv(
     RecordError
         For a line over the limit or anything :mod:`~gatetwin.records.csvtext` refuses.
     """
+    header = _plain_header(handle, max_line_bytes)
+    if header is not None and hasattr(os, "pread"):
+        table = _read_concurrently(name, handle, header, max_line_bytes, keep, text_columns)
+        if table is not None:
+            return table
     scan = _prescan(name, handle, max_line_bytes)
-    sha256 = scan.sha256
     if scan.clean:
         header = parse_header(name, scan.header.decode("utf-8-sig").rstrip("\r"))
         handle.seek(0)
-        table = _read_arrow(name, handle, scan, header, keep, text_columns)
-        if table is not None:
+        table = _read_arrow(name, handle, scan.n_rows, header, keep, text_columns, scan.sha256)
+        if table is not None and table.n_rows == scan.n_rows:
             return table
     handle.seek(0)
     data = handle.read()
-    return parse_table(name, data, sha256, keep=keep, text_columns=text_columns)
+    return parse_table(name, data, scan.sha256, keep=keep, text_columns=text_columns)
 
 
-def _prescan(name: str, handle: BinaryIO, max_line_bytes: int) -> _Scan:
+def _plain_header(handle: BinaryIO, max_line_bytes: int) -> tuple[str, ...] | None:
+    """The header if it is plain ASCII within the line limit; else None (no refusal here)."""
+    first = handle.readline(max_line_bytes + 2)
+    handle.seek(0)
+    if not first.endswith(b"\n") or not first.isascii() or b'"' in first:
+        return None
+    try:
+        return parse_header("", first.decode("ascii").rstrip("\r\n"))
+    except RecordError:
+        return None
+
+
+class _Positional:
+    """A second reader of an open file, at its own position (``os.pread``)."""
+
+    def __init__(self, handle: BinaryIO) -> None:
+        self._fd = handle.fileno()
+        self._offset = 0
+
+    def read(self, size: int) -> bytes:
+        data = os.pread(self._fd, size, self._offset)
+        self._offset += len(data)
+        return data
+
+
+def _read_concurrently(
+    name: str,
+    handle: BinaryIO,
+    header: tuple[str, ...],
+    max_line_bytes: int,
+    keep: Callable[[str], bool],
+    text_columns: Sequence[str],
+) -> TableColumns | None:
+    """Pre-scan on a second thread while Arrow parses; the Arrow result stands if the scan
+    finds the file clean and counts the same rows, else None (the careful path decides).
+
+    Raises
+    ------
+    RecordError
+        For a line over the limit (from the scan).
+    """
+    size = os.fstat(handle.fileno()).st_size
+    most_rows = size // max(len(header), 1) + 1
+    with ThreadPoolExecutor(max_workers=1) as scanner:
+        job = scanner.submit(_prescan, name, _Positional(handle), max_line_bytes, _SMALL_BLOCK)
+        try:
+            table = _read_arrow(name, handle, most_rows, header, keep, text_columns, "")
+        finally:
+            scan = job.result()
+    if not scan.clean or table is None or table.n_rows != scan.n_rows:
+        handle.seek(0)
+        return None
+    return TableColumns(name, header, table.columns, scan.sha256)
+
+
+def _prescan(
+    name: str, handle: BinaryIO | _Positional, max_line_bytes: int, block_bytes: int = 0
+) -> _Scan:
     scan = _Scan(hashlib.sha256())
     with ThreadPoolExecutor(max_workers=1) as hasher:  # hashing releases the GIL
-        hashed = _scan_blocks(name, handle, max_line_bytes, scan, hasher)
+        hashed = _scan_blocks(
+            name, handle, max_line_bytes, scan, hasher, block_bytes or _BLOCK_BYTES
+        )
         for job in hashed:
             job.result()
     if scan.offset - scan.line_start > max_line_bytes:
@@ -114,13 +179,18 @@ def _prescan(name: str, handle: BinaryIO, max_line_bytes: int) -> _Scan:
 
 
 def _scan_blocks(
-    name: str, handle: BinaryIO, max_line_bytes: int, scan: _Scan, hasher: ThreadPoolExecutor
+    name: str,
+    handle: BinaryIO | _Positional,
+    max_line_bytes: int,
+    scan: _Scan,
+    hasher: ThreadPoolExecutor,
+    block_bytes: int,
 ) -> list[Future[None]]:
     """Scan the file block by block while ``hasher`` hashes the same blocks in order."""
     hashed = []
     decoder = codecs.getincrementaldecoder("utf-8")()
     tail = b""
-    while block := handle.read(_BLOCK_BYTES):
+    while block := handle.read(block_bytes):
         hashed.append(hasher.submit(scan.digest.update, block))
         if scan.clean and not _plain_text(block, decoder):
             scan.clean = False
@@ -236,16 +306,18 @@ def _refuse_line(name: str, scan: _Scan, block: bytes, start: int, length: int,
 def _read_arrow(
     name: str,
     handle: BinaryIO,
-    scan: _Scan,
+    most_rows: int,
     header: tuple[str, ...],
     keep: Callable[[str], bool],
     text_columns: Sequence[str],
+    sha256: str,
 ) -> TableColumns | None:
     """The kept columns parsed by Arrow, or None if Arrow cannot read them as the format says.
 
     Arrow streams the file in small blocks (parsing ahead on a second thread, into memory
     the system allocator takes back); each block's columns are copied into arrays sized
-    from the pre-scan's row count, so the peak is the result plus a few blocks.
+    for ``most_rows`` (pages never written cost no memory) and trimmed in place at the end,
+    so the peak is the result plus a few blocks.
     """
     import pyarrow as pa
     import pyarrow.csv as pacsv
@@ -254,7 +326,7 @@ def _read_arrow(
     kept = {labels[j]: col for j, col in enumerate(header) if keep(col)}
     types = {label: pa.string() if col in text_columns else pa.float64()
              for label, col in kept.items()}  # fmt: skip
-    rows = scan.n_rows
+    rows = most_rows
     floats = {label: np.empty(rows) for label, col in kept.items() if col not in text_columns}
     words: dict[str, list[Words]] = {label: [] for label in kept if label not in floats}
     nulls = dict.fromkeys(floats, 0)
@@ -283,11 +355,13 @@ def _read_arrow(
             done += size
     except (pa.ArrowException, ValueError):
         return None
-    if done != rows or rows == 0 or not all(_finite(floats[k], nulls[k]) for k in floats):
+    for out in floats.values():
+        out.resize(done, refcheck=False)  # gives back the untouched tail, no copy
+    if done == 0 or not all(_finite(floats[k], nulls[k]) for k in floats):
         return None
     columns: dict[str, np.ndarray | Words] = {kept[k]: v for k, v in floats.items()}
     columns.update({kept[k]: Words.concatenate(parts) for k, parts in words.items()})
-    return TableColumns(name, header, {c: columns[c] for c in kept.values()}, scan.sha256)
+    return TableColumns(name, header, {c: columns[c] for c in kept.values()}, sha256)
 
 
 def _finite(values: np.ndarray, nulls: int) -> bool:
