@@ -191,8 +191,11 @@ def arrow_columns(
     keep: Callable[[str], bool],
     text_columns: Sequence[str],
     sha256: str = "",
+    first_row: int = 1,
 ) -> TableColumns:
     """Columns of an Arrow table (Parquet file or DataFrame), typed as the CSV reader's.
+
+    ``first_row`` is the row number messages give the table's first row.
 
     Numeric columns may be of any integer or floating type; null and NaN are missing
     values (a binary float has no text to tell them apart), infinities are refused.
@@ -213,8 +216,8 @@ def arrow_columns(
         if name in text_columns:
             columns[name] = _arrow_words(path, name, data)
         else:
-            columns[name] = _arrow_floats(path, name, data)
-    return TableColumns(path, header, columns, sha256, first_line=1)
+            columns[name] = _arrow_floats(path, name, data, first_row)
+    return TableColumns(path, header, columns, sha256, first_line=first_row)
 
 
 def _arrow_words(path: str, name: str, data: pa.ChunkedArray) -> Words:
@@ -233,7 +236,7 @@ def _arrow_words(path: str, name: str, data: pa.ChunkedArray) -> Words:
     return Words.concatenate([arrow_codes(chunk) for chunk in data.chunks])
 
 
-def _arrow_floats(path: str, name: str, data: pa.ChunkedArray) -> np.ndarray:
+def _arrow_floats(path: str, name: str, data: pa.ChunkedArray, first_row: int) -> np.ndarray:
     import pyarrow as pa_
 
     kind = data.type
@@ -249,7 +252,7 @@ def _arrow_floats(path: str, name: str, data: pa.ChunkedArray) -> np.ndarray:
     if bad.size:
         i = int(bad[0])
         raise RecordError(
-            f"{path}: row {i + 1}: {column(name)}: {values[i]} is not a finite number; "
+            f"{path}: row {i + first_row}: {column(name)}: {values[i]} is not a finite number; "
             "expected a number (null or NaN for missing values)"
         )
     return values

@@ -10,16 +10,20 @@ highly compressed file cannot expand without bound.
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable, Sequence
-from typing import BinaryIO
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any, BinaryIO
+
+import numpy as np
 
 from gatetwin.errors import RecordError
 from gatetwin.records.checks import QUOTE_CHARS
-from gatetwin.records.columns import TableColumns, arrow_columns, check_header
+from gatetwin.records.columns import TableColumns, Words, arrow_columns, check_header
 from gatetwin.records.limits import ENV_MAX_BYTES
 
 #: File name endings read as Parquet.
 PARQUET_SUFFIXES = (".parquet", ".pq")
+#: Rows decoded at a time (a batch at a time keeps the decoded file out of memory).
+_BATCH_ROWS = 65536
 
 
 def read_parquet(
@@ -47,17 +51,47 @@ def read_parquet(
         parquet = pq.ParquetFile(pa.BufferReader(data))
         header = check_header(name, parquet.schema_arrow.names)
         kept = [col for col in header if keep(col)]
-        _check_size(name, parquet.metadata.num_rows * max(len(kept), 1) * 8, max_bytes)
-        table = parquet.read(columns=kept)
+        rows = parquet.metadata.num_rows
+        _check_size(name, rows * max(len(kept), 1) * 8, max_bytes)
+        batches = parquet.iter_batches(batch_size=_BATCH_ROWS, columns=kept)
+        columns = _joined(name, batches, rows, keep, text_columns)
+    except RecordError:
+        raise
     except (pa.ArrowException, OSError, ValueError) as exc:
         raise RecordError(
             f"{name}: not a readable Parquet file ({_short(exc)}); expected a Parquet "
             "record with the columns of the data format"
         ) from None
-    if table.num_rows == 0:
+    if rows == 0 or not columns:
         raise RecordError(f"{name}: no data rows; expected one row per sample")
-    columns = arrow_columns(name, table, keep=keep, text_columns=text_columns, sha256=sha256)
-    return TableColumns(name, header, columns.columns, sha256, first_line=1)
+    return TableColumns(name, header, columns, sha256, first_line=1)
+
+
+def _joined(
+    name: str,
+    batches: Iterable[Any],
+    rows: int,
+    keep: Callable[[str], bool],
+    text_columns: Sequence[str],
+) -> dict[str, np.ndarray | Words]:
+    """The kept columns of consecutive batches, each checked and copied out in turn."""
+    import pyarrow as pa
+
+    floats: dict[str, np.ndarray] = {}
+    words: dict[str, list[Words]] = {}
+    start = 0
+    for batch in batches:
+        part = arrow_columns(name, pa.Table.from_batches([batch]), keep=keep,
+                             text_columns=text_columns, first_row=start + 1)  # fmt: skip
+        for col, values in part.columns.items():
+            if isinstance(values, Words):
+                words.setdefault(col, []).append(values)
+            else:
+                floats.setdefault(col, np.empty(rows))[start : start + values.size] = values
+        start += part.n_rows
+    columns: dict[str, np.ndarray | Words] = dict(floats)
+    columns.update({col: Words.concatenate(parts) for col, parts in words.items()})
+    return columns
 
 
 def parquet_header(handle: BinaryIO) -> tuple[str, ...]:
