@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gatetwin._sidecar import VALIDATION_ROLE
 from gatetwin.flume import FlumeConfig
 from gatetwin.flume.envelope import (
     ENVELOPE_FLOW_M3H,
@@ -27,6 +26,7 @@ from gatetwin.flume.experiments import reference_scenarios
 from gatetwin.identify.suite import load_folder
 from gatetwin.pipeline import bundled_records_dir
 from gatetwin.records import read_record
+from gatetwin.records.sidecar import VALIDATION_ROLE
 
 RECORDS = bundled_records_dir()
 SCENARIOS = {s.name: s for s in envelope_scenarios()}

@@ -263,8 +263,8 @@ def not_diagnosed(ctx: Any) -> list[dict[str, str]]:
     Validation records (several moves, discharge changes, or no move at all) are only
     validated against; the other fitted step tests repeat what A, B and Q55 show.
     """
-    from gatetwin._sidecar import VALIDATION_ROLE
     from gatetwin.identify.suite import role_of
+    from gatetwin.records.sidecar import VALIDATION_ROLE
 
     ident = ctx.results.get("ident")
     listed = {record for record, _ in DIAGNOSE}

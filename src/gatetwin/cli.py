@@ -20,9 +20,9 @@ from typing import NoReturn
 from gatetwin import _commands_diagnose as _diagnose_cmds
 from gatetwin import _commands_model as _model_cmds
 from gatetwin._io import write_json_atomic
-from gatetwin._sidecar import TEST_TYPES
-from gatetwin._summary import format_record_summary, format_static_summary
 from gatetwin.errors import GatetwinError, RecordError
+from gatetwin.records.sidecar import TEST_TYPES
+from gatetwin.records.summary import format_record_summary, format_static_summary
 from gatetwin.version import __version__
 
 #: Exit code for a refused input or a failed command.
@@ -67,19 +67,33 @@ def _add_check_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--json", metavar="OUT.json", help="also write the findings as JSON (after success)"
     )
+    parser.add_argument(
+        "--max-bytes", metavar="N", type=int,
+        help="largest record file read, bytes (default: $GATETWIN_MAX_BYTES or 536870912)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--max-line-bytes", metavar="N", type=int,
+        help="longest CSV line read, bytes (default: $GATETWIN_MAX_LINE_BYTES or 65536)",
+    )  # fmt: skip
 
 
 def _run_check(args: argparse.Namespace) -> int:
-    from gatetwin.records import detect_table_kind, read_record, read_static_table
+    from gatetwin.records import ReadLimits, detect_table_kind, read_record, read_static_table
 
-    if detect_table_kind(args.path) == "static":
+    limits = ReadLimits.from_env()
+    limits = ReadLimits(
+        max_bytes=limits.max_bytes if args.max_bytes is None else args.max_bytes,
+        max_line_bytes=(limits.max_line_bytes if args.max_line_bytes is None
+                        else args.max_line_bytes),
+    )  # fmt: skip
+    if detect_table_kind(args.path, limits=limits) == "static":
         if args.test is not None:
             raise RecordError(f"{args.path}: --test applies to time-series records, not to "
                               "a static rating table")
-        summary = read_static_table(args.path).summary()
+        summary = read_static_table(args.path, limits=limits).summary()
         text = format_static_summary(summary)
     else:
-        summary = read_record(args.path, test=args.test).summary()
+        summary = read_record(args.path, test=args.test, limits=limits).summary()
         text = format_record_summary(summary)
     print(text)
     if args.json:

@@ -20,11 +20,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from gatetwin._sidecar import VALIDATION_ROLE
 from gatetwin.errors import FlumeError
 from gatetwin.flume.config import FlumeConfig
 from gatetwin.flume.scenario import Breakpoints, Scenario
 from gatetwin.flume.simulate import steady_gate_depth_m
+from gatetwin.records.sidecar import VALIDATION_ROLE
 
 #: Discharge span of the calibrated envelope, m³/h.
 ENVELOPE_FLOW_M3H = (30.0, 80.0)

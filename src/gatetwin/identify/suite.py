@@ -17,7 +17,6 @@ from typing import Any
 
 import numpy as np
 
-from gatetwin._sidecar import VALIDATION_ROLE
 from gatetwin.errors import IdentificationError
 from gatetwin.identify.arx_envelope import envelope_arx, fit_condition
 from gatetwin.identify.discrete_select import select_discrete
@@ -38,6 +37,7 @@ from gatetwin.modelfile import model_document, physical_document
 from gatetwin.plant.model import local_fopdt, plant_from_dict
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import Record, detect_table_kind, read_record, read_static_table
+from gatetwin.records.sidecar import VALIDATION_ROLE
 
 ARX_GAUGE = "3F"
 #: Validity band around the operating opening: the step (5 mm) or the PRBS amplitude

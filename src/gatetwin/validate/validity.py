@@ -33,8 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from gatetwin._segments import RESOLUTION_MM
 from gatetwin.modelfile import FLOW_METER_ACCURACY_M3H
+from gatetwin.records.segments import RESOLUTION_MM
 from gatetwin.validate.errors import ValidationError
 
 #: The quantities of an envelope, in report order.

@@ -1,70 +1,56 @@
-"""Low-level CSV reading for records and rating tables.
+"""The diagnosing CSV parser: reads any file the fast reader balks at, or says why not.
 
-Turns a file into named columns (float arrays with NaN for empty cells, or stripped text)
-while refusing what no reader can make sense of: a missing, empty, binary or non-UTF-8
-file, a header without data, a wrong separator, duplicated column names, rows of the wrong
-width, and cells that are not finite numbers. Every refusal is a one-line
+:mod:`gatetwin.records.csv` parses well-formed files with Arrow; whatever it refuses or
+the pre-scan flags (NUL bytes, invalid UTF-8, blank lines inside, lone carriage returns,
+ragged rows, quoted newlines, cells outside the number grammar) comes here. This parser
+accepts exactly what the data format allows and otherwise raises a one-line
 :class:`~gatetwin.errors.RecordError` naming the file and the row (1-based file line,
-header = row 1) or column. Which columns a record needs is decided by the caller.
+header = row 1) or column: an empty, binary or non-UTF-8 file, a header without data, a
+wrong separator, duplicated column names, rows of the wrong width, and cells that are not
+finite numbers of the grammar ``[+-]digits[.digits][e[+-]digits]`` (ASCII digits, ``.``
+decimal point, surrounding spaces allowed).
 
-Rows are parsed in chunks so that a million-row record stays within a few seconds and a
-modest amount of memory.
+Rows are parsed in chunks; the parser is slower than Arrow but only sees unusual files.
 """
 
 from __future__ import annotations
 
 import codecs
 import csv
-import hashlib
 import math
+import re
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from gatetwin.errors import RecordError
+from gatetwin.records.checks import quote
+from gatetwin.records.columns import TableColumns, Words, check_header
 
 _CHUNK_ROWS = 65536
 _FOREIGN_SEPARATORS = (";", "\t", "|")
+#: One cell of a numeric column: empty, or a number of the format's grammar.
+#: Written so that a cell matches in one way only: an ambiguous pattern backtracks
+#: exponentially over a chunk of cells when one of them fails.
+_NUMBER = r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+_CELL = re.compile(rf"[ \t]*(?:{_NUMBER}[ \t]*)?")
+_CELLS = re.compile(rf"(?:{_CELL.pattern}\n)*{_CELL.pattern}")
 
 
-@dataclass(frozen=True)
-class TableColumns:
-    """Columns read from a CSV file.
-
-    Attributes
-    ----------
-    path : str
-        The file, as given.
-    header : tuple[str, ...]
-        All column names, stripped, in file order.
-    columns : dict[str, ndarray]
-        The kept columns: float64 (NaN for empty cells) or, for text columns, stripped
-        strings.
-    sha256 : str
-        Hash of the file's bytes.
-    """
-
-    path: str
-    header: tuple[str, ...]
-    columns: dict[str, np.ndarray]
-    sha256: str
-
-    @property
-    def n_rows(self) -> int:
-        return int(next(iter(self.columns.values())).size) if self.columns else 0
-
-
-def read_table(
-    path: str | Path, *, keep: Callable[[str], bool], text_columns: Sequence[str]
+def parse_table(
+    name: str, data: bytes, sha256: str, *, keep: Callable[[str], bool],
+    text_columns: Sequence[str],
 ) -> TableColumns:
-    """Read the columns ``keep`` accepts from a comma-separated UTF-8 file.
+    """Read the columns ``keep`` accepts from the bytes of a comma-separated UTF-8 file.
 
     Parameters
     ----------
-    path : str or Path
-        The CSV file.
+    name : str
+        The file, for messages.
+    data : bytes
+        Its contents.
+    sha256 : str
+        Hash of ``data`` (kept on the result).
     keep : callable
         Predicate on a column name; other columns are ignored (never parsed).
     text_columns : sequence of str
@@ -75,44 +61,25 @@ def read_table(
     RecordError
         For anything that is not a well-formed CSV of finite numbers.
     """
-    name = str(path)
-    data = _read_bytes(name)
     lines = _text_lines(name, data)
-    header = _parse_header(name, lines[0])
+    header = parse_header(name, lines[0])
     if len(lines) < 2:
         raise RecordError(f"{name}: header only, no data rows; expected one row per sample")
     wanted = [(j, col) for j, col in enumerate(header) if keep(col)]
-    parts: dict[str, list[np.ndarray]] = {col: [] for _, col in wanted}
+    floats: dict[str, list[np.ndarray]] = {col: [] for _, col in wanted}
+    words: dict[str, list[Words]] = {col: [] for _, col in wanted}
     for first_line, cells in _column_chunks(name, lines, len(header)):
         for j, col in wanted:
-            convert = _to_text if col in text_columns else _to_float
-            parts[col].append(convert(name, col, cells[j], first_line))
-    columns = {col: np.concatenate(chunks) for col, chunks in parts.items()}
-    return TableColumns(name, header, columns, hashlib.sha256(data).hexdigest())
-
-
-def read_header(path: str | Path) -> tuple[str, ...]:
-    """The stripped column names of a CSV file; empty if it cannot be read as text."""
-    try:
-        with open(path, "rb") as handle:
-            first = handle.readline(1 << 16)
-        text = first.decode("utf-8-sig")
-    except (OSError, UnicodeDecodeError):
-        return ()
-    rows = list(csv.reader([text.rstrip("\r\n")]))
-    return tuple(cell.strip() for cell in rows[0]) if rows else ()
-
-
-def _read_bytes(name: str) -> bytes:
-    path = Path(name)
-    try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise RecordError(f"{name}: no such file; expected a CSV record") from None
-    except IsADirectoryError:
-        raise RecordError(f"{name}: is a directory; expected a CSV file") from None
-    except OSError as exc:
-        raise RecordError(f"{name}: cannot be read ({exc.strerror})") from None
+            if col in text_columns:
+                words[col].append(Words.from_cells(cells[j]))
+            else:
+                floats[col].append(_to_float(name, col, cells[j], first_line))
+    columns: dict[str, np.ndarray | Words] = {
+        col: Words.concatenate(words[col]) if col in text_columns
+        else np.concatenate(floats[col])
+        for _, col in wanted
+    }  # fmt: skip
+    return TableColumns(name, header, columns, sha256)
 
 
 def _text_lines(name: str, data: bytes) -> list[str]:
@@ -146,8 +113,13 @@ def _line_of(data: bytes, offset: int) -> int:
     return data.count(b"\n", 0, offset) + 1
 
 
-def _parse_header(name: str, line: str) -> tuple[str, ...]:
-    header = tuple(cell.strip() for cell in next(csv.reader([line]), []))
+def parse_header(name: str, line: str) -> tuple[str, ...]:
+    """The column names of header ``line``, refusing a foreign separator or a repeated name."""
+    try:
+        cells = next(csv.reader([line]), [])
+    except csv.Error as exc:
+        raise RecordError(f"{name}: row 1: header is not valid CSV ({exc})") from None
+    header = tuple(cell.strip() for cell in cells)
     if not any(header):
         raise RecordError(f"{name}: row 1: empty header; expected the column names")
     if len(header) == 1:
@@ -157,12 +129,7 @@ def _parse_header(name: str, line: str) -> tuple[str, ...]:
                     f"{name}: row 1: header is one column split by {sep!r}; expected "
                     "comma-separated columns"
                 )
-    seen: set[str] = set()
-    for col in header:
-        if col in seen:
-            raise RecordError(f"{name}: column '{col}': appears twice in the header")
-        seen.add(col)
-    return header
+    return check_header(name, header)
 
 
 def _column_chunks(
@@ -198,13 +165,19 @@ def _quoted_columns(
     """Columns of a chunk with quoted fields, parsed by the csv module."""
     reader = csv.reader(chunk)
     rows = []
-    for row in reader:
-        if reader.line_num != len(rows) + 1:
-            raise RecordError(
-                f"{name}: row {first_line + len(rows)}: a quoted field runs past the end of "
-                "the line; expected one row per line"
-            )
-        rows.append(row)
+    try:
+        for row in reader:
+            if reader.line_num != len(rows) + 1:
+                raise RecordError(
+                    f"{name}: row {first_line + len(rows)}: a quoted field runs past the end "
+                    "of the line; expected one row per line"
+                )
+            rows.append(row)
+    except csv.Error as exc:
+        raise RecordError(
+            f"{name}: row {first_line + len(rows)}: not valid CSV ({exc}); expected "
+            "comma-separated fields"
+        ) from None
     if any(len(row) != width for row in rows):
         _refuse_width(name, rows, width, first_line)
     return list(zip(*rows, strict=True))
@@ -229,39 +202,35 @@ def _describe_fields(row: list[str]) -> str:
 
 
 def _to_float(name: str, col: str, cells: Sequence[str], first_line: int) -> np.ndarray:
-    original = cells
-    try:
-        if "" in cells:
-            cells = [cell or "nan" for cell in cells]
-        values = np.fromiter(map(float, cells), np.float64, len(cells))
-    except ValueError:
-        values = _to_float_slowly(name, col, original, first_line)
-    for k in np.flatnonzero(~np.isfinite(values)):
-        if original[k].strip():
-            raise RecordError(
-                f"{name}: row {first_line + k}: column '{col}': {original[k].strip()!r} is not "
-                "a finite number; expected a number (empty cells are the only missing values)"
-            )
+    if _CELLS.fullmatch("\n".join(cells)) is None:
+        _refuse_cell(name, col, cells, first_line)
+    stripped = [cell.strip() or "nan" for cell in cells]
+    values = np.fromiter(map(float, stripped), np.float64, len(cells))
+    for k in np.flatnonzero(np.isinf(values)):
+        _refuse_not_finite(name, col, cells[k], first_line + int(k))
     return values
 
 
-def _to_float_slowly(
-    name: str, col: str, cells: Sequence[str], first_line: int
-) -> np.ndarray:
-    """Cell-by-cell conversion that names the first cell that is not a number."""
-    values = np.empty(len(cells))
+def _refuse_cell(name: str, col: str, cells: Sequence[str], first_line: int) -> None:
+    """Name the first cell outside the number grammar."""
     for k, cell in enumerate(cells):
-        stripped = cell.strip()
-        try:
-            values[k] = float(stripped) if stripped else math.nan
-        except ValueError:
+        if _CELL.fullmatch(cell) is None:
+            stripped = cell.strip()
+            try:
+                value = float(stripped)
+            except ValueError:
+                value = 0.0
+            if not math.isfinite(value):
+                _refuse_not_finite(name, col, cell, first_line + k)
             raise RecordError(
-                f"{name}: row {first_line + k}: column '{col}': {stripped!r} is not a "
-                "number; expected a number with '.' as decimal point"
-            ) from None
-    return values
+                f"{name}: row {first_line + k}: column '{col}': {quote(stripped)} is not a "
+                "number; expected ASCII digits with '.' as decimal point and an optional "
+                "exponent"
+            )
 
 
-def _to_text(name: str, col: str, cells: Sequence[str], first_line: int) -> np.ndarray:
-    del name, col, first_line  # text cells cannot be malformed here
-    return np.char.strip(np.array(cells, dtype=str))
+def _refuse_not_finite(name: str, col: str, cell: str, line: int) -> None:
+    raise RecordError(
+        f"{name}: row {line}: column '{col}': {quote(cell.strip())} is not a finite number; "
+        "expected a number (empty cells are the only missing values)"
+    )

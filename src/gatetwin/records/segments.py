@@ -1,8 +1,8 @@
 """Hold segments, step onsets, test-type detection and method sufficiency checks.
 
 Works on plain arrays (segment boundaries as index arrays) so it can be vectorised for
-records of a million samples; :mod:`gatetwin.records` wraps the results in its frozen
-classes. The rules are those of ``records.py``'s docstrings:
+records of a million samples; :mod:`gatetwin.records.record` wraps the results in its
+frozen classes. The rules are those of :func:`~gatetwin.records.read_record`:
 
 * a hold segment is a maximal run of ``hold`` samples, split where the time step exceeds
   ``GAP_FACTOR`` nominal periods (segments never bridge a logging gap) and where the
@@ -15,15 +15,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gatetwin._checks import Origin, column
-from gatetwin._sidecar import TEST_TYPES
-
-if TYPE_CHECKING:
-    from gatetwin.records import Record, StepOnset
+from gatetwin.records.checks import Origin, column
+from gatetwin.records.sidecar import TEST_TYPES
 
 #: Actuator position resolution, mm: smaller opening differences are not steps.
 RESOLUTION_MM = 1.0
@@ -46,6 +42,89 @@ _SOURCE_WORDS = {
     "sidecar": "from the sidecar",
     "detected": "detected from the data",
 }
+
+
+@dataclass(frozen=True)
+class HoldSegment:
+    """A run of consecutive ``hold`` samples at one constant opening.
+
+    Attributes
+    ----------
+    start, stop : int
+        Sample indices, ``stop`` exclusive (Python slice convention).
+    opening_mm : float
+        The (median) opening over the segment, mm.
+    """
+
+    start: int
+    stop: int
+    opening_mm: float
+
+    @property
+    def n_samples(self) -> int:
+        return self.stop - self.start
+
+    @property
+    def slice(self) -> slice:
+        """The segment as a slice into the record's arrays."""
+        return slice(self.start, self.stop)
+
+
+@dataclass(frozen=True)
+class StepOnset:
+    """A change of gate opening between two hold segments.
+
+    Attributes
+    ----------
+    index : int
+        Index of the first sample after the last sample of the previous hold segment
+        (the first ``open`` sample when the logger saw the motion).
+    time_s : float
+        Onset time, s: the time of that sample (start of gate motion as logged).
+    before, after : HoldSegment
+        The hold segments on either side of the step.
+    """
+
+    index: int
+    time_s: float
+    before: HoldSegment
+    after: HoldSegment
+
+    @property
+    def delta_e_mm(self) -> float:
+        return self.after.opening_mm - self.before.opening_mm
+
+
+@dataclass(frozen=True)
+class Segmented:
+    """What the method checks look at: a record's test type, segments and levels.
+
+    Attributes
+    ----------
+    test, test_source : str
+        Test type and where it came from (``"option"``, ``"sidecar"``, ``"detected"``).
+    holds, steps : tuple
+        Hold segments and observed steps.
+    unobserved_steps : int
+        Opening changes inside logging gaps.
+    levels_mm : dict[str, ndarray]
+        Level per gauge, mm, NaN where missing.
+    """
+
+    test: str
+    test_source: str
+    holds: tuple[HoldSegment, ...]
+    steps: tuple[StepOnset, ...]
+    unobserved_steps: int
+    levels_mm: dict[str, np.ndarray]
+
+    @property
+    def gauges(self) -> tuple[str, ...]:
+        return tuple(self.levels_mm)
+
+    def valid_samples(self, segment: HoldSegment, gauge: str) -> int:
+        """Number of samples of ``segment`` with a finite level at ``gauge``."""
+        return int(np.count_nonzero(np.isfinite(self.levels_mm[gauge][segment.slice])))
 
 
 @dataclass(frozen=True)
@@ -216,7 +295,7 @@ def detect_test(steps: Sequence[StepOnset]) -> str:
     return "free"
 
 
-def check_method(origin: Origin, record: Record) -> None:
+def check_method(origin: Origin, record: Segmented) -> None:
     """Refuse a record too short (or without steps) for its test type's method."""
     if record.test == "step":
         _check_step_test(origin, record)
@@ -224,11 +303,11 @@ def check_method(origin: Origin, record: Record) -> None:
         _check_prbs_test(origin, record)
 
 
-def _test_words(record: Record) -> str:
+def _test_words(record: Segmented) -> str:
     return f"test '{record.test}' ({_SOURCE_WORDS[record.test_source]})"
 
 
-def _check_step_test(origin: Origin, record: Record) -> None:
+def _check_step_test(origin: Origin, record: Segmented) -> None:
     if not record.steps:
         openings = sorted({round(h.opening_mm, 1) for h in record.holds})
         shown = ", ".join(f"{e:g}" for e in openings[:5])
@@ -253,7 +332,7 @@ def _check_step_test(origin: Origin, record: Record) -> None:
             )
 
 
-def _check_prbs_test(origin: Origin, record: Record) -> None:
+def _check_prbs_test(origin: Origin, record: Segmented) -> None:
     usable, gauge = _fewest_usable(record)
     n_steps = len(record.steps)
     if n_steps >= PRBS_MIN_STEPS and usable >= PRBS_MIN_USABLE_SAMPLES:
@@ -267,7 +346,7 @@ def _check_prbs_test(origin: Origin, record: Record) -> None:
     )
 
 
-def _fewest_usable(record: Record) -> tuple[int, str]:
+def _fewest_usable(record: Segmented) -> tuple[int, str]:
     starts = np.array([h.start for h in record.holds], dtype=np.int64)
     stops = np.array([h.stop for h in record.holds], dtype=np.int64)
     counts = []

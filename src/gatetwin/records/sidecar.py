@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from gatetwin.errors import RecordError
+from gatetwin.records.limits import MAX_SIDECAR_BYTES, open_regular
 
 #: The test types of the data format.
 TEST_TYPES = ("step", "prbs", "free")
@@ -46,7 +48,7 @@ class Sidecar:
 
 
 def sidecar_path(csv_path: str | Path) -> Path:
-    """The sidecar belonging to ``csv_path`` (same stem, ``.json``)."""
+    """The sidecar belonging to a record file (same stem, ``.json``)."""
     return Path(csv_path).with_suffix(".json")
 
 
@@ -59,10 +61,11 @@ def read_sidecar(csv_path: str | Path) -> Sidecar:
         If the sidecar is not UTF-8 JSON, not an object, or a field is invalid.
     """
     path = sidecar_path(csv_path)
-    if not path.is_file():
+    if not os.path.lexists(path):
         return Sidecar()
     try:
-        text = path.read_bytes().decode("utf-8-sig")
+        with open_regular(path, MAX_SIDECAR_BYTES, "a JSON sidecar") as handle:
+            text = handle.read().decode("utf-8-sig")
     except OSError as exc:
         raise RecordError(f"{path}: sidecar cannot be read ({exc.strerror})") from None
     except UnicodeDecodeError:

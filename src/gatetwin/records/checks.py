@@ -17,6 +17,18 @@ from gatetwin.errors import RecordError
 LEVEL_RANGE_MM = (-100.0, 2000.0)
 #: A gauge whose every finite value is below this looks like it was logged in metres.
 METRES_SUSPECT_BELOW = 2.0
+#: Largest sample time magnitude, s (about 317 years: Unix time in seconds fits, a
+#: value near 1e300 is a logger or unit error and would overflow later arithmetic).
+TIME_ABS_MAX_S = 1e10
+#: Largest gate opening, mm (100 m: beyond any gate; larger is a unit error).
+OPENING_MAX_MM = 1e5
+#: Largest discharge, m³/h (about 280 m³/s: beyond any canal gate; larger is a unit error).
+FLOW_MAX_M3H = 1e6
+#: Largest logging gap, s (one day at the nominal period; longer breaks a simulation
+#: that steps through the record).
+GAP_MAX_S = 86400.0
+#: Characters of a cell an error message quotes at most.
+QUOTE_CHARS = 60
 
 
 @dataclass(frozen=True)
@@ -48,7 +60,15 @@ class Origin:
 
 def column(name: str) -> str:
     """Quote a column name the way every message does."""
-    return f"column '{name}'"
+    short = name if len(name) <= QUOTE_CHARS else name[:QUOTE_CHARS] + "..."
+    return f"column '{short}'"
+
+
+def quote(text: str) -> str:
+    """``repr`` of a cell, cut to :data:`QUOTE_CHARS` characters (a huge cell is not echoed)."""
+    if len(text) <= QUOTE_CHARS:
+        return repr(text)
+    return repr(text[:QUOTE_CHARS]) + f"... ({len(text)} characters)"
 
 
 def check_finite_or_missing(origin: Origin, name: str, values: np.ndarray) -> None:
@@ -133,15 +153,52 @@ def hold_from_state(origin: Origin, words: np.ndarray) -> np.ndarray:
 
     ``hold`` and ``open`` are accepted in any letter case.
     """
-    hold = words == "hold"
-    known = hold | (words == "open")
-    if not known.all():
-        lowered = np.char.lower(words)
-        hold = lowered == "hold"
-        known = hold | (lowered == "open")
-    bad = np.flatnonzero(~known)
+    vocabulary, codes = np.unique(np.asarray(words, dtype=str), return_inverse=True)
+    return hold_from_codes(origin, tuple(str(w) for w in vocabulary), codes.ravel())
+
+
+def hold_from_codes(
+    origin: Origin, vocabulary: tuple[str, ...], codes: np.ndarray
+) -> np.ndarray:
+    """The ``hold`` flag of dictionary-coded ``state`` words (``vocabulary[codes]``).
+
+    Words are compared stripped and in any letter case; empty or unknown words are
+    refused naming the first row that has one.
+    """
+    lowered = [word.strip().lower() for word in vocabulary]
+    is_hold = np.array([word == "hold" for word in lowered] or [False])
+    is_known = np.array([word in ("hold", "open") for word in lowered] or [False])
+    if not is_known.all():
+        bad = np.flatnonzero(~is_known[codes])
+        if bad.size:
+            i = int(bad[0])
+            word = vocabulary[int(codes[i])].strip()
+            found = f"unknown state {quote(word)}" if word else "empty cell"
+            raise origin.error(
+                origin.row(i), column("state"), f"{found}; expected 'hold' or 'open'"
+            )
+    return is_hold[codes]
+
+
+def check_bounds(origin: Origin, name: str, values: np.ndarray, limit: float, unit: str) -> None:
+    """Refuse magnitudes above ``limit`` (missing values pass)."""
+    bad = np.flatnonzero(np.abs(values) > limit)
     if bad.size:
         i = bad[0]
-        found = f"unknown state {str(words[i])!r}" if words[i] else "empty cell"
-        raise origin.error(origin.row(i), column("state"), f"{found}; expected 'hold' or 'open'")
-    return hold
+        raise origin.error(
+            origin.row(i), column(name),
+            f"{values[i]:g} {unit} is beyond the physical bound of {limit:g} {unit}; "
+            "expected a value in the record's units",
+        )  # fmt: skip
+
+
+def check_gaps(origin: Origin, time_s: np.ndarray, max_gap_s: float = GAP_MAX_S) -> None:
+    """Refuse a logging gap longer than ``max_gap_s`` between consecutive samples."""
+    bad = np.flatnonzero(np.diff(time_s) > max_gap_s)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise origin.error(
+            origin.row(i), column("time_s"),
+            f"gap of {time_s[i] - time_s[i - 1]:g} s after {time_s[i - 1]:g} s, longer than "
+            f"{max_gap_s:g} s; expected a continuous log (split it into records at the gap)",
+        )  # fmt: skip
