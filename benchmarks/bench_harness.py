@@ -26,10 +26,10 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from gatetwin.bundled import bundled_records_dir
 from gatetwin.fmu import export_fmu
 from gatetwin.identify import reconstructed_opening
 from gatetwin.modelfile import read_model_file
-from gatetwin.pipeline import bundled_records_dir
 from gatetwin.records import detect_table_kind, read_record
 from gatetwin.validate import communication_grid, inspect_fmu, validate_fmu
 from gatetwin.validate.isolation import RunRequest, run_in_process, run_isolated

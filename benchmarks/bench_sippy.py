@@ -51,13 +51,13 @@ from typing import Any
 
 import numpy as np
 
+from gatetwin.bundled import bundled_records_dir
 from gatetwin.identify.armax import fit_armax
 from gatetwin.identify.arx import ArxFit, deviations, fit_arx
 from gatetwin.identify.metrics import free_run_on_segments, one_step_metrics
 from gatetwin.identify.oe import fit_oe
 from gatetwin.identify.pem import PemOrders, one_step_prediction
 from gatetwin.identify.prbs import PrbsSignals, prbs_signals
-from gatetwin.pipeline import bundled_records_dir
 from gatetwin.records import read_record
 
 NA, NB, NC, NK = 2, 2, 2, 1

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gatetwin.bundled import bundled_records_dir
 from gatetwin.errors import ModelFileError
 from gatetwin.identify.arx_envelope import envelope_arx, fit_condition
 from gatetwin.identify.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
-from gatetwin.pipeline import bundled_records_dir
 from gatetwin.plant.model import envelope_point, plant_from_dict, plant_to_dict
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import read_record, record_from_arrays

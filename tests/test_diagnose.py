@@ -14,6 +14,7 @@ import pytest
 
 from diagnose_cases import draw_case
 from fmu_support import arx_plant, compiler, fopdt_plant
+from gatetwin.bundled import bundled_records_dir
 from gatetwin.cli import main
 from gatetwin.diagnose import DiagnosisSettings, diagnose_record
 from gatetwin.diagnose.baseline import identify_baseline
@@ -25,7 +26,6 @@ from gatetwin.diagnose.select import CandidateResult, choose
 from gatetwin.diagnose.signatures import signatures
 from gatetwin.errors import IdentificationError
 from gatetwin.modelfile import model_document, read_model_file, write_model_file
-from gatetwin.pipeline import bundled_records_dir
 from gatetwin.plant.effects import KINDS, effect_dict
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import read_record, record_from_arrays

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gatetwin.bundled import bundled_records_dir
 from gatetwin.flume import FlumeConfig
 from gatetwin.flume.envelope import (
     ENVELOPE_FLOW_M3H,
@@ -24,7 +25,6 @@ from gatetwin.flume.envelope import (
 )
 from gatetwin.flume.experiments import reference_scenarios
 from gatetwin.identify.suite import load_folder
-from gatetwin.pipeline import bundled_records_dir
 from gatetwin.records import read_record
 from gatetwin.records.sidecar import VALIDATION_ROLE
 

@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gatetwin.bundled import bundled_records_dir
 from gatetwin.fmu import export_fmu
 from gatetwin.identify.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
-from gatetwin.pipeline import bundled_records_dir
 from gatetwin.records import read_record
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -9,12 +9,11 @@ import jsonschema
 import numpy as np
 import pytest
 
-from gatetwin._commands_model import write_models
+from gatetwin.bundled import bundled_records_dir
 from gatetwin.cli import main
 from gatetwin.errors import ModelFileError
 from gatetwin.identify.suite import identify_folder
-from gatetwin.modelfile import read_model_file
-from gatetwin.pipeline import bundled_records_dir
+from gatetwin.modelfile import read_model_file, write_model_files
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 
@@ -22,7 +21,7 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 @pytest.fixture(scope="module")
 def regenerated(tmp_path_factory):
     out = tmp_path_factory.mktemp("models")
-    write_models(identify_folder(bundled_records_dir()).models, out)
+    write_model_files(identify_folder(bundled_records_dir()).models, out)
     return out
 
 

@@ -15,10 +15,10 @@ from pathlib import Path
 import pytest
 
 from gatetwin._io import write_json_atomic
-from gatetwin._outdir import MARKER, RUN_PID_FILE, clean_stale_work
 from gatetwin.cli import main
 from gatetwin.errors import OutputError, PipelineError
-from gatetwin.pipeline import STAGES, PipelineContext, PipelineStage, run_pipeline
+from gatetwin.run.outdir import MARKER, RUN_PID_FILE, clean_stale_work
+from gatetwin.run.pipeline import STAGES, PipelineContext, PipelineStage, run_pipeline
 from gatetwin.validate import inspect_fmu
 from gatetwin.validate.errors import ValidationError
 
@@ -162,7 +162,7 @@ def test_an_own_folder_that_lost_its_marker_is_left_alone(records_dir, tmp_path)
 def test_cli_run_says_where_the_result_went_in_one_line(tmp_path, capsys, monkeypatch):
     import functools
 
-    import gatetwin.pipeline as pipeline
+    import gatetwin.run.pipeline as pipeline
 
     target = tmp_path / "out"
     stages = (_stage(lambda ctx: target.mkdir()),)
@@ -206,7 +206,7 @@ def test_stale_work_folders_are_removed_and_live_ones_reported(tmp_path):
 
 SLOW_RUN = """
 import sys, time
-from gatetwin.pipeline import STAGES, PipelineStage, run_pipeline
+from gatetwin.run.pipeline import STAGES, PipelineStage, run_pipeline
 def wait(ctx):
     print("started", flush=True)
     time.sleep(120)

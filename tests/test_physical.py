@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gatetwin.bundled import bundled_records_dir
 from gatetwin.errors import ModelFileError
 from gatetwin.fmu.c_build import KERNEL_PREFIX, find_compiler, generated_kernel
 from gatetwin.identify.physical import NO_SEICHE, fit_physical, kernel_simulator
 from gatetwin.identify.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
-from gatetwin.pipeline import bundled_records_dir
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import effect_dict
 from gatetwin.plant.kernel_render import casadi_kernel, numba_kernel

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gatetwin.errors import GatetwinError, PipelineError, RecordError
-from gatetwin.pipeline import STAGES, PipelineContext, PipelineStage, run_pipeline
+from gatetwin.run.pipeline import STAGES, PipelineContext, PipelineStage, run_pipeline
 
 #: The record-checking stages: the small test folder here cannot support identification.
 CHECKING = STAGES[:3]
@@ -103,7 +103,7 @@ def test_stages_are_extensible(records_dir: Path, tmp_path: Path) -> None:
 
 
 def test_run_writes_models_fmus_figures_and_summary(tmp_path):
-    from gatetwin.pipeline import run_pipeline
+    from gatetwin.run.pipeline import run_pipeline
 
     out = run_pipeline(tmp_path / "out")
     models = sorted(p.stem for p in (out / "models").glob("*.json") if p.stem != "schema")
@@ -142,8 +142,8 @@ def _check_families(doc: dict) -> None:
 def _bundled_context():
     from types import SimpleNamespace
 
+    from gatetwin.bundled import bundled_records_dir
     from gatetwin.identify.suite import load_folder
-    from gatetwin.pipeline import bundled_records_dir
 
     models = Path(__file__).resolve().parents[1] / "models"
     paths = sorted(p for p in models.glob("*.json") if p.name != "schema.json")
@@ -152,7 +152,7 @@ def _bundled_context():
 
 
 def test_every_model_meets_every_bundled_record_once_scored_or_outside():
-    from gatetwin._stages import applicable_pairs
+    from gatetwin.run.stages import applicable_pairs
 
     ctx = _bundled_context()
     pairs, outside = applicable_pairs(ctx)
@@ -164,9 +164,9 @@ def test_every_model_meets_every_bundled_record_once_scored_or_outside():
 
 
 def test_a_record_whose_discharge_changes_is_checked_at_each_discharge():
-    from gatetwin._stages import operating_points
-    from gatetwin.pipeline import bundled_records_dir
+    from gatetwin.bundled import bundled_records_dir
     from gatetwin.records import read_record
+    from gatetwin.run.stages import operating_points
 
     steps = operating_points(read_record(bundled_records_dir() / "EflowHigh.csv"))
     flows = [q for q, _ in steps]

@@ -22,13 +22,13 @@ import numpy as np
 import pytest
 
 from fmu_support import compiler
-from gatetwin._stages import write_report
 from gatetwin.cli import main
 from gatetwin.errors import ModelFileError
 from gatetwin.fmu import export_fmu
 from gatetwin.modelfile import validity_envelope
 from gatetwin.plant import FopdtPlant, Schedule
 from gatetwin.records import read_record
+from gatetwin.run.stages import write_report
 from gatetwin.validate import (
     VALIDITY_CHECK,
     ValidationError,

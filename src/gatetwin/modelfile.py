@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from gatetwin._io import write_json_atomic
+from gatetwin._io import write_json_atomic, write_text_atomic
 from gatetwin.errors import ModelFileError
 from gatetwin.modelschema import MAX_FILE_BYTES, check_model_document, parse_model_json, show
 from gatetwin.plant.model import Plant, plant_from_dict, plant_to_dict
@@ -250,3 +251,16 @@ def applies_to(content: dict[str, Any], flow_m3h: float, openings_mm: Any) -> tu
         return False, (f"openings up to {worst:.0f} mm from the operating opening "
                        f"{centre:.1f} mm at this Q (band ±{band:g} mm)")  # fmt: skip
     return True, "within validity"
+
+
+def schema_text() -> str:
+    """The model-file JSON Schema shipped with the package."""
+    return (resources.files("gatetwin") / "data" / "model_schema.json").read_text("utf-8")
+
+
+def write_model_files(models: dict[str, dict[str, Any]], out: Path) -> list[Path]:
+    """Write every model document and the schema into ``out`` (each file atomically)."""
+    paths = [write_text_atomic(Path(out) / "schema.json", schema_text())]
+    for name, doc in sorted(models.items()):
+        paths.append(write_json_atomic(Path(out) / f"{name}.json", doc))
+    return paths

@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import argparse
-from importlib import resources
 from pathlib import Path
-from typing import Any
 
-from gatetwin._io import check_writable, write_json_atomic, write_text_atomic
+from gatetwin._io import check_writable, write_json_atomic
 from gatetwin.errors import GatetwinError, IdentificationError
 
 TEST_CHOICES = ("step", "prbs")
@@ -79,26 +77,15 @@ def add_models_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="DIR", required=True, help="where to write the models")
 
 
-def schema_text() -> str:
-    return (resources.files("gatetwin") / "data" / "model_schema.json").read_text("utf-8")
-
-
-def write_models(models: dict[str, dict[str, Any]], out: Path) -> list[Path]:
-    """Write every model file and the schema into ``out`` (each file atomically)."""
-    paths = [write_text_atomic(out / "schema.json", schema_text())]
-    for name, doc in sorted(models.items()):
-        paths.append(write_json_atomic(out / f"{name}.json", doc))
-    return paths
-
-
 def run_models(args: argparse.Namespace) -> int:
     from gatetwin.bundled import bundled_records_dir
     from gatetwin.identify.suite import identify_folder
+    from gatetwin.modelfile import write_model_files
 
     folder = Path(args.records) if args.records else bundled_records_dir()
     check_writable(args.out, folder=True)
     ident = identify_folder(folder)
-    for path in write_models(ident.models, Path(args.out)):
+    for path in write_model_files(ident.models, Path(args.out)):
         print(f"wrote {path}")
     return 0
 

@@ -1,7 +1,7 @@
 """Later stages of ``gatetwin run``: validation matrix and the HTML report.
 
 Each stage is a plain ``stage(ctx)`` on the pipeline's context (see
-:mod:`gatetwin.pipeline`); the work itself lives in the stage's own package.
+:mod:`gatetwin.run.pipeline`); the work itself lives in the stage's own package.
 """
 
 from __future__ import annotations
@@ -344,7 +344,7 @@ def write_report(ctx: Any) -> None:
         "(virtual-flume) records; see README for why each difference exists.",
         *(Table(t.header, t.rows, caption=t.title) for t in tables),
     )
-    from gatetwin.figures import caption
+    from gatetwin.run.figures import caption
 
     figures = [(p, caption(p)) for p in ctx.results.get("figures", [])]
     report.add_section("Identification figures", figures=figures)

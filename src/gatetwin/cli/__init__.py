@@ -17,9 +17,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NoReturn
 
-from gatetwin import _commands_diagnose as _diagnose_cmds
-from gatetwin import _commands_model as _model_cmds
 from gatetwin._io import write_json_atomic
+from gatetwin.cli import diagnose as _diagnose_cmds
+from gatetwin.cli import model as _model_cmds
 from gatetwin.errors import GatetwinError, RecordError
 from gatetwin.records.sidecar import TEST_TYPES
 from gatetwin.records.summary import format_record_summary, format_static_summary
@@ -119,7 +119,7 @@ def _add_run_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _run_run(args: argparse.Namespace) -> int:
-    from gatetwin.pipeline import run_pipeline
+    from gatetwin.run.pipeline import run_pipeline
 
     out = run_pipeline(Path(args.out), progress=print_to_stderr)
     print_to_stderr(f"wrote {out}")

@@ -1,0 +1,267 @@
+"""The ``gatetwin run`` pipeline: a list of stages run in order on one context.
+
+Each stage is a plain function ``stage(ctx) -> None`` that reads what earlier stages left
+in ``ctx.results`` and adds its own; extend the pipeline by appending a
+:class:`PipelineStage` to :data:`STAGES`. Outputs are written into a temporary sibling of
+the output directory, which is renamed into place only when every stage has succeeded:
+a failed run leaves no partial output, and an existing output directory is replaced only
+after success and only if it is still the run's own (:mod:`gatetwin.run.outdir`).
+
+This module orchestrates; checking, identification and so on live in their own modules.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from gatetwin.bundled import bundled_records_dir
+from gatetwin.errors import PipelineError
+from gatetwin.records import detect_table_kind, read_record, read_static_table
+from gatetwin.run import stages as _stages
+from gatetwin.run.outdir import (
+    MARKER,
+    RUN_PID_FILE,
+    check_replaceable,
+    clean_stale_work,
+    make_work_dir,
+    make_world_readable,
+    replace_output,
+)
+
+__all__ = ["MARKER", "STAGES", "PipelineContext", "PipelineStage", "run_pipeline"]
+
+
+@dataclass
+class PipelineContext:
+    """What the stages share (deliberately mutable: stages fill ``results``).
+
+    Attributes
+    ----------
+    out_dir : Path
+        Directory to write into (a temporary directory until the run succeeds).
+    records_dir : Path
+        Where the input records are read from.
+    records : list[Path]
+        The input files found (records and static tables).
+    results : dict
+        Stage outputs by name, e.g. ``results["records"]``: summaries of the checked
+        records.
+    progress : callable
+        Takes one line of progress text.
+    """
+
+    out_dir: Path
+    records_dir: Path
+    records: list[Path] = field(default_factory=list)
+    results: dict[str, Any] = field(default_factory=dict)
+    progress: Callable[[str], None] = print
+
+
+@dataclass(frozen=True)
+class PipelineStage:
+    """One stage: a title for the progress line and the function that runs it."""
+
+    title: str
+    run: Callable[[PipelineContext], None]
+
+
+# --------------------------------------------------------------------------- stages
+
+
+def find_records(ctx: PipelineContext) -> None:
+    """Collect the ``*.csv`` files of ``ctx.records_dir``."""
+    found = sorted(ctx.records_dir.glob("*.csv")) if ctx.records_dir.is_dir() else []
+    if not found:
+        raise PipelineError(
+            f"{ctx.records_dir}: no records found; expected NAME.csv files "
+            "(time-series records or static tables)"
+        )
+    ctx.records = found
+    ctx.progress(f"      found {len(found)} file(s) in {ctx.records_dir}")
+
+
+def check_records(ctx: PipelineContext) -> None:
+    """Read and check every input; results["records"] gets their summaries."""
+    summaries = []
+    for path in ctx.records:
+        if detect_table_kind(path) == "static":
+            summary = read_static_table(path).summary()
+        else:
+            summary = read_record(path).summary()
+        summary["file"] = path.name
+        summaries.append(summary)
+        ctx.progress(f"      {path.name}: ok ({summary['kind']})")
+    ctx.results["records"] = summaries
+
+
+def write_record_summary(ctx: PipelineContext) -> None:
+    """Write ``records.json`` and ``summary.md`` (a table of the checked records)."""
+    from gatetwin._io import write_json_atomic, write_text_atomic
+
+    summaries = ctx.results["records"]
+    write_json_atomic(ctx.out_dir / "records.json", summaries)
+    write_text_atomic(ctx.out_dir / "summary.md", _summary_markdown(summaries))
+
+
+def _summary_markdown(summaries: Sequence[dict[str, Any]]) -> str:
+    lines = [
+        "# gatetwin run",
+        "",
+        "## Records checked",
+        "",
+        "| file | kind | test | samples / points | gauges | steps | flow (m³/h) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for s in summaries:
+        gauges = " ".join(g["name"] for g in s["gauges"])
+        flow = s["flow_m3h"]
+        if s["kind"] == "static":
+            row = (s["file"], "static", "–", s["n_points"], gauges, "–")
+        else:
+            test = f"{s['test']} ({s['test_source']})"
+            row = (s["file"], "record", test, s["n_samples"], gauges, len(s["steps"]))
+        cells = [*map(str, row), f"{flow['min']:.4g} … {flow['max']:.4g}"]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def identify_models(ctx: PipelineContext) -> None:
+    """Identify every record; write ``models/*.json`` (and the schema)."""
+    from gatetwin.identify.suite import identify_folder
+    from gatetwin.modelfile import write_model_files
+
+    ident = identify_folder(ctx.records_dir, ctx.progress)
+    ctx.results["ident"] = ident
+    written = write_model_files(ident.models, ctx.out_dir / "models")
+    ctx.results["model_paths"] = [p for p in written if p.name != "schema.json"]
+    ctx.progress(f"      {len(ident.models)} model(s): {', '.join(sorted(ident.models))}")
+
+
+def export_fmus(ctx: PipelineContext) -> None:
+    """Export every model with both backends: ``fmus/c/NAME.fmu``, ``fmus/python/NAME.fmu``."""
+    from gatetwin.fmu import export_fmu
+    from gatetwin.fmu.provenance import fmu_provenance
+    from gatetwin.modelfile import read_model_file
+
+    fmus: dict[str, list[Path]] = {"c": [], "python": []}
+    for path in ctx.results["model_paths"]:
+        model = read_model_file(path)
+        for backend, paths in fmus.items():
+            out = ctx.out_dir / "fmus" / backend / f"{model.name}.fmu"
+            ctx.progress(f"      exporting {model.name} ({backend})")
+            paths.append(export_fmu(model.plant, out, backend=backend, model_name=model.name,
+                                    provenance=fmu_provenance(model)))  # fmt: skip
+    ctx.results["fmus"] = fmus
+
+
+def tables_and_figures(ctx: PipelineContext) -> None:
+    """Published-vs-ours tables (``tables.md``) and the figures (``figures/*.png``)."""
+    from gatetwin._io import write_text_atomic
+    from gatetwin.run.figures import write_all
+    from gatetwin.run.tables import all_tables
+
+    ident = ctx.results["ident"]
+    tables = all_tables(ident)
+    ctx.results["tables"] = tables
+    write_text_atomic(ctx.out_dir / "tables.md", "\n".join(t.markdown() for t in tables))
+    ctx.results["figures"] = write_all(ident, ctx.out_dir / "figures")
+    ctx.progress(f"      {len(tables)} table(s), {len(ctx.results['figures'])} figure(s)")
+
+
+def write_summary(ctx: PipelineContext) -> None:
+    """``summary.md``: records, published-vs-ours tables, and what later stages found."""
+    from gatetwin._io import write_text_atomic
+    from gatetwin.run.tables import worst_deviation
+
+    parts = [_summary_markdown(ctx.results["records"])]
+    ident = ctx.results.get("ident")
+    if ident is not None and {"A", "B"} <= set(ident.steps):
+        worst = worst_deviation(ident)
+        parts.append(
+            "## Published vs ours\n\nLargest deviation over the five gauges of A and B "
+            f"(paper's method): levels {worst['level_mm']} mm, K {worst['K_percent']} %, "
+            f"L {worst['L_s']} s, T {worst['T_percent']} %.\n"
+        )
+    parts += [t.markdown() for t in ctx.results.get("tables", [])]
+    parts += ctx.results.get("summary_sections", [])
+    write_text_atomic(ctx.out_dir / "summary.md", "\n".join(parts))
+
+
+#: The stages of ``gatetwin run``, in order. Append to extend the pipeline.
+STAGES: tuple[PipelineStage, ...] = (
+    PipelineStage("finding records", find_records),
+    PipelineStage("checking records", check_records),
+    PipelineStage("writing the record summary", write_record_summary),
+    PipelineStage("identifying models", identify_models),
+    PipelineStage("exporting FMUs (C and python)", export_fmus),
+    PipelineStage("tables and figures", tables_and_figures),
+    PipelineStage("validating every FMU against every record (fmpy)", _stages.validate_all),
+    PipelineStage("comparing the model families on every record", _stages.compare_families),
+    PipelineStage("MPC demo against PI (FMU and flume in the loop)", _stages.mpc_demo),
+    PipelineStage("diagnosing the bundled records", _stages.diagnose_records),
+    PipelineStage("writing summary.md", write_summary),
+    PipelineStage("writing report.html", _stages.write_report),
+)
+
+
+# --------------------------------------------------------------------------- running
+
+
+def run_pipeline(
+    out_dir: str | os.PathLike[str],
+    progress: Callable[[str], None] | None = None,
+    *,
+    stages: Sequence[PipelineStage] = STAGES,
+    records_dir: str | os.PathLike[str] | None = None,
+) -> Path:
+    """Run ``stages`` and move their output to ``out_dir`` only if all succeed.
+
+    Parameters
+    ----------
+    out_dir : path
+        Output directory. An existing one is replaced after success, provided it was
+        written by an earlier run (or is empty) -- checked at the start and again at the
+        moment it is replaced (see :func:`replace_output`).
+    progress : callable, optional
+        Receives progress lines such as ``"[2/3] checking records ..."``.
+    stages : sequence of PipelineStage, optional
+        The stages to run (default :data:`STAGES`).
+    records_dir : path, optional
+        Input directory (default: the bundled records, :func:`bundled_records_dir`).
+
+    Returns
+    -------
+    Path
+        ``out_dir``.
+
+    Raises
+    ------
+    GatetwinError
+        From any stage, or :class:`~gatetwin.errors.PipelineError` if ``out_dir`` cannot
+        be written or (re)placed. Nothing is left behind on failure, except this run's
+        output kept in a named sibling folder when ``out_dir`` changed hands meanwhile.
+    """
+    target = Path(out_dir).resolve()
+    say = progress or (lambda _line: None)
+    owner = check_replaceable(target)
+    inputs = Path(records_dir) if records_dir is not None else bundled_records_dir()
+    clean_stale_work(target, say)
+    work = make_work_dir(target)
+    try:
+        ctx = PipelineContext(out_dir=work, records_dir=inputs, progress=say)
+        for number, stage in enumerate(stages, 1):
+            say(f"[{number}/{len(stages)}] {stage.title} ...")
+            stage.run(ctx)
+        (work / MARKER).write_text("written by gatetwin run\n", encoding="utf-8")
+        (work / RUN_PID_FILE).unlink()
+        make_world_readable(work)
+        replace_output(work, target, owner)
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        raise
+    return target
