@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -80,7 +79,9 @@ def add_models_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def schema_text() -> str:
-    return (resources.files("gatetwin") / "data" / "model_schema.json").read_text("utf-8")
+    from gatetwin.bundled import bundled_schema_path
+
+    return bundled_schema_path().read_text("utf-8")
 
 
 def write_models(models: dict[str, dict[str, Any]], out: Path) -> list[Path]:
@@ -92,8 +93,8 @@ def write_models(models: dict[str, dict[str, Any]], out: Path) -> list[Path]:
 
 
 def run_models(args: argparse.Namespace) -> int:
+    from gatetwin.bundled import bundled_records_dir
     from gatetwin.identify.suite import identify_folder
-    from gatetwin.pipeline import bundled_records_dir
 
     folder = Path(args.records) if args.records else bundled_records_dir()
     ident = identify_folder(folder)

@@ -17,11 +17,11 @@ import shutil
 import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from gatetwin import _stages
+from gatetwin.bundled import bundled_records_dir
 from gatetwin.errors import PipelineError
 from gatetwin.records import detect_table_kind, read_record, read_static_table
 
@@ -61,14 +61,6 @@ class PipelineStage:
 
     title: str
     run: Callable[[PipelineContext], None]
-
-
-def bundled_records_dir() -> Path:
-    """The package data directory of bundled records (``gatetwin/data/records``)."""
-    root = resources.files("gatetwin").joinpath("data", "records")
-    if not isinstance(root, Path):
-        raise PipelineError(f"bundled records at {root} are not on the file system")
-    return root
 
 
 # --------------------------------------------------------------------------- stages

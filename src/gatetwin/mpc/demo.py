@@ -95,8 +95,8 @@ def load_demo_plant(model_path: str | Path | None = None) -> FopdtPlant:
     """The plant of a model file (must be FOPDT); without one, the scheduled FOPDT of gauge
     3F identified from the bundled records (the model ``gatetwin run`` exports)."""
     if model_path is None:
+        from gatetwin.bundled import bundled_records_dir
         from gatetwin.identify.suite import identify_folder
-        from gatetwin.pipeline import bundled_records_dir
 
         doc = identify_folder(bundled_records_dir()).models["fopdt_3F"]
         return plant_from_dict(doc["plant"])  # type: ignore[return-value]
