@@ -222,8 +222,11 @@ class MpcController:
     def _holding_opening_mm(self, level_mm: float, flow_m3h: float) -> float:
         """The opening at which the model's steady level at ``flow_m3h`` is ``level_mm``."""
         rng = self.settings.opening_range_mm
-        if self.linearisation == "envelope":
-            return steady_opening_mm(self.plant, flow_m3h, level_mm, rng)
+        if self.linearisation == "envelope":  # where the gate can stand: its resolution
+            opening = gate_position_mm(
+                self.plant, steady_opening_mm(self.plant, flow_m3h, level_mm, rng)
+            )
+            return float(np.clip(opening, *rng))
         model = discretise(self.plant, flow_m3h, self.settings.sample_period_s)
         gain = model.dc_gain_mm_per_mm()
         if gain == 0.0:
