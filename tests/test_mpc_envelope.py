@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import gatetwin.mpc.controller
+from gatetwin._stages import _mpc_markdown, _mpc_rows
 from gatetwin.modelfile import read_model_file
 from gatetwin.mpc import (
     ControlError,
@@ -146,6 +147,14 @@ def test_demo_reports_envelope_against_single_point(envelope_plant, tmp_path):
     assert row["iae_ratio"] == pytest.approx(row["iae_mpc_envelope"] / row["iae_mpc"])
     assert set(result["scenarios"]["inflow_step"]) == {"mpc", "pi"}
     assert (tmp_path / "wide_range.png").stat().st_size > 10_000
+    # the run summary's table: one row per controller and scenario, and the comparison
+    doc = {"model": "fopdt_3F", "minutes": 3.0, "scenarios": result["scenarios"],
+           "envelope_vs_single_point": result["envelope_vs_single_point"]}  # fmt: skip
+    rows = _mpc_rows(doc)
+    assert [r[:2] for r in rows if r[0] == "wide_range"] == [
+        ["wide_range", "MPC"], ["wide_range", "MPC (envelope)"]]  # fmt: skip
+    summary = _mpc_markdown(doc)
+    assert f"| wide_range | {row['iae_mpc']:.0f} | {row['iae_mpc_envelope']:.0f} |" in summary
 
 
 def test_demo_without_envelope_has_no_wide_scenario():

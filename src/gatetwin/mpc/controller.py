@@ -9,6 +9,25 @@ at the measured discharge (``K``, ``T``, ``L`` re-evaluated; same state size at 
 observer predicts ahead with the chosen opening. Openings are not rounded here: the
 actuator's 1 mm resolution belongs to the plant.
 
+A plant with an envelope (envelope FOPDT, physical family) is re-linearised instead at
+every sample at the measured discharge and the gate's position
+(:mod:`gatetwin.mpc.envelope`): the tangent's ``K``, ``T``, ``L`` and the steady level
+``H_ss(Q, e)`` as the linearisation point. Three things keep that consistent from one
+sample to the next: the state is the absolute level, so it needs no mapping between
+points; the observer's input disturbance is rescaled when ``K`` changes, so it keeps its
+effect on the level; and the observer predicts with the opening at the actuator's
+resolution (the envelope's ``resolution_mm``), so it does not integrate the rounding into
+a limit cycle. Where ``|K|`` exceeds the gain the move weight was tuned for, the weight
+grows with ``K²`` (:attr:`MpcSettings.move_weight_gain_mm_per_mm`).
+
+Why a re-linearised QP and not a nonlinear MPC on the physical kernel (its CasADi
+rendering exists): the tangent at the measured point is exact to first order, the
+condensed QP keeps qpOASES' hot-started ~0.5 ms solve, and a rebuild of its matrices
+(only when the tangent has moved by a 1 % grid step) costs a few ms; IPOPT on the same
+horizon takes ~19 ms median and ~64 ms p99 a solve on the linear model alone
+(``benchmarks/bench_mpc.py``, N = 100), more with the kernel's nested bisection inside,
+and gives up the QP's solution in a bounded number of active-set steps.
+
 A plant with effect blocks is controlled with all of them: the output blocks are states of
 the model (:mod:`gatetwin.mpc.augment`), the input blocks shape the command
 (:class:`~gatetwin.mpc.actuation.CommandShaper`: a rate limit narrows the move bound, an

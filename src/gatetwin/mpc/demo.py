@@ -9,7 +9,7 @@ With a model that carries an envelope (``fopdt`` with ``plant.envelope``, as ide
 from the bundled records), a third scenario crosses the gate's range:
 
 * ``wide_range`` — from rest at Q = 50 m³/h and 120 mm (the opening that holds it, ≈ 50 mm),
-  the set-point steps to 300 mm (the gate near 22 mm, where ``|K|`` is ~8 times larger),
+  the set-point steps to 300 mm (the gate near 22 mm, where ``|K|`` is ~6 times larger),
   then the discharge steps +30 m³/h (to 80) and −30 m³/h (back to 50).
 
 It is run by the single-point MPC (``mpc``: the schedule's model, linearised once at
@@ -458,8 +458,9 @@ def plot_runs(runs: dict[str, ClosedLoopRun], path: str | Path) -> Path:
     axes = fig.subplots(3, 1, sharex=True, height_ratios=[3, 2, 1])
     colors = {"mpc": "tab:blue", "pi": "tab:orange", "mpc_envelope": "tab:green"}
     first = next(iter(runs.values()))
-    for name, run in reversed(list(runs.items())):  # the MPC drawn last, on top
-        run.plot(axes, color=colors.get(name))
+    on_top = ("pi", "mpc", "mpc_envelope")  # the PI first, the envelope MPC last
+    for name in sorted(runs, key=lambda n: on_top.index(n) if n in on_top else -1):
+        runs[name].plot(axes, color=colors.get(name))
     axes[0].step(
         first.time_s / 60,
         first.setpoint_mm,
