@@ -89,6 +89,9 @@ class MpcController:
 
     Attributes
     ----------
+    name : str
+        ``"mpc"``, or ``"mpc_envelope"`` with the envelope linearisation (the closed-loop
+        runs are labelled with it).
     setpoint_mm : float or None
         The set-point :meth:`step` uses when called without one, mm (may be reassigned).
     linearisation : str
@@ -124,8 +127,6 @@ class MpcController:
     >>> mpc.reset()  # forget the state: the next step starts at rest again
     """
 
-    name = "mpc"
-
     def __init__(
         self,
         plant: Plant | str | Path,
@@ -145,6 +146,7 @@ class MpcController:
             plant = read_model_file(plant).plant
         self.plant = plant
         self.linearisation = _resolve_linearisation(plant, linearisation)
+        self.name = "mpc_envelope" if self.linearisation == "envelope" else "mpc"
         self.settings = settings or MpcSettings()
         self.backend = QpBackend(self.settings) if backend == "qp" else OptiBackend(self.settings)
         self.observer = DisturbanceObserver(self.settings.observer)

@@ -303,11 +303,8 @@ def compare_controllers(
 def _controller(name: str, plant_model: FopdtPlant, s: DemoSettings) -> Any:
     if name == "pi":
         return PiController(_pi_tuning(plant_model, s), s.pi)
-    if name == "mpc":
-        return MpcController(plant_model, s.mpc, linearisation="schedule")
-    controller = MpcController(plant_model, s.mpc, linearisation="envelope")
-    controller.name = "mpc_envelope"
-    return controller
+    linearisation = "schedule" if name == "mpc" else "envelope"
+    return MpcController(plant_model, s.mpc, linearisation=linearisation)
 
 
 def _pi_tuning(plant_model: Plant, s: DemoSettings) -> PiTuning:
