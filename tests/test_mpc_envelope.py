@@ -241,3 +241,15 @@ def test_library_modules_do_not_import_the_orchestration():
     import gatetwin.pipeline
 
     assert gatetwin.pipeline.bundled_records_dir is gatetwin.bundled.bundled_records_dir
+
+
+def test_envelope_problem_agrees_between_qp_and_ipopt():
+    qp = MpcController(FOPDT_3F, setpoint_mm=300.0)
+    ipopt = MpcController(FOPDT_3F, setpoint_mm=300.0, backend="ipopt")
+    levels = 121.4 + np.arange(8) * 2.0  # rising: the tangent and the move weight change
+    a = [qp.step(y, 50.0) for y in levels]
+    b = [ipopt.step(y, 50.0) for y in levels]
+    # the same convex problem: the solvers agree to their tolerances (IPOPT's 1e-10 on a
+    # cost of order 1e6, qpOASES' active set exact to round-off)
+    assert np.max(np.abs(np.subtract(a, b))) < 1e-6
+    assert qp.last_solution is not None and ipopt.last_solution is not None
