@@ -180,6 +180,7 @@ def test_controller_from_a_model_path_starts_at_rest_where_the_model_holds_the_l
 def test_reset_forgets_everything():
     mpc = MpcController(FOPDT_3F, setpoint_mm=200.0)
     levels = 180.0 + np.arange(20) * 0.5
+    first_gate = MpcController(FOPDT_3F)._holding_opening_mm(levels[0], 50.0)
     first = [mpc.step(y, 50.0) for y in levels]
     mpc.reset()
     again = [mpc.step(y, 50.0) for y in levels]
@@ -188,6 +189,11 @@ def test_reset_forgets_everything():
     # with a start opening, reset(opening) starts there
     mpc.reset(30.0)
     assert abs(mpc.step(180.0, 50.0) - 30.0) <= mpc.settings.max_move_mm + 1e-9
+    # a level and a discharge without an opening: at rest where the model holds the level
+    mpc.reset(level_mm=180.0, flow_m3h=50.0)
+    assert mpc.previous_gate_mm == first_gate
+    with pytest.raises(ControlError):
+        mpc.reset(level_mm=math.nan, flow_m3h=50.0)
 
 
 def test_controller_holds_the_first_level_without_a_setpoint():

@@ -212,8 +212,11 @@ class MpcController:
         if level_mm is None or flow_m3h is None:
             self._start_opening_mm = opening_mm
             return
-        self._start(float(opening_mm) if opening_mm is not None else math.nan,
-                    float(level_mm), float(flow_m3h))  # fmt: skip
+        if not (math.isfinite(level_mm) and math.isfinite(flow_m3h)):
+            raise ControlError("mpc: start level and discharge must be finite")
+        if opening_mm is None:
+            opening_mm = self._holding_opening_mm(level_mm, flow_m3h)
+        self._start(float(opening_mm), float(level_mm), float(flow_m3h))
 
     def _start(self, opening_mm: float, level_mm: float, flow_m3h: float) -> None:
         lo, hi = self.settings.opening_range_mm
