@@ -1,14 +1,14 @@
-/* Effect blocks: the arithmetic of gatetwin/plant/blocks.py and the block pipeline of
- * gatetwin.plant.simulate.PlantSimulator, operation by operation (see effects.h).
+/* Effect blocks: the block pipeline of gatetwin.plant.simulate.PlantSimulator (see effects.h) on
+ * the blocks' arithmetic generated from gatetwin/plant/blocks.py (blocks.c).
  *
  * A block the model does not carry (GT_HAS_<BLOCK> 0 in model_config.h) compiles to the
  * identity or to nothing; its parameters then have no value reference.
  */
 #include <math.h>
 
+#include "blocks.h"
 #include "plant.h"
 
-#define GT_PI 3.141592653589793 /* the double nearest pi, as Python's math.pi */
 #define PARAMETER(m, vr) ((m)->real[vr])
 
 /* --- parameter checks: the limits table is generated from gatetwin.plant.effects ------------ */
@@ -46,57 +46,7 @@ PlantStatus effects_check_parameters(const ModelData *m, PlantMessage *msg)
     return PLANT_OK;
 }
 
-/* --- kernels (gatetwin/plant/blocks.py) ------------------------------------------------------ */
-
-#if GT_HAS_RATE_LIMIT
-static double move_toward(double position_mm, double command_mm, double max_travel_mm)
-{
-    const double diff = command_mm - position_mm;
-    if (diff > max_travel_mm) {
-        return position_mm + max_travel_mm;
-    }
-    if (diff < -max_travel_mm) {
-        return position_mm - max_travel_mm;
-    }
-    return command_mm;
-}
-#endif
-
-#if GT_HAS_BACKLASH
-static double play(double gate_mm, double actuator_mm, double deadband_mm)
-{
-    const double half = 0.5 * deadband_mm;
-    if (actuator_mm - gate_mm > half) {
-        return actuator_mm - half;
-    }
-    if (actuator_mm - gate_mm < -half) {
-        return actuator_mm + half;
-    }
-    return gate_mm;
-}
-#endif
-
-#if GT_HAS_LAG || GT_HAS_INFLOW
-static double first_order(double state, double target, double duration_s, double tau_s)
-{
-    return target + (state - target) * exp(-duration_s / tau_s);
-}
-#endif
-
-double grid_index_at_or_after(double time_s, double origin_s, double step_s)
-{
-    double k = ceil((time_s - origin_s) / step_s);
-    if (k < 0.0) {
-        k = 0.0;
-    }
-    while (k > 0.0 && origin_s + (k - 1.0) * step_s >= time_s) {
-        k -= 1.0;
-    }
-    while (origin_s + k * step_s < time_s) {
-        k += 1.0;
-    }
-    return k;
-}
+/* The blocks' arithmetic is blocks.c, generated from gatetwin/plant/blocks.py (gt_ prefix). */
 
 /* --- input blocks ---------------------------------------------------------------------------- */
 
@@ -104,11 +54,7 @@ double effects_input(const ModelData *m, double gate_mm)
 {
     const double v = gate_mm - m->real[VR_OPENING_REF_MM];
 #if GT_HAS_NONLINEARITY
-    const double slope = PARAMETER(m, VR_FX_NONLINEARITY_GAIN_SLOPE_PER_MM);
-    if (slope == 0.0) {
-        return v;
-    }
-    return expm1(slope * v) / slope;
+    return gt_gain_map(v, PARAMETER(m, VR_FX_NONLINEARITY_GAIN_SLOPE_PER_MM));
 #else
     return v;
 #endif
@@ -119,13 +65,13 @@ void effects_actuate(const ModelData *m, EffectState *fx, double command_mm, dou
     (void)m;
     (void)duration_s;
 #if GT_HAS_RATE_LIMIT
-    fx->actuator_mm = move_toward(fx->actuator_mm, command_mm,
+    fx->actuator_mm = gt_move_toward(fx->actuator_mm, command_mm,
                                   PARAMETER(m, VR_FX_RATE_LIMIT_RATE_MM_PER_S) * duration_s);
 #else
     fx->actuator_mm = command_mm;
 #endif
 #if GT_HAS_BACKLASH
-    fx->gate_mm = play(fx->gate_mm, fx->actuator_mm, PARAMETER(m, VR_FX_BACKLASH_DEADBAND_MM));
+    fx->gate_mm = gt_play(fx->gate_mm, fx->actuator_mm, PARAMETER(m, VR_FX_BACKLASH_DEADBAND_MM));
 #else
     fx->gate_mm = fx->actuator_mm;
 #endif
@@ -135,10 +81,12 @@ void effects_fopdt_parameters(const ModelData *m, double flow_m3h, double *gain,
                               double *time_constant_s)
 {
 #if GT_HAS_FLOW_GAIN
-    const double dq = flow_m3h - PARAMETER(m, VR_FX_FLOW_GAIN_FLOW_REF_M3H);
-    *gain = *gain * exp(PARAMETER(m, VR_FX_FLOW_GAIN_GAIN_SLOPE_PER_M3H) * dq);
-    *time_constant_s =
-        *time_constant_s * exp(PARAMETER(m, VR_FX_FLOW_GAIN_TIME_CONSTANT_SLOPE_PER_M3H) * dq);
+    const double flow_ref = PARAMETER(m, VR_FX_FLOW_GAIN_FLOW_REF_M3H);
+    *gain = gt_flow_scaled(*gain, PARAMETER(m, VR_FX_FLOW_GAIN_GAIN_SLOPE_PER_M3H), flow_m3h,
+                           flow_ref);
+    *time_constant_s = gt_flow_scaled(*time_constant_s,
+                                      PARAMETER(m, VR_FX_FLOW_GAIN_TIME_CONSTANT_SLOPE_PER_M3H),
+                                      flow_m3h, flow_ref);
 #else
     (void)m;
     (void)flow_m3h;
@@ -148,24 +96,6 @@ void effects_fopdt_parameters(const ModelData *m, double flow_m3h, double *gain,
 }
 
 /* --- output blocks --------------------------------------------------------------------------- */
-
-#if GT_HAS_SEICHE
-static void seiche_advance(EffectState *fx, double drive_mm, double duration_s, double period_s,
-                           double decay_time_s)
-{
-    const double w = 2.0 * GT_PI / period_s;
-    const double sigma = 1.0 / decay_time_s;
-    const double w0_sq = sigma * sigma + w * w;
-    const double p = fx->seiche_x1 - drive_mm / w0_sq;
-    const double envelope = exp(-sigma * duration_s);
-    const double c = cos(w * duration_s);
-    const double s = sin(w * duration_s) / w;
-    const double p_new = envelope * ((c + sigma * s) * p + s * fx->seiche_x2);
-    const double q_new = envelope * (-w0_sq * s * p + (c - sigma * s) * fx->seiche_x2);
-    fx->seiche_x1 = p_new + drive_mm / w0_sq;
-    fx->seiche_x2 = q_new;
-}
-#endif
 
 void effects_initialize(ModelData *m, double opening_mm, double flow_m3h, double level_mm)
 {
@@ -179,11 +109,9 @@ void effects_initialize(ModelData *m, double opening_mm, double flow_m3h, double
     fx->inflow_mm = 0.0;
     fx->drift_mm = 0.0;
 #if GT_HAS_SEICHE
-    {
-        const double w = 2.0 * GT_PI / PARAMETER(m, VR_FX_SEICHE_PERIOD_S);
-        const double sigma = 1.0 / PARAMETER(m, VR_FX_SEICHE_DECAY_TIME_S);
-        fx->seiche_x1 = (opening_mm - m->real[VR_OPENING_REF_MM]) / (sigma * sigma + w * w);
-    }
+    fx->seiche_x1 = gt_seiche_equilibrium(opening_mm - m->real[VR_OPENING_REF_MM],
+                                          PARAMETER(m, VR_FX_SEICHE_PERIOD_S),
+                                          PARAMETER(m, VR_FX_SEICHE_DECAY_TIME_S));
 #endif
 #if GT_HAS_INFLOW
     fx->inflow_mm = PARAMETER(m, VR_FX_INFLOW_GAIN_MM_PER_M3H) *
@@ -197,8 +125,10 @@ void effects_initialize(ModelData *m, double opening_mm, double flow_m3h, double
 void effects_seiche_piece(ModelData *m, double duration_s, double gate_mm)
 {
 #if GT_HAS_SEICHE
-    seiche_advance(&m->fx, gate_mm - m->real[VR_OPENING_REF_MM], duration_s,
-                   PARAMETER(m, VR_FX_SEICHE_PERIOD_S), PARAMETER(m, VR_FX_SEICHE_DECAY_TIME_S));
+    gt_seiche_advance(m->fx.seiche_x1, m->fx.seiche_x2, gate_mm - m->real[VR_OPENING_REF_MM],
+                      duration_s, PARAMETER(m, VR_FX_SEICHE_PERIOD_S),
+                      PARAMETER(m, VR_FX_SEICHE_DECAY_TIME_S), &m->fx.seiche_x1,
+                      &m->fx.seiche_x2);
 #else
     (void)m;
     (void)duration_s;
@@ -210,19 +140,9 @@ void effects_lag_interval(ModelData *m, double level_target_mm, double level_exc
                           double duration_s, double level_time_constant_s)
 {
 #if GT_HAS_LAG
-    const double alpha = 1.0 / level_time_constant_s;
-    const double beta = 1.0 / PARAMETER(m, VR_FX_LAG_TIME_CONSTANT_S);
-    const double lo = alpha < beta ? alpha : beta;
-    const double gap = beta > alpha ? (beta - alpha) : (alpha - beta);
-    double phi, decay;
-    if (gap == 0.0) {
-        phi = beta * duration_s * exp(-lo * duration_s);
-    } else {
-        phi = beta * exp(-lo * duration_s) * (-expm1(-gap * duration_s)) / gap;
-    }
-    decay = exp(-beta * duration_s);
-    m->fx.sensed_mm = level_target_mm + (m->fx.sensed_mm - level_target_mm) * decay +
-                      level_excess_mm * phi;
+    m->fx.sensed_mm = gt_lag_interval(m->fx.sensed_mm, level_target_mm, level_excess_mm,
+                                      duration_s, level_time_constant_s,
+                                      PARAMETER(m, VR_FX_LAG_TIME_CONSTANT_S));
 #else
     (void)m;
     (void)level_target_mm;
@@ -235,7 +155,7 @@ void effects_lag_interval(ModelData *m, double level_target_mm, double level_exc
 void effects_lag_sample(ModelData *m, double level_mm, double duration_s)
 {
 #if GT_HAS_LAG
-    m->fx.sensed_mm = first_order(m->fx.sensed_mm, level_mm, duration_s,
+    m->fx.sensed_mm = gt_first_order(m->fx.sensed_mm, level_mm, duration_s,
                                   PARAMETER(m, VR_FX_LAG_TIME_CONSTANT_S));
 #else
     (void)m;
@@ -250,7 +170,7 @@ void effects_step_end(ModelData *m, double step_s, double flow_m3h)
     {
         const double target = PARAMETER(m, VR_FX_INFLOW_GAIN_MM_PER_M3H) *
                               (flow_m3h - PARAMETER(m, VR_FX_INFLOW_FLOW_REF_M3H));
-        m->fx.inflow_mm = first_order(m->fx.inflow_mm, target, step_s,
+        m->fx.inflow_mm = gt_first_order(m->fx.inflow_mm, target, step_s,
                                       PARAMETER(m, VR_FX_INFLOW_TIME_CONSTANT_S));
     }
 #else
@@ -271,8 +191,8 @@ double effects_output(const ModelData *m, double level_mm)
     y = m->fx.sensed_mm;
 #endif
 #if GT_HAS_SEICHE
-    y += PARAMETER(m, VR_FX_SEICHE_AMPLITUDE_MM_PER_MM) *
-         (2.0 * GT_PI / PARAMETER(m, VR_FX_SEICHE_PERIOD_S)) * m->fx.seiche_x2;
+    y += gt_seiche_output(m->fx.seiche_x2, PARAMETER(m, VR_FX_SEICHE_PERIOD_S),
+                          PARAMETER(m, VR_FX_SEICHE_AMPLITUDE_MM_PER_MM));
 #endif
 #if GT_HAS_INFLOW
     y += m->fx.inflow_mm;

@@ -8,6 +8,7 @@
  */
 #include <math.h>
 
+#include "blocks.h"
 #include "plant.h"
 
 #if GT_ENVELOPE
@@ -101,8 +102,8 @@ PlantStatus dynamics_check_step(const ModelData *m, double step_s, double comman
     const double delta = m->real[VR_FX_RATE_LIMIT_SUBSTEP_S];
     const double origin = m->fx.grid_origin_s;
     const double t0 = m->time_s;
-    const double k0 = grid_index_at_or_after(t0, origin, delta);
-    const double k1 = grid_index_at_or_after(t0 + step_s, origin, delta);
+    const double k0 = gt_grid_index_at_or_after(t0, origin, delta);
+    const double k1 = gt_grid_index_at_or_after(t0 + step_s, origin, delta);
     const double pieces = k1 - k0 + (origin + k0 * delta == t0 ? 0.0 : 1.0);
     (void)command_mm;
     if (d->count + pieces > GT_HISTORY_CAPACITY) {
@@ -184,7 +185,7 @@ static void piece(ModelData *m, double t_start, double t_end, double u_mm,
         target = p->gain * d->change_u[slot(d, j)];
 #endif
         effects_lag_interval(m, p->level_ref_mm + target, d->x - target, t_next - t, tau_s);
-        d->x = target + (d->x - target) * exp(-(t_next - t) / tau_s);
+        d->x = gt_first_order(d->x, target, t_next - t, tau_s);
         t = t_next;
     }
     prune(d, t_end);
@@ -206,7 +207,7 @@ void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPos
         /* the gate moves; the dynamics see it sampled on the grid origin + k * substep */
         const double delta = m->real[VR_FX_RATE_LIMIT_SUBSTEP_S];
         const double origin = fx->grid_origin_s;
-        double k = grid_index_at_or_after(t0, origin, delta);
+        double k = gt_grid_index_at_or_after(t0, origin, delta);
         double tk = origin + k * delta;
         double t_start = t0, t_act = t0;
         for (;;) {

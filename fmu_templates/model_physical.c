@@ -1,7 +1,8 @@
 /* Physical dynamics: the steps of gatetwin.plant.physical.PhysicalSimulator around the kernel
  * generated into physical_kernel.c (gatetwin.plant.physical_kernel): the steady depth by a fixed
  * number of bisection steps, then equal sub-steps of at most max_substep_s per communication
- * step. The parameters are the Real variables from VR_KERNEL_FIRST on, in kernel order.
+ * step. The parameters are the Real variables from VR_KERNEL_FIRST on, in kernel order. A seiche
+ * block (effects.c) is driven over each sub-step by the gate position at its start.
  */
 #include <math.h>
 
@@ -73,8 +74,10 @@ void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPos
     gt_substep_count(step_s, PHYSICAL(m), &n);
     dt = step_s / n;
     for (i = 0; i < (long)n; i++) {
+        const double gate_mm = m->dyn.gate_mm; /* drives the seiche over the sub-step */
         gt_substep(m->dyn.depth_m, m->dyn.gate_mm, target, flow_m3h, dt, PHYSICAL(m),
                    &m->dyn.depth_m, &m->dyn.gate_mm);
+        effects_seiche_piece(m, dt, gate_mm);
     }
     gt_level_mm(m->dyn.depth_m, m->dyn.gate_mm, flow_m3h, PHYSICAL(m), &m->dyn.x);
 }

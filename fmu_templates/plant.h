@@ -83,7 +83,6 @@ double effects_input(const ModelData *m, double gate_mm);
 void effects_actuate(const ModelData *m, EffectState *fx, double command_mm, double duration_s);
 void effects_fopdt_parameters(const ModelData *m, double flow_m3h, double *gain,
                               double *time_constant_s);
-double grid_index_at_or_after(double time_s, double origin_s, double step_s);
 void effects_initialize(ModelData *m, double opening_mm, double flow_m3h, double level_mm);
 void effects_seiche_piece(ModelData *m, double duration_s, double gate_mm);
 void effects_lag_interval(ModelData *m, double level_target_mm, double level_excess_mm,

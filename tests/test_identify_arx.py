@@ -304,8 +304,8 @@ def test_ljung_box_definition_and_null_distribution() -> None:
 
 
 def test_paper_table4_implied_poles_and_gains() -> None:
-    # PAPER.md: C has a dominant pole ~0.969 (~38 s) and DC gain ~-19.5; D ~0.768 (~4.5 s)
-    # and ~-11.
+    # docs/reference_study.md: C has a dominant pole ~0.969 (~38 s) and DC gain ~-19.5;
+    # D ~0.768 (~4.5 s) and ~-11.
     c = dominant_pole((0.713, 0.248), TS)
     assert c.kind == "real" and c.real == pytest.approx(0.969, abs=1e-3)
     assert c.time_constant_s == pytest.approx(38.0, abs=0.5)

@@ -68,7 +68,7 @@ def test_model_file_round_trip_and_provenance():
 
 
 def test_schedule_is_monotone_in_flow_like_the_paper():
-    # |K| falls and T shortens as Q rises (PAPER.md), along the operating line
+    # |K| falls and T shortens as Q rises (docs/reference_study.md), along the operating line
     sched = read_model_file(MODELS / "fopdt_3F.json").plant.schedule.values
     assert np.all(np.diff(np.abs(sched["gain_mm_per_mm"])) < 0)
     assert np.all(np.diff(sched["time_constant_s"]) < 0)

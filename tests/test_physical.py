@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import math
 import subprocess
 import types
@@ -14,11 +15,12 @@ import pytest
 
 from gatetwin.errors import ModelFileError
 from gatetwin.fmu.c_build import KERNEL_PREFIX, find_compiler, generated_kernel
-from gatetwin.identify.physical import fit_physical, kernel_simulator
+from gatetwin.identify.physical import NO_SEICHE, fit_physical, kernel_simulator
 from gatetwin.identify.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
 from gatetwin.pipeline import bundled_records_dir
 from gatetwin.plant import physical_kernel as kernel
+from gatetwin.plant.effects import effect_dict
 from gatetwin.plant.kernel_render import casadi_kernel, numba_kernel
 from gatetwin.plant.model import PhysicalPlant, Schedule, plant_from_dict, plant_to_dict
 from gatetwin.plant.simulate import SimulationError, simulate, simulator_for
@@ -84,11 +86,16 @@ def test_numba_and_casadi_renderings_equal_python(plant):
     assert worst <= ROUNDOFF
 
 
-def test_fast_simulator_equals_reference_on_a_bundled_record(plant):
+@pytest.mark.parametrize("seiche", [None, (12.0, 15.0, -0.7)], ids=["no seiche", "seiche"])
+def test_fast_simulator_equals_reference_on_a_bundled_record(plant, seiche):
+    plant = dataclasses.replace(plant, effects=() if seiche is None else (
+        effect_dict("seiche", period_s=seiche[0], decay_time_s=seiche[1],
+                    amplitude_mm_per_mm=seiche[2]),))
     rec = read_record(bundled_records_dir() / "C.csv")
     e = reconstructed_opening(rec.time_s, rec.opening_mm, rec.hold)
     out = np.empty(rec.n_samples)
-    kernel_simulator()[0](rec.time_s, e, rec.flow_m3h, np.array(plant.vector), out)
+    s = np.array(seiche if seiche is not None else NO_SEICHE, dtype=float)
+    kernel_simulator()[0](rec.time_s, e, rec.flow_m3h, np.array(plant.vector), s, out)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         ref = simulate(plant, rec.time_s, e, rec.flow_m3h)
@@ -222,3 +229,26 @@ def test_c_fmu_refuses_a_non_positive_parameter_with_an_error_status(plant, tmp_
             fmu.exitInitializationMode()
     finally:
         fmu.freeInstance()
+
+
+def test_seiche_is_the_one_block_the_physical_and_envelope_families_carry(plant):
+    seiche = effect_dict("seiche", period_s=11.0, decay_time_s=10.0, amplitude_mm_per_mm=-0.8)
+    lag = effect_dict("sensor_lag", time_constant_s=2.0)
+    with_seiche = dataclasses.replace(plant, effects=(seiche,))
+    assert plant_from_dict(plant_to_dict(with_seiche)).effects == (seiche,)
+    with pytest.raises(ModelFileError, match="sensor_lag applies to fopdt, arx plants, not "
+                                             "physical"):
+        dataclasses.replace(plant, effects=(lag,))
+    fopdt = read_model_file(MODEL.with_name("fopdt_3F.json")).plant
+    assert dataclasses.replace(fopdt, effects=(seiche,)).effects == (seiche,)
+    with pytest.raises(ModelFileError, match="sensor_lag is not supported on an envelope"):
+        dataclasses.replace(fopdt, effects=(lag,))
+    # the block adds the oscillation to the level: a gate move now rings, at rest it is silent
+    t = np.arange(0.0, 120.0, 1.2)
+    e = np.where(t < 12.0, 40.0, 45.0)
+    q = np.full(t.size, 50.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        plain, ringing = (simulate(p, t, e, q) for p in (plant, with_seiche))
+    assert np.max(np.abs(ringing - plain)[t < 12.0]) == 0.0
+    assert np.max(np.abs(ringing - plain)) > 0.5  # 5 mm move x 0.8 mm/mm, decaying

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import json
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -79,9 +79,7 @@ def add_models_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def schema_text() -> str:
-    from gatetwin.bundled import bundled_schema_path
-
-    return bundled_schema_path().read_text("utf-8")
+    return (resources.files("gatetwin") / "data" / "model_schema.json").read_text("utf-8")
 
 
 def write_models(models: dict[str, dict[str, Any]], out: Path) -> list[Path]:
@@ -109,34 +107,13 @@ def add_export_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="NAME.fmu", required=True)
 
 
-def fmu_provenance(model: Any) -> dict[str, Any]:
-    """What an FMU carries about the model file it came from.
-
-    ``validity`` is the model's validity envelope
-    (:func:`gatetwin.modelfile.validity_envelope`): ``flow_m3h``, ``opening_mm`` and
-    ``level_mm`` as ``[low, high]``, each only when the model file states it; the validation
-    harness reads it back from ``resources/provenance.json``. ``validity_flow_m3h`` repeats
-    the flow range for readers of earlier FMUs.
-    """
-    prov = model.content.get("provenance", {})
-    return {
-        "model_name": model.name,
-        "model_file_sha256": model.sha256,
-        "method": prov.get("method", ""),
-        "records": prov.get("records", []),
-        "metrics": prov.get("metrics", {}),
-        "validity_flow_m3h": list(model.validity_flow_m3h),
-        "validity": model.validity_envelope,
-        "gatetwin_version": prov.get("gatetwin_version", ""),
-    }
-
-
 def run_export(args: argparse.Namespace) -> int:
     from gatetwin.fmu import export_fmu
+    from gatetwin.fmu.provenance import fmu_provenance
     from gatetwin.modelfile import read_model_file
 
     model = read_model_file(args.model)
     path = export_fmu(model.plant, args.out, backend=args.backend, model_name=model.name,
-                      provenance=json.loads(json.dumps(fmu_provenance(model))))  # fmt: skip
+                      provenance=fmu_provenance(model))  # fmt: skip
     print(f"wrote {path}")
     return 0

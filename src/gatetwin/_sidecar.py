@@ -1,6 +1,6 @@
 """The optional JSON sidecar of a record (``NAME.json`` next to ``NAME.csv``).
 
-Reads and checks the sidecar fields of ``DATA_FORMAT.md`` (``test``, ``sample_period_s``,
+Reads and checks the sidecar fields of ``docs/record_format.md`` (``test``, ``sample_period_s``,
 ``gauges``; ``condition`` and anything else are kept as metadata). A bad sidecar is
 refused with a one-line :class:`~gatetwin.errors.RecordError` naming the sidecar file and
 field. This module does not read the CSV.

@@ -31,6 +31,9 @@ def validate_all(ctx: Any) -> None:
             records = [ctx.records_dir / f"{r}.csv" for r in pairs[fmu.stem]]
             for cell in validate_matrix([fmu], records, thresholds=thresholds):
                 cells.append({"backend": backend, **cell})
+                if cell["failure_cause"]:
+                    ctx.progress(f"      {backend} {cell['fmu']} on {cell['record']}: FMU run "
+                                 f"failed: {cell['failure_cause']}")  # fmt: skip
     ctx.results["validation"] = cells
     write_json_atomic(ctx.out_dir / "validation.json", {
         "thresholds": list(MATRIX_FAIL_UNDER), "matrix": cells, "outside_validity": outside,

@@ -1,7 +1,6 @@
-"""Where the data shipped with the package lives (records, model-file schema).
+"""Where the data shipped with gatetwin live (the bundled reference records).
 
-A library module may locate bundled data through here without importing the ``gatetwin
-run`` orchestration (:mod:`gatetwin.pipeline`). It locates files; it does not read them.
+Only locates files; reading them is :mod:`gatetwin.records`' job.
 """
 
 from __future__ import annotations
@@ -9,25 +8,31 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
-from gatetwin.errors import PipelineError
-
-
-def bundled_data_dir() -> Path:
-    """The package data directory (``gatetwin/data``)."""
-    root = resources.files("gatetwin").joinpath("data")
-    if not isinstance(root, Path):
-        raise PipelineError(f"bundled data at {root} are not on the file system")
-    return root
+from gatetwin.errors import GatetwinError
 
 
 def bundled_records_dir() -> Path:
-    """The package data directory of bundled records (``gatetwin/data/records``)."""
-    return bundled_data_dir() / "records"
+    """The folder of the bundled records (``gatetwin/data/records``).
 
+    Returns
+    -------
+    Path
+        A folder of records in the record format (README, "Record format"): the virtual
+        flume's step and PRBS tests, the validation records and the static rating table
+        ``static.csv``.
 
-def bundled_schema_path() -> Path:
-    """The model-file JSON schema shipped with the package."""
-    return bundled_data_dir() / "model_schema.json"
+    Raises
+    ------
+    GatetwinError
+        The package is installed in a way that leaves its data off the file system (a zip).
 
-
-__all__ = ["bundled_data_dir", "bundled_records_dir", "bundled_schema_path"]
+    Examples
+    --------
+    >>> from gatetwin import bundled_records_dir
+    >>> (bundled_records_dir() / "A.csv").is_file()
+    True
+    """
+    root = resources.files("gatetwin").joinpath("data", "records")
+    if not isinstance(root, Path):
+        raise GatetwinError(f"bundled records at {root} are not on the file system")
+    return root

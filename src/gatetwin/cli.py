@@ -17,13 +17,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NoReturn
 
-from gatetwin import __version__
 from gatetwin import _commands_diagnose as _diagnose_cmds
 from gatetwin import _commands_model as _model_cmds
 from gatetwin._io import write_json_atomic
 from gatetwin._sidecar import TEST_TYPES
 from gatetwin._summary import format_record_summary, format_static_summary
 from gatetwin.errors import GatetwinError, RecordError
+from gatetwin.version import __version__
 
 #: Exit code for a refused input or a failed command.
 EXIT_ERROR = 2
@@ -181,13 +181,21 @@ def _add_validate_arguments(parser: argparse.ArgumentParser) -> None:
         "flow, level ranges in its resources/provenance.json); without it such a record is "
         "only warned about on stderr",
     )  # fmt: skip
+    parser.add_argument(
+        "--timeout", metavar="SECONDS", type=float,
+        help="wall-clock limit of the FMU's run on each record; the FMU runs in a child "
+        "process, killed at the limit (default: 10 s + 1 ms per FMU step, e.g. 10.75 s for "
+        "a 750-sample record)",
+    )  # fmt: skip
     parser.add_argument("--json", metavar="OUT.json", required=True, help="findings as JSON")
     parser.add_argument("--junit", metavar="OUT.xml", help="findings as JUnit XML for CI")
     parser.add_argument("--plots", metavar="DIR", help="write measured-vs-FMU plots (PNG)")
     parser.epilog = (
         "exit status: 0 when everything passed, 1 when a threshold, fmpy's static "
-        "validation or (with --fail-outside-validity) the validity envelope failed, 2 for "
-        "input that cannot be validated"
+        "validation, the FMU's run (it crashed, exited, overran --timeout or output NaN or "
+        "infinity) or (with --fail-outside-validity) the validity envelope failed, 2 for "
+        "input that cannot be validated (also a record whose time stamps would need more "
+        "than 1,000,000 FMU steps)"
     )
 
 
@@ -205,11 +213,15 @@ def _run_validate(args: argparse.Namespace) -> int:
 
     thresholds = parse_thresholds(args.fail_under, args.fail_over)
     result = validate_fmu(args.fmu, args.records, gauge=args.gauge, thresholds=thresholds,
-                          fail_outside_validity=args.fail_outside_validity)  # fmt: skip
+                          fail_outside_validity=args.fail_outside_validity,
+                          timeout_s=args.timeout)  # fmt: skip
     plots = Path(args.plots) if args.plots else None
     junit = Path(args.junit) if args.junit else None
     written = write_outputs(result, OutputPaths(Path(args.json), junit, plots))
     for rec in result.records:
+        if rec.failure_cause:
+            print_to_stderr(f"gatetwin: {result.fmu.name} on {rec.record}: FMU run failed: "
+                            f"{rec.failure_cause}")  # fmt: skip
         if rec.inside_validity is False:
             print_to_stderr(f"gatetwin: warning: {rec.record} lies outside {result.fmu.name}'s "
                             f"validity: {outside_message(rec)}")  # fmt: skip

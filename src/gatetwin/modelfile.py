@@ -15,10 +15,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gatetwin import __version__
 from gatetwin._io import write_json_atomic
 from gatetwin.errors import ModelFileError
 from gatetwin.plant.model import Plant, plant_from_dict, plant_to_dict
+from gatetwin.version import __version__
 
 SCHEMA_ID = "https://gatetwin.invalid/schema/model-1.json"
 SCHEMA_VERSION = "1.0"

@@ -138,8 +138,8 @@ def identify_models(ctx: PipelineContext) -> None:
 
 def export_fmus(ctx: PipelineContext) -> None:
     """Export every model with both backends: ``fmus/c/NAME.fmu``, ``fmus/python/NAME.fmu``."""
-    from gatetwin._commands_model import fmu_provenance
     from gatetwin.fmu import export_fmu
+    from gatetwin.fmu.provenance import fmu_provenance
     from gatetwin.modelfile import read_model_file
 
     fmus: dict[str, list[Path]] = {"c": [], "python": []}

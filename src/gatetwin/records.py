@@ -1,6 +1,6 @@
 """Test records: the one reader every command uses.
 
-A record is a CSV file in the format of ``DATA_FORMAT.md`` (plus an optional JSON sidecar
+A record is a CSV file in the format of ``docs/record_format.md`` (plus an optional JSON sidecar
 of the same stem). :func:`read_record` turns it into a frozen :class:`Record` with its hold
 segments and step onsets found, or refuses it with a :class:`~gatetwin.errors.RecordError`
 whose one-line message names the file and the row or column at fault.

@@ -5,7 +5,8 @@ that change only at the points of a uniform grid of step ``step_s`` (a record's 
 sample period): the FOPDT with its dead time is then an exact two-tap recursion per grid
 interval (``L = n dt + theta``: the input of interval ``j - n - 1`` acts for ``theta``, that of
 interval ``j - n`` for the rest), and the effect blocks run per interval, the rate-limited
-actuator on its sub-step grid. Loops are compiled with numba. Tests hold it equal to the
+actuator on its sub-step grid. Loops are compiled with numba around the effect blocks' own
+arithmetic (:mod:`gatetwin.plant.blocks`, compiled as it is). Tests hold it equal to the
 reference to round-off; it is a faster rendering of the same plant, not another model.
 
 The grid starts at the first record sample; a record's samples are mapped to the nearest grid
@@ -22,10 +23,9 @@ import numpy as np
 from numba import njit
 
 from gatetwin.errors import IdentificationError
+from gatetwin.plant import blocks
 from gatetwin.plant.effects import EffectSet
 from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant
-
-_PI = math.pi
 
 
 @dataclass(frozen=True)
@@ -79,6 +79,19 @@ def grid_inputs(
 # --------------------------------------------------------------------------- kernels
 
 
+# The effect blocks' arithmetic, compiled: the very functions the reference simulator and
+# the pythonfmu FMU run (:mod:`gatetwin.plant.blocks`), so this module only loops.
+_move_toward = njit(cache=True)(blocks.move_toward)
+_play = njit(cache=True)(blocks.play)
+_relax = njit(cache=True)(blocks.first_order)
+_lag_interval = njit(cache=True)(blocks.lag_interval)
+_seiche_advance = njit(cache=True)(blocks.seiche_advance)
+_seiche_equilibrium = njit(cache=True)(blocks.seiche_equilibrium)
+_seiche_output = njit(cache=True)(blocks.seiche_output)
+_gain_map = njit(cache=True)(blocks.gain_map)
+_flow_scaled = njit(cache=True)(blocks.flow_scaled)
+
+
 @njit(cache=True)
 def _gate_seen(command, has_rate, travel, has_band, band):  # pragma: no cover - numba
     """Gate position the dynamics see over each interval (see gatetwin.plant.effects)."""
@@ -86,42 +99,16 @@ def _gate_seen(command, has_rate, travel, has_band, band):  # pragma: no cover -
     seen = np.empty(n)
     a = command[0]
     g = command[0]
-    half = 0.5 * band
     for j in range(n):
         if has_rate:
             seen[j] = g
-            diff = command[j] - a
-            if diff > travel:
-                a = a + travel
-            elif diff < -travel:
-                a = a - travel
-            else:
-                a = command[j]
+            a = _move_toward(a, command[j], travel)
         else:
             a = command[j]
-        if has_band:
-            if a - g > half:
-                g = a - half
-            elif a - g < -half:
-                g = a + half
-        else:
-            g = a
+        g = _play(g, a, band) if has_band else a
         if not has_rate:
             seen[j] = g
     return seen
-
-
-@njit(cache=True)
-def _lag_interval(z, target, excess, d, tau, lag):  # pragma: no cover - numba
-    alpha = 1.0 / tau
-    beta = 1.0 / lag
-    lo = alpha if alpha < beta else beta
-    gap = (beta - alpha) if beta > alpha else (alpha - beta)
-    if gap == 0.0:
-        phi = beta * d * math.exp(-lo * d)
-    else:
-        phi = beta * math.exp(-lo * d) * (-math.expm1(-gap * d)) / gap
-    return target + (z - target) * math.exp(-beta * d) + excess * phi
 
 
 @njit(cache=True)
@@ -146,7 +133,7 @@ def _fopdt(u, gain, tau, delay, level_ref, dt, x0, lag):  # pragma: no cover - n
             target = gain[j] * (u_old if part == 0 else u_new)
             if lag > 0.0:
                 z = _lag_interval(z, level_ref[j] + target, x - target, d, tau[j], lag)
-            x = target + (x - target) * math.exp(-d / tau[j])
+            x = _relax(x, target, d, tau[j])
         out[j + 1] = z if lag > 0.0 else level_ref[j] + x
     return out
 
@@ -174,8 +161,7 @@ def _arx(u, a, b, nk, level_ref, x0, u0, dt, lag):  # pragma: no cover - numba
             x_hist[i] = x_hist[i - 1]
         x_hist[0] = x
         if lag > 0.0:
-            target = level_ref[j] + x
-            z = target + (z - target) * math.exp(-dt / lag)
+            z = _relax(z, level_ref[j] + x, dt, lag)
         out[j + 1] = z if lag > 0.0 else level_ref[j] + x
     return out
 
@@ -183,21 +169,12 @@ def _arx(u, a, b, nk, level_ref, x0, u0, dt, lag):  # pragma: no cover - numba
 @njit(cache=True)
 def _seiche(v, dt, period, decay, amplitude):  # pragma: no cover - numba
     n = v.size
-    w = 2.0 * _PI / period
-    sigma = 1.0 / decay
-    w0_sq = sigma * sigma + w * w
-    envelope = math.exp(-sigma * dt)
-    c = math.cos(w * dt)
-    s = math.sin(w * dt) / w
     out = np.zeros(n + 1)
-    x1 = v[0] / w0_sq
+    x1 = _seiche_equilibrium(v[0], period, decay)
     x2 = 0.0
     for j in range(n):
-        p = x1 - v[j] / w0_sq
-        p_new = envelope * ((c + sigma * s) * p + s * x2)
-        x2 = envelope * (-w0_sq * s * p + (c - sigma * s) * x2)
-        x1 = p_new + v[j] / w0_sq
-        out[j + 1] = amplitude * w * x2
+        x1, x2 = _seiche_advance(x1, x2, v[j], dt, period, decay)
+        out[j + 1] = _seiche_output(x2, period, amplitude)
     return out
 
 
@@ -207,10 +184,25 @@ def _first_order(target, dt, tau):  # pragma: no cover - numba
     out = np.empty(n + 1)
     x = target[0]
     out[0] = x
-    a = math.exp(-dt / tau)
     for j in range(n):
-        x = target[j] + (x - target[j]) * a
+        x = _relax(x, target[j], dt, tau)
         out[j + 1] = x
+    return out
+
+
+@njit(cache=True)
+def _flow_scaled_all(value, slope, flow, flow_ref):  # pragma: no cover - numba
+    out = np.empty(flow.size)
+    for j in range(flow.size):
+        out[j] = _flow_scaled(value[j], slope, flow[j], flow_ref)
+    return out
+
+
+@njit(cache=True)
+def _gain_mapped(v, slope):  # pragma: no cover - numba
+    out = np.empty(v.size)
+    for j in range(v.size):
+        out[j] = _gain_map(v[j], slope)
     return out
 
 
@@ -239,9 +231,8 @@ def _substeps(fx: EffectSet, plant: Plant, step_s: float) -> int:
 
 def _effective(fx: EffectSet, gate: np.ndarray, opening_ref: float) -> np.ndarray:
     v = gate - opening_ref
-    if fx.nonlinearity and fx.nonlinearity.gain_slope_per_mm != 0.0:
-        s = fx.nonlinearity.gain_slope_per_mm
-        return np.expm1(s * v) / s
+    if fx.nonlinearity:
+        return _gain_mapped(v, fx.nonlinearity.gain_slope_per_mm)
     return v
 
 
@@ -252,9 +243,9 @@ def _bulk(plant: Plant, fx: EffectSet, u: np.ndarray, flow: np.ndarray, dt: floa
         gain = _column(plant, "gain_mm_per_mm", flow)
         tau = _column(plant, "time_constant_s", flow)
         if fx.flow_gain:
-            dq = flow - fx.flow_gain.flow_ref_m3h
-            gain = gain * np.exp(fx.flow_gain.gain_slope_per_m3h * dq)
-            tau = tau * np.exp(fx.flow_gain.time_constant_slope_per_m3h * dq)
+            fg = fx.flow_gain
+            gain = _flow_scaled_all(gain, fg.gain_slope_per_m3h, flow, fg.flow_ref_m3h)
+            tau = _flow_scaled_all(tau, fg.time_constant_slope_per_m3h, flow, fg.flow_ref_m3h)
         delay = _column(plant, "dead_time_s", flow)
         return _fopdt(u, gain, tau, delay, level_ref, dt, gain[0] * u[0], lag)
     a = np.column_stack([_column(plant, f"a{i}", flow) for i in range(1, plant.na + 1)])

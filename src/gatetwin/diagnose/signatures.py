@@ -95,6 +95,8 @@ def _drift(t: np.ndarray, r: np.ndarray) -> Signature:
 
 
 def _seiche(data: DiagnosisData, fit: Fit, r_full: np.ndarray) -> Signature:
+    if any(e["kind"] == "seiche" for e in fit.plant.effects):
+        return Signature("seiche", "the baseline already carries a seiche", np.nan, 0.0, {})
     ts = data.sample_period_s
     r = np.where(np.isfinite(r_full) & data.fit_mask, r_full, 0.0)[data.fit_mask.nonzero()[0]]
     w = max(3, int(round(60.0 / ts)) | 1)

@@ -23,7 +23,7 @@ import numpy as np
 from gatetwin._sidecar import VALIDATION_ROLE
 from gatetwin.errors import FlumeError
 from gatetwin.flume.config import FlumeConfig
-from gatetwin.flume.experiments import Breakpoints, Scenario
+from gatetwin.flume.scenario import Breakpoints, Scenario
 from gatetwin.flume.simulate import steady_gate_depth_m
 
 #: Discharge span of the calibrated envelope, m³/h.

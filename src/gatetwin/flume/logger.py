@@ -1,7 +1,7 @@
 """The data logger of the virtual flume: what the instruments would have written.
 
 Turns a noise-free :class:`~gatetwin.flume.simulate.FlumeRun` into a record in the users'
-format (``DATA_FORMAT.md``): gauge datums, surface fluctuations and sensor noise, 0.1 mm
+format (``docs/record_format.md``): gauge datums, surface fluctuations and sensor noise, 0.1 mm
 resolution, occasional spikes, the actuator's ``hold``/``open`` flag with the opening left
 empty while it moves, the flow meter's noise, and small timestamp jitter.
 

@@ -1,4 +1,4 @@
-"""The reference study's published numbers (PAPER.md, Tables 1–5) as data.
+"""The reference study's published numbers (docs/reference_study.md, Tables 1–5) as data.
 
 The flume is calibrated to these and tests hold it to them; nothing else reads them.
 """

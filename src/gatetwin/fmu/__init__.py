@@ -90,7 +90,8 @@ def _code_digest(backend: str) -> str:
         files = sorted(p for p in templates_dir().iterdir() if p.suffix in {".c", ".h"})
     else:
         files = [Path(__file__).with_name("slave_template.py")]
-    files.append(Path(__file__).resolve().parents[1] / "plant" / "physical_kernel.py")
+    plant_dir = Path(__file__).resolve().parents[1] / "plant"
+    files += [plant_dir / "physical_kernel.py", plant_dir / "blocks.py"]
     digest = hashlib.sha256()
     for path in files:
         digest.update(path.name.encode() + b"\0" + path.read_bytes())

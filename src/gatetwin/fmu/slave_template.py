@@ -364,7 +364,9 @@ class GatetwinPlant(Fmi2Slave):
         target = physical_kernel.actuator_target_mm(command, p)
         depth, gate, dt = self.dyn["depth_m"], self.dyn["gate_mm"], h / n
         for _ in range(int(n)):
+            start = gate  # drives the seiche over the sub-step (model_physical.c)
             depth, gate = physical_kernel.substep(depth, gate, target, q, dt, p)
+            self._seiche_piece(dt, start)
         self.dyn = {"x": physical_kernel.level_mm(depth, gate, q, p), "depth_m": depth,
                     "gate_mm": gate}
 

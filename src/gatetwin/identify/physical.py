@@ -14,6 +14,10 @@ Three stages, each on the data that determines its parameters, then a joint refi
 4. **Joint**: all 13 hydraulic parameters on the stacked residuals of 1 and 3, each source
    weighted by the inverse of its residual RMS after stage 3 (its noise level), with standard
    errors from the Jacobian.
+5. **Seiche** (period, decay time, amplitude per mm of gate move: the pool's oscillation that
+   gate moves excite) from the simulation error left by stage 4, the hydraulics held; kept as
+   the plant's ``seiche`` effect block only when an F-test rejects "no seiche" at
+   :data:`SEICHE_SIGNIFICANCE`.
 
 The simulator here is the kernel compiled by numba (:func:`kernel_simulator`): the same
 arithmetic as every other rendering, stepping as :class:`gatetwin.plant.physical.
@@ -25,6 +29,7 @@ sub-step (0.6 s, half the sample period); the channel width is the flume's 0.30 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
@@ -32,10 +37,13 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.stats import f as f_dist
 
 from gatetwin.errors import IdentificationError
 from gatetwin.identify.preprocess import reconstructed_opening
+from gatetwin.plant import blocks
 from gatetwin.plant import physical_kernel as kernel
+from gatetwin.plant.effects import effect_dict
 from gatetwin.plant.kernel_render import numba_kernel
 from gatetwin.plant.model import PhysicalPlant, Schedule
 from gatetwin.records import Record
@@ -48,6 +56,16 @@ STEADY_SAMPLES = 40
 FIXED = {"width_m": 0.30, "resolution_mm": 1.0, "max_substep_s": 0.6}
 LAW = [n for n, _, _ in kernel.PARAMETERS[:9]] + ["offset_mm", "offset_per_flow2_mm"]
 STORAGE = ["area_m2", "area_per_depth_m"]
+#: The seiche's parameters (period, decay time, amplitude), fitted last; "no seiche".
+SEICHE = ["period_s", "decay_time_s", "amplitude_mm_per_mm"]
+NO_SEICHE = np.array([1.0, 1.0, 0.0])
+#: Start and bounds of the seiche fit: a pool oscillation of a few to a few tens of seconds.
+SEICHE_START = (10.0, 20.0, 0.3)
+SEICHE_BOUNDS = ((2.0, 1.0, -5.0), (60.0, 600.0, 5.0))
+#: The seiche is kept when the F-test of its three parameters against none rejects "no
+#: seiche" at this level (residuals treated as independent: an optimistic test, so the level
+#: is strict).
+SEICHE_SIGNIFICANCE = 1e-3
 ACTUATOR = ["speed_mm_s", "stall_depth_m"]
 START = {
     "cd_small": 0.86, "cd_small_per_q": 0.0, "cd_large": 0.45, "cd_large_per_q": 0.0,
@@ -78,9 +96,11 @@ class PhysicalFit:
     n_steady: int
     dynamic_rmse_mm: dict[str, float]
     actuator_moves: int
+    seiche: dict[str, Any]
 
     def report(self) -> dict[str, Any]:
         return {
+            "seiche": self.seiche,
             "standard_errors": self.standard_errors,
             "steady_points": self.n_steady,
             "steady_rmse_mm": self.steady_rmse_mm,
@@ -114,8 +134,9 @@ def steady_points(static: Any, records: dict[str, Record], gauge: str) -> Steady
 
 @cache
 def kernel_simulator() -> tuple[Callable[..., Any], Callable[..., Any]]:
-    """Numba renderings: ``run(t, e, q, p, out)`` (a free run, as PhysicalSimulator steps)
-    and ``steady(e, q, p, out)`` (the steady level at each point)."""
+    """Numba renderings: ``run(t, e, q, p, s, out)`` (a free run, as PhysicalSimulator steps,
+    with the seiche ``s = (period, decay time, amplitude)``; amplitude 0 for none) and
+    ``steady(e, q, p, out)`` (the steady level at each point)."""
     from numba import njit
 
     k = numba_kernel(kernel.__name__)
@@ -131,11 +152,19 @@ def kernel_simulator() -> tuple[Callable[..., Any], Callable[..., Any]]:
             low, high = bisect(low, high, e, q, p)
         return 0.5 * (low + high)
 
+    advance = njit(cache=True)(blocks.seiche_advance)
+    at_rest = njit(cache=True)(blocks.seiche_equilibrium)
+    seiche_out = njit(cache=True)(blocks.seiche_output)
+
     @njit(cache=False)
-    def run(t: np.ndarray, e: np.ndarray, q: np.ndarray, p: np.ndarray, out: np.ndarray
-            ) -> None:  # fmt: skip
+    def run(t: np.ndarray, e: np.ndarray, q: np.ndarray, p: np.ndarray, s: np.ndarray,
+            out: np.ndarray) -> None:  # fmt: skip
+        # s: the seiche's period, decay time and amplitude (amplitude 0: no seiche)
+        has_seiche = s[2] != 0.0
         gate = target_of(e[0], p)
         depth = depth0(gate, q[0], p)
+        x1 = at_rest(e[0], s[0], s[1]) if has_seiche else 0.0
+        x2 = 0.0
         out[0] = level(depth, gate, q[0], p)
         for i in range(1, t.size):
             h = t[i] - t[i - 1]
@@ -143,8 +172,13 @@ def kernel_simulator() -> tuple[Callable[..., Any], Callable[..., Any]]:
             target = target_of(e[i - 1], p)
             dt = h / n
             for _ in range(int(n)):
+                start = gate
                 depth, gate = substep(depth, gate, target, q[i - 1], dt, p)
+                if has_seiche:
+                    x1, x2 = advance(x1, x2, start, dt, s[0], s[1])
             out[i] = level(depth, gate, q[i - 1], p)
+            if has_seiche:
+                out[i] += seiche_out(x2, s[0], s[2])
 
     @njit(cache=False)
     def steady(e: np.ndarray, q: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
@@ -185,12 +219,13 @@ def _drives(records: dict[str, Record], gauge: str) -> list[_Drive]:
     return out
 
 
-def _dynamic_residuals(drives: Sequence[_Drive], p: np.ndarray) -> list[np.ndarray]:
+def _dynamic_residuals(drives: Sequence[_Drive], p: np.ndarray,
+                       seiche: np.ndarray = NO_SEICHE) -> list[np.ndarray]:  # fmt: skip
     run = kernel_simulator()[0]
     res = []
     for d in drives:
         out = np.empty(d.time_s.size)
-        run(d.time_s, d.opening_mm, d.flow_m3h, p, out)
+        run(d.time_s, d.opening_mm, d.flow_m3h, p, seiche, out)
         ok = np.isfinite(d.level_mm)
         res.append(out[ok] - d.level_mm[ok])
     return res
@@ -294,17 +329,48 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
 
     values, result = _fit(LAW + STORAGE, values, joint)
     p = _vector(values)
+    seiche, seiche_report = _fit_seiche(drives, p, rms_dyn)
+    effects = (effect_dict("seiche", **dict(zip(SEICHE, seiche, strict=True))),) \
+        if seiche_report["kept"] else ()  # fmt: skip
     plant = PhysicalPlant(gauge, values, Schedule(tuple(flow_range_m3h),
-                                                  {"level_ref_mm": (0.0, 0.0)}))  # fmt: skip
+                                                  {"level_ref_mm": (0.0, 0.0)}),
+                          effects=effects)  # fmt: skip
+    s = seiche if seiche_report["kept"] else NO_SEICHE
     return PhysicalFit(
         plant=plant,
         standard_errors=_standard_errors(result, LAW + STORAGE),
         steady_rmse_mm=_rms(_steady_residuals(points, p)),
         n_steady=int(points.flow_m3h.size),
         dynamic_rmse_mm={d.name: _rms(r) for d, r in
-                         zip(drives, _dynamic_residuals(drives, p), strict=True)},
+                         zip(drives, _dynamic_residuals(drives, p, s), strict=True)},
         actuator_moves=int(speeds.size),
+        seiche=seiche_report,
     )
+
+
+def _fit_seiche(drives: Sequence[_Drive], p: np.ndarray, weights: list[float]
+                ) -> tuple[np.ndarray, dict[str, Any]]:  # fmt: skip
+    """The pool's seiche from the simulation error left by the hydraulics (held fixed): its
+    period, decay time and amplitude per mm of gate move, with an F-test against none."""
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        res = _dynamic_residuals(drives, p, np.asarray(x, float))
+        return np.concatenate([r / w for r, w in zip(res, weights, strict=True)])
+
+    without = residual(NO_SEICHE)
+    result = least_squares(residual, SEICHE_START, bounds=SEICHE_BOUNDS, x_scale="jac")
+    n, k = without.size, len(SEICHE)
+    rss0, rss1 = float(without @ without), 2.0 * float(result.cost)
+    f_stat = ((rss0 - rss1) / k) / (rss1 / max(1, n - k)) if rss1 > 0 else math.inf
+    p_value = float(f_dist.sf(f_stat, k, max(1, n - k)))
+    report = {
+        "kept": bool(result.success and p_value < SEICHE_SIGNIFICANCE and result.x[2] != 0.0),
+        "parameters": dict(zip(SEICHE, (float(v) for v in result.x), strict=True)),
+        "standard_errors": _standard_errors(result, SEICHE),
+        "f_test_p_value": p_value,
+        "weighted_rss_without": rss0, "weighted_rss_with": rss1,
+    }  # fmt: skip
+    return np.asarray(result.x, float), report
 
 
 def _rms(x: np.ndarray) -> float:

@@ -152,7 +152,9 @@ def fopdt_model(ident: Identified, gauge: str,
     envelope_check: dict[str, Any] = {}
     validity: dict[str, Any] = {}
     if physical is not None:
-        plant = replace(plant, envelope=dict(physical["plant"]["parameters"]))
+        # the pool's seiche, where the physical model found one, is the same water's
+        plant = replace(plant, envelope=dict(physical["plant"]["parameters"]),
+                        effects=tuple(physical["plant"]["effects"]))
         validity = {k: physical["validity"][k] for k in ("opening_range_mm", "level_range_mm")}
         validity["flow_m3h"] = physical["validity"]["flow_m3h"]
         for c in conds:
@@ -181,7 +183,8 @@ def fopdt_model(ident: Identified, gauge: str,
         description=f"FOPDT of the level at gauge {gauge}, scheduled on discharge over "
         f"{len(conds)} step conditions (least-squares fit, continuous dead time)"
         + ("; across the envelope its steady level and time constant follow the gate law "
-           "and storage of the physical model" if physical is not None else ""),
+           "and storage of the physical model (and its seiche, if it has one)"
+           if physical is not None else ""),
         conditions=[c.to_dict() for c in sorted(conds, key=lambda c: c.flow_m3h)],
         rating=ident.ratings[gauge].to_dict(),
         operating_openings_mm=[c.opening_mm for c in sorted(conds, key=lambda c: c.flow_m3h)],

@@ -1,10 +1,12 @@
 """Arithmetic kernels of the effect blocks, shared by the reference simulator and the FMUs.
 
 Standard library only (``math``), and no gatetwin imports: the pythonfmu slave embeds this
-module's source verbatim at export (:mod:`gatetwin.fmu.python_build`), so the Python
-reference (:mod:`gatetwin.plant.simulate`) and the pythonfmu FMU run the very same
-operations. ``fmu_templates/effects.c`` spells the same operations in C, in the same order,
-so that all three renderings agree to round-off. Change the three together.
+module's source verbatim at export (:mod:`gatetwin.fmu.python_build`), the diagnosis' fast
+simulator compiles these functions with numba (:mod:`gatetwin.diagnose.grid_sim`), and the C
+FMU's ``blocks.c`` is generated from their syntax tree (:mod:`gatetwin.plant.ast_render`), so
+the Python reference (:mod:`gatetwin.plant.simulate`), both FMUs and the fast simulator run the
+very same operations. Keep to the subset ``ast_render`` translates (scalar arithmetic,
+``math`` functions, ``if``/``while``, early returns).
 
 What the blocks mean (inputs, outputs, parameters, state) is documented in
 :mod:`gatetwin.plant.effects`; this module only advances them.
@@ -13,6 +15,11 @@ What the blocks mean (inputs, outputs, parameters, state) is documented in
 from __future__ import annotations
 
 import math
+
+#: The functions rendered into the C FMU's generated ``blocks.c`` (prefix ``gt_``).
+RENDERED_C = ("move_toward", "play", "gain_map", "gain_map_inverse", "flow_scaled", "first_order",
+              "seiche_advance", "seiche_equilibrium", "seiche_output", "lag_interval",
+              "grid_index_at_or_after")  # fmt: skip
 
 
 def move_toward(position_mm: float, command_mm: float, max_travel_mm: float) -> float:
@@ -54,6 +61,12 @@ def gain_map_inverse(effective_mm: float, slope_per_mm: float) -> float:
     if not arg > -1.0:
         return math.nan
     return math.log1p(arg) / slope_per_mm
+
+
+def flow_scaled(value: float, slope_per_m3h: float, flow_m3h: float, flow_ref_m3h: float
+                ) -> float:  # fmt: skip
+    """Flow-dependent gain block: ``value * exp(slope * (Q - Q_ref))``."""
+    return value * math.exp(slope_per_m3h * (flow_m3h - flow_ref_m3h))
 
 
 def first_order(state: float, target: float, duration_s: float, time_constant_s: float) -> float:

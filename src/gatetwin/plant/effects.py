@@ -280,6 +280,7 @@ class Seiche(EffectBlock):
 
     kind: ClassVar[str] = "seiche"
     placement: ClassVar[str] = "output"
+    families: ClassVar[tuple[str, ...]] = ("fopdt", "arx", "physical")
     parameters: ClassVar[tuple[ParameterSpec, ...]] = (
         ParameterSpec("period_s", "s", "Period of the oscillation", 0.0, 1e5,
                       minimum_exclusive=True),

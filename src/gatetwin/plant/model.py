@@ -121,10 +121,12 @@ class FopdtPlant:
             vector = check_physical_parameters(self.envelope)
             names = [n for n, _, _ in kernel.PARAMETERS]
             object.__setattr__(self, "envelope", dict(zip(names, vector, strict=True)))
-            if self.effects:
+            other = sorted({e["kind"] for e in self.effects} - set(ENVELOPE_EFFECTS))
+            if other:
                 raise ModelFileError(
-                    "fopdt: effect blocks are not supported on an envelope FOPDT (use its "
-                    "local form, without 'envelope')"
+                    f"fopdt: effect block {other[0]} is not supported on an envelope FOPDT "
+                    f"(only {', '.join(ENVELOPE_EFFECTS)}; use its local form, without "
+                    "'envelope')"
                 )
         if min(self.schedule.values["time_constant_s"]) <= 0:
             raise ModelFileError("fopdt: time_constant_s must be > 0 at every knot")
@@ -187,6 +189,10 @@ class ArxPlant:
         return a, b
 
 
+#: Effect blocks an envelope FOPDT carries: output blocks whose input is the gate position
+#: alone (the others assume the local, linear-in-opening form).
+ENVELOPE_EFFECTS = ("seiche",)
+
 #: Lower bounds of the parameters that must be positive (the rest only finite).
 POSITIVE = ("width_m", "speed_mm_s", "stall_depth_m", "resolution_mm", "max_substep_s")
 
@@ -243,8 +249,12 @@ class PhysicalPlant:
         object.__setattr__(self, "parameters", dict(zip(names, vector, strict=True)))
         if "level_ref_mm" not in self.schedule.values:
             raise ModelFileError("physical: schedule lacks column level_ref_mm")
-        if self.effects:
-            raise ModelFileError("physical: effect blocks are not supported on this family")
+        _normalise_effects(self)
+
+    @property
+    def effect_set(self) -> EffectSet:
+        """The checked effect blocks (the seiche is the one this family can carry)."""
+        return parse_effects(self.effects, self.kind)
 
     @property
     def vector(self) -> list[float]:

@@ -15,7 +15,10 @@ Semantics shared by every rendering (this simulator, the C FMU, the pythonfmu FM
   (:data:`~gatetwin.plant.physical_kernel.BISECTION_STEPS` bisection steps);
 * output: the kernel's gauge level at the current depth, gate position and the inflow in
   force over the last step, plus the schedule's ``level_ref_mm`` (a datum correction, 0 as
-  identified; scheduled on Q so that the FMU's discharge knots mark the validity range).
+  identified; scheduled on Q so that the FMU's discharge knots mark the validity range);
+* with a ``seiche`` effect block, the pool's oscillation: driven over each sub-step by the
+  gate position at its start (:func:`~gatetwin.plant.blocks.seiche_advance`), at rest for
+  the commanded opening at initialisation, and added to the output.
 """
 
 from __future__ import annotations
@@ -23,7 +26,9 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
+from typing import Any
 
+from gatetwin.plant import blocks
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.inputs import SimulationError, check_inputs
 from gatetwin.plant.model import PhysicalPlant, steady_depth_m
@@ -41,6 +46,9 @@ class PhysicalSimulator:
     flow_m3h: float = 0.0
     warned_range: bool = False
     p: list[float] = field(default_factory=list)
+    seiche: Any = None
+    seiche_x1: float = 0.0
+    seiche_x2: float = 0.0
 
     def initialize(self, opening_mm: float, flow_m3h: float, time_s: float = 0.0) -> None:
         check_inputs(opening_mm, flow_m3h)
@@ -48,12 +56,22 @@ class PhysicalSimulator:
         self.time_s, self.flow_m3h = time_s, flow_m3h
         self.gate_mm = kernel.actuator_target_mm(opening_mm, self.p)
         self.depth_m = steady_depth_m(self.gate_mm, flow_m3h, self.p)
+        self.seiche = seiche = self.plant.effect_set.seiche
+        self.seiche_x1 = self.seiche_x2 = 0.0
+        if seiche:
+            self.seiche_x1 = blocks.seiche_equilibrium(
+                opening_mm - self.plant.opening_ref_mm, seiche.period_s, seiche.decay_time_s)
         self._check_range(flow_m3h)
 
     @property
     def level_mm(self) -> float:
         level = kernel.level_mm(self.depth_m, self.gate_mm, self.flow_m3h, self.p)
-        return level + self.plant.schedule.at("level_ref_mm", self.flow_m3h)
+        level += self.plant.schedule.at("level_ref_mm", self.flow_m3h)
+        seiche = self.seiche
+        if seiche:
+            level += blocks.seiche_output(self.seiche_x2, seiche.period_s,
+                                          seiche.amplitude_mm_per_mm)  # fmt: skip
+        return level
 
     process_level_mm = level_mm
 
@@ -69,10 +87,16 @@ class PhysicalSimulator:
                 f"{self.plant.parameters['max_substep_s']} s; the limit is {MAX_SUBSTEPS}"
             )
         target = kernel.actuator_target_mm(opening_mm, self.p)
+        seiche = self.seiche
         dt = h / n
         for _ in range(int(n)):
+            gate = self.gate_mm
             self.depth_m, self.gate_mm = kernel.substep(
                 self.depth_m, self.gate_mm, target, flow_m3h, dt, self.p)
+            if seiche:
+                self.seiche_x1, self.seiche_x2 = blocks.seiche_advance(
+                    self.seiche_x1, self.seiche_x2, gate - self.plant.opening_ref_mm, dt,
+                    seiche.period_s, seiche.decay_time_s)
         self._check_range(flow_m3h)
         self.flow_m3h = flow_m3h
         self.time_s += h

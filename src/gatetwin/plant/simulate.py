@@ -324,7 +324,7 @@ class PlantSimulator:
                     self.es.sensed_mm, level_ref + target, self.x - target, t_next - t, tau,
                     lag.time_constant_s,
                 )
-            self.x = target + (self.x - target) * math.exp(-(t_next - t) / tau)
+            self.x = blocks.first_order(self.x, target, t_next - t, tau)
             t = t_next
         self._prune_history(t1, p.max_dead_time_s)
 
@@ -387,8 +387,8 @@ def fopdt_parameters(plant: FopdtPlant, fx: EffectSet, q: float) -> tuple[float,
     tau = plant.schedule.at("time_constant_s", q)
     if fx.flow_gain:
         fg = fx.flow_gain
-        k = k * math.exp(fg.gain_slope_per_m3h * (q - fg.flow_ref_m3h))
-        tau = tau * math.exp(fg.time_constant_slope_per_m3h * (q - fg.flow_ref_m3h))
+        k = blocks.flow_scaled(k, fg.gain_slope_per_m3h, q, fg.flow_ref_m3h)
+        tau = blocks.flow_scaled(tau, fg.time_constant_slope_per_m3h, q, fg.flow_ref_m3h)
     return k, tau, plant.schedule.at("dead_time_s", q)
 
 

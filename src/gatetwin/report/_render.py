@@ -8,9 +8,12 @@ from __future__ import annotations
 
 import numbers
 from datetime import datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from gatetwin.report.html import Figure, Report, Section, Table, data_uri, escape, format_cell
+from gatetwin.report.content import Figure, Section, Table, data_uri, escape, format_cell
+
+if TYPE_CHECKING:
+    from gatetwin.report.html import Report
 
 CSS = """
 :root { --ink: #1d2430; --muted: #5b6575; --rule: #d5dbe3; --band: #f3f6f9;

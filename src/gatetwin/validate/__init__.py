@@ -5,6 +5,8 @@ compare its free-running level output with the measured level, apply the caller'
 thresholds, and render the findings as JSON, JUnit XML and plots.
 
 * :mod:`~gatetwin.validate.fmu_runner` -- open, check and run an FMU through fmpy;
+* :mod:`~gatetwin.validate.isolation` -- the same run in a child process, under a time limit,
+  with the cause named when the FMU crashes, exits or hangs;
 * :mod:`~gatetwin.validate.compare` -- free-run metrics, the noise floor's fit and FOPDT step
   comparison;
 * :mod:`~gatetwin.validate.validity` -- the FMU's validity envelope and whether a record lies
@@ -14,8 +16,9 @@ thresholds, and render the findings as JSON, JUnit XML and plots.
 * :mod:`~gatetwin.validate.outputs` -- JSON, JUnit and PNG rendering, atomic writing.
 
 Exit-code policy of ``gatetwin validate``: 0 when everything passed, :data:`EXIT_FAILED`
-(1) when a threshold, fmpy's static validation or (with ``--fail-outside-validity``) the
-validity envelope failed, 2 for input it cannot validate.
+(1) when a threshold, fmpy's static validation, the FMU's run (crash, exit, timeout,
+output not finite) or (with ``--fail-outside-validity``) the validity envelope failed, 2 for
+input it cannot validate.
 """
 
 from gatetwin.validate.compare import (

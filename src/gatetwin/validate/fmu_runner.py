@@ -5,8 +5,9 @@
   Real inputs ``opening_mm`` and ``flow_m3h``) and returns its :class:`FmuInfo`;
 * :func:`static_findings` runs fmpy's static validator;
 * :func:`communication_grid` lays the record's samples on the FMU's communication grid;
-* :func:`run_fmu` simulates the FMU freely over that grid and returns its output at every
-  sample.
+* :func:`run_fmu` simulates the FMU freely over that grid, in this process, and returns its
+  output at every sample (:mod:`~gatetwin.validate.isolation` runs the same simulation in a
+  child process).
 
 Every failure is a :class:`~gatetwin.validate.errors.ValidationError` with a one-line
 message; an FMI call that fails is named with its status and the FMU's last log line.
@@ -31,6 +32,28 @@ from gatetwin.validate.errors import ValidationError
 INPUTS = ("opening_mm", "flow_m3h")
 #: FMI 2.0 status names, by value.
 STATUS_NAMES = ("ok", "warning", "discard", "error", "fatal", "pending")
+#: Most communication steps the harness asks of an FMU for one record: 1,000,000 steps are
+#: 13.9 days at the nominal 1.2 s (the bundled records need at most a few thousand). A record
+#: whose grid needs more (a clock jump, a gap of days) is refused before any FMU runs.
+MAX_FMU_STEPS = 1_000_000
+
+#: What the FMU is doing, as :class:`Position` records it (``Position.call`` indexes this).
+CALLS = (
+    "starting the FMU process",
+    "loading the binary",
+    "fmi2Instantiate",
+    "initialisation",
+    "fmi2SetReal",
+    "fmi2DoStep",
+    "fmi2GetReal",
+    "fmi2Terminate",
+    "fmi2FreeInstance",
+    "sending the result",
+)
+(STARTING, LOADING, INSTANTIATE, INITIALISE, SET_REAL, DO_STEP, GET_REAL, TERMINATE,
+ FREE_INSTANCE, SENDING) = range(len(CALLS))  # fmt: skip
+#: The calls that run the FMU's own code (from loading its binary to freeing its instance).
+FMU_CALLS = CALLS[LOADING : FREE_INSTANCE + 1]
 
 
 @dataclass(frozen=True)
@@ -256,7 +279,9 @@ class CommunicationGrid:
         return int(np.count_nonzero(self.steps > 1))
 
 
-def communication_grid(time_s: np.ndarray, sample_period_s: float) -> CommunicationGrid:
+def communication_grid(
+    time_s: np.ndarray, sample_period_s: float, max_steps: int = MAX_FMU_STEPS
+) -> CommunicationGrid:
     """Lay samples on a grid of the nominal sample period.
 
     A time step up to ``GAP_FACTOR`` (1.5) nominal periods is one step: the time stamps'
@@ -270,13 +295,67 @@ def communication_grid(time_s: np.ndarray, sample_period_s: float) -> Communicat
         Sample times, s, strictly increasing.
     sample_period_s : float
         Nominal sample period, s (> 0).
+    max_steps : int
+        Most steps the grid may have (default :data:`MAX_FMU_STEPS`).
+
+    Raises
+    ------
+    ValidationError
+        The period is not finite and positive, or the grid would need more than
+        ``max_steps`` steps (the message names the largest gap and where it starts).
     """
     t = np.asarray(time_s, dtype=float)
     if not (sample_period_s > 0 and np.isfinite(sample_period_s)):
         raise ValidationError(f"sample period {sample_period_s} s must be finite and > 0")
     ratio = np.diff(t) / sample_period_s
-    steps = np.where(ratio > GAP_FACTOR, np.maximum(2, np.rint(ratio)), 1).astype(np.int64)
-    return CommunicationGrid(float(t[0]), float(sample_period_s), steps)
+    steps = np.where(ratio > GAP_FACTOR, np.maximum(2.0, np.rint(ratio)), 1.0)
+    total = float(np.sum(steps))
+    if not total <= max_steps:  # NaN too; checked in floats, before any integer overflow
+        k = int(np.nanargmax(ratio))
+        raise ValidationError(
+            f"the FMU would have to make {total:.4g} communication steps of "
+            f"{sample_period_s:g} s (more than the {max_steps} allowed); largest gap "
+            f"{t[k + 1] - t[k]:.6g} s after t = {t[k]:.6g} s (sample {k})"
+        )
+    return CommunicationGrid(float(t[0]), float(sample_period_s), steps.astype(np.int64))
+
+
+class Position:
+    """Where an FMU run is: the FMI call under way, the record sample and the FMU time.
+
+    Backed by any mutable sequence of three floats: a list in this process, or a shared
+    array a parent process reads after its child died (:mod:`~gatetwin.validate.isolation`).
+    """
+
+    __slots__ = ("values",)
+    CALL, SAMPLE, TIME_S = range(3)
+
+    def __init__(self, values: Any = None) -> None:
+        self.values = values if values is not None else [0.0, 0.0, 0.0]
+
+    @property
+    def call(self) -> str:
+        """Name of the call under way (see :data:`CALLS`)."""
+        index = int(self.values[self.CALL])
+        return CALLS[index] if 0 <= index < len(CALLS) else "an unknown call"
+
+    @property
+    def sample(self) -> int:
+        return int(self.values[self.SAMPLE])
+
+    @property
+    def time_s(self) -> float:
+        return float(self.values[self.TIME_S])
+
+    def at(self) -> str:
+        """``at t = 12 s (record sample 10)``."""
+        return f"at t = {self.time_s:.6g} s (record sample {self.sample})"
+
+    def text(self) -> str:
+        """``during fmi2DoStep at t = 12 s (record sample 10)``."""
+        if self.call not in FMU_CALLS:
+            return f"while {self.call}"
+        return f"during {self.call} {self.at()}"
 
 
 @dataclass
@@ -301,7 +380,7 @@ class _Session:
         self.slave.setReal(vrs, [float(opening_mm), float(flow_m3h)])
 
 
-def _open_session(info: FmuInfo, unzip_dir: str) -> _Session:
+def _open_session(info: FmuInfo, unzip_dir: str, where: Position | None = None) -> _Session:
     from fmpy import calloc, free
     from fmpy.fmi2 import (
         FMU2Slave,
@@ -326,6 +405,8 @@ def _open_session(info: FmuInfo, unzip_dir: str) -> _Session:
     callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
     callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
     session.callbacks = callbacks  # keep the ctypes callbacks alive as long as the instance
+    if where is not None:
+        where.values[Position.CALL] = INSTANTIATE
     try:
         slave.instantiate(callbacks=callbacks, loggingOn=True)
     except Exception:  # fmpy raises a bare Exception when fmi2Instantiate fails
@@ -338,43 +419,79 @@ def _open_session(info: FmuInfo, unzip_dir: str) -> _Session:
 
 
 def _simulate(
-    session: _Session, output: str, grid: CommunicationGrid, opening: np.ndarray, flow: np.ndarray
+    session: _Session,
+    output: str,
+    grid: CommunicationGrid,
+    opening: np.ndarray,
+    flow: np.ndarray,
+    position: Position | None = None,
 ) -> np.ndarray:
-    """Run the session over the grid; ``where`` tracks the sample and time for messages."""
+    """Run the session over the grid; ``position`` tracks the call, sample and time."""
     from fmpy.fmi1 import FMICallException
 
     slave, vr = session.slave, [session.info.value_references[output]]
-    where = {"sample": 0.0, "time_s": grid.start_time_s}
+    where = (position or Position()).values
+    call, sample, time_s = Position.CALL, Position.SAMPLE, Position.TIME_S
+    where[call], where[sample], where[time_s] = INITIALISE, 0, grid.start_time_s
     out = np.empty(opening.size)
     try:
         slave.setupExperiment(startTime=grid.start_time_s)
         slave.enterInitializationMode()
         session.set_inputs(opening[0], flow[0])
         slave.exitInitializationMode()
+        where[call] = GET_REAL
         out[0] = slave.getReal(vr)[0]
         t = grid.start_time_s
         for k in range(opening.size - 1):
-            where["sample"] = k + 1
+            where[call], where[sample] = SET_REAL, k + 1
             session.set_inputs(opening[k], flow[k])
+            where[call] = DO_STEP
             for _ in range(int(grid.steps[k])):
-                where["time_s"] = t
+                where[time_s] = t
                 slave.doStep(t, grid.step_s)
                 t += grid.step_s
+            where[call], where[time_s] = GET_REAL, t
             out[k + 1] = slave.getReal(vr)[0]
+        where[call] = TERMINATE
         slave.terminate()
     except FMICallException as exc:
-        raise _call_error(session, exc, where) from None
+        raise _call_error(session, exc, Position(where)) from None
     return out
 
 
-def _call_error(session: _Session, exc: Any, where: dict[str, float]) -> ValidationError:
+def _call_error(session: _Session, exc: Any, where: Position) -> ValidationError:
     status = STATUS_NAMES[exc.status] if 0 <= exc.status < len(STATUS_NAMES) else "illegal"
     detail = session.last_problem()
     return ValidationError(
         f"{session.info.path}: {exc.function} returned status {exc.status} ({status}) at FMU "
-        f"time {where['time_s']:.6g} s, record sample {int(where['sample'])}"
+        f"time {where.time_s:.6g} s, record sample {where.sample}"
         + (f"; FMU log: {detail}" if detail else "")
     )
+
+
+def simulate_extracted(
+    info: FmuInfo,
+    unzip_dir: str,
+    output: str,
+    grid: CommunicationGrid,
+    opening_mm: np.ndarray,
+    flow_m3h: np.ndarray,
+    position: Position | None = None,
+) -> np.ndarray:
+    """:func:`run_fmu` on an FMU already extracted to ``unzip_dir``, in this process.
+
+    ``position`` (optional) is kept up to date with the FMI call under way, the record
+    sample and the FMU time, for whoever must say where the FMU stopped.
+    """
+    where = position or Position()
+    where.values[Position.CALL] = LOADING
+    session = _open_session(info, unzip_dir, where)
+    try:
+        return _simulate(session, output, grid, np.asarray(opening_mm, dtype=float),
+                         np.asarray(flow_m3h, dtype=float), where)  # fmt: skip
+    finally:
+        where.values[Position.CALL] = FREE_INSTANCE
+        session.slave.freeInstance()
 
 
 def run_fmu(
@@ -419,13 +536,6 @@ def run_fmu(
     """
     from fmpy import extract
 
-    opening = np.asarray(opening_mm, dtype=float)
-    flow = np.asarray(flow_m3h, dtype=float)
     with tempfile.TemporaryDirectory(prefix="gatetwin-validate-") as tmp:
         unzip_dir = extract(info.path, tmp)
-        session = _open_session(info, unzip_dir)
-        try:
-            out = _simulate(session, output, grid, opening, flow)
-        finally:
-            session.slave.freeInstance()
-    return out
+        return simulate_extracted(info, unzip_dir, output, grid, opening_mm, flow_m3h)

@@ -28,7 +28,14 @@ Besides the metrics, every record gets
   the FMU's own ``resources/provenance.json``: ``inside_validity`` True, False or None
   (unknown).
 
-Results are findings; whether they fail is decided by the thresholds the caller passes.
+Each record's run happens in a child process (:mod:`gatetwin.validate.isolation`) under a
+wall-clock limit: an FMU that crashes, exits, hangs or outputs NaN or infinity fails that
+record, with the cause in ``failure_cause``, whatever the thresholds; the other records and
+the report go on. A record whose grid would need more than
+:data:`~gatetwin.validate.fmu_runner.MAX_FMU_STEPS` FMU steps is refused before any FMU runs.
+
+Results are findings; whether they fail is decided by the thresholds the caller passes
+(and by ``failure_cause``).
 """
 
 from __future__ import annotations
@@ -57,12 +64,20 @@ from gatetwin.validate.compare import (
 )
 from gatetwin.validate.errors import ValidationError
 from gatetwin.validate.fmu_runner import (
+    CommunicationGrid,
     FmuInfo,
     communication_grid,
     inspect_fmu,
     output_for_gauge,
-    run_fmu,
     static_findings,
+)
+from gatetwin.validate.isolation import (
+    RunRequest,
+    RunResult,
+    check_timeout,
+    run_in_process,
+    run_isolated,
+    start_host,
 )
 from gatetwin.validate.thresholds import Check, Threshold
 from gatetwin.validate.validity import Envelope, ValidityFinding, read_envelope, record_validity
@@ -143,6 +158,11 @@ class RecordValidation:
         The record against the FMU's validity envelope.
     fail_outside_validity : bool
         Whether lying outside the envelope fails the record.
+    failure_cause : str
+        Why the FMU run failed ("" when it did not): the FMU process died, exited or gave
+        no result in time, or the output is not finite. Such a record fails.
+    run_time_s : float
+        Wall-clock time of the FMU run, s (NaN when unknown).
     """
 
     record: str
@@ -163,6 +183,8 @@ class RecordValidation:
     level_sd_mm: float = math.nan
     validity: ValidityFinding | None = None
     fail_outside_validity: bool = False
+    failure_cause: str = ""
+    run_time_s: float = math.nan
 
     @property
     def inside_validity(self) -> bool | None:
@@ -181,8 +203,9 @@ class RecordValidation:
 
     @property
     def passed(self) -> bool:
-        """True when no threshold failed (nor the envelope, when it is enforced)."""
-        return not any(c.failed for c in self.checks) and not self.validity_failed
+        """True when the FMU ran, no threshold failed (nor the envelope, when enforced)."""
+        return (not self.failure_cause and not any(c.failed for c in self.checks)
+                and not self.validity_failed)  # fmt: skip
 
     def flat_metrics(self) -> dict[str, float]:
         """Every threshold-able metric of this record by name (see ``thresholds``)."""
@@ -224,6 +247,8 @@ class RecordValidation:
             "noise_floor": self.noise_floor_dict(),
             "fit_vs_floor": finite_or_none(self.fit_vs_floor),
             **self.validity_dict(),
+            "failure_cause": self.failure_cause or None,
+            "run_time_s": finite_or_none(self.run_time_s),
             "passed": self.passed,
         }
 
@@ -352,22 +377,55 @@ class _Settings:
     fail_outside_validity: bool
 
 
-def _validate_record(
-    fmu: FmuInfo, output: str, record: Record, settings: _Settings
-) -> RecordValidation:
+@dataclass(frozen=True)
+class _Inputs:
+    """One record made ready for a run: what the FMU gets and what it is compared with."""
+
+    record: Record
+    gauge: str
+    measured_mm: np.ndarray
+    opening_mm: np.ndarray
+    grid: CommunicationGrid
+
+
+def _inputs(fmu: FmuInfo, output: str, record: Record) -> _Inputs:
     gauge = output[len("level_") : -len("_mm")]
     measured = _measured_level(record, gauge, fmu)
+    where = record.path or "<arrays>"
     try:
         opening = reconstructed_opening(record.time_s, record.opening_mm, record.hold)
     except IdentificationError as exc:
-        raise ValidationError(f"{record.path or '<arrays>'}: {exc}") from None
-    grid = communication_grid(record.time_s, record.sample_period_s)
-    simulated = run_fmu(fmu, output, grid, opening, record.flow_m3h)
+        raise ValidationError(f"{where}: {exc}") from None
+    try:
+        grid = communication_grid(record.time_s, record.sample_period_s)
+    except ValidationError as exc:
+        raise ValidationError(f"{where}: {exc}") from None
+    return _Inputs(record, gauge, measured, opening, grid)
+
+
+def not_finite_cause(output: str, simulated_mm: np.ndarray, grid: CommunicationGrid) -> str:
+    """``output level_3F_mm not finite (nan) at t = 12 s (record sample 10)``, or ""."""
+    bad = np.flatnonzero(~np.isfinite(simulated_mm))
+    if bad.size == 0:
+        return ""
+    k = int(bad[0])
+    t = grid.start_time_s + float(grid.index[k]) * grid.step_s
+    return (f"output {output} not finite ({simulated_mm[k]}) at t = {t:.6g} s "
+            f"(record sample {k})")  # fmt: skip
+
+
+def _validate_record(
+    inputs: _Inputs, output: str, run: RunResult, settings: _Settings
+) -> RecordValidation:
+    record, gauge, measured = inputs.record, inputs.gauge, inputs.measured_mm
+    opening = inputs.opening_mm
+    failed = run.simulated_mm is None
+    simulated = np.full(record.n_samples, np.nan) if failed else run.simulated_mm
+    cause = run.failure_cause or not_finite_cause(output, simulated, inputs.grid)
     trace = Trace(record.time_s, opening, record.flow_m3h, measured, simulated, record.hold)
     metrics = free_run_metrics(measured, simulated)
     whiteness, note = _whiteness(trace)
-    finite = bool(np.all(np.isfinite(simulated)))
-    steps = compare_steps(record, gauge, simulated) if finite else ()
+    steps = compare_steps(record, gauge, simulated) if not cause else ()
     noise = record_noise_floor(record, gauge)
     floor, level_sd = noise_floor_fit_percent(noise.sigma_mm, measured)
     flat = flat_metrics(metrics, whiteness, steps, floor)
@@ -378,8 +436,8 @@ def _validate_record(
         gauge=gauge,
         test=record.test,
         n_samples=record.n_samples,
-        n_fmu_steps=grid.n_steps,
-        step_s=grid.step_s,
+        n_fmu_steps=inputs.grid.n_steps,
+        step_s=inputs.grid.step_s,
         metrics=metrics,
         whiteness=whiteness,
         steps=steps,
@@ -392,6 +450,8 @@ def _validate_record(
         level_sd_mm=level_sd,
         validity=validity,
         fail_outside_validity=settings.fail_outside_validity,
+        failure_cause=cause,
+        run_time_s=run.seconds,
     )
 
 
@@ -402,6 +462,8 @@ def validate_fmu(
     gauge: str | None = None,
     thresholds: Sequence[Threshold] = (),
     fail_outside_validity: bool = False,
+    timeout_s: float | None = None,
+    isolate: bool = True,
 ) -> FmuValidation:
     """Validate one FMU against measured records.
 
@@ -415,34 +477,49 @@ def validate_fmu(
     gauge : str, optional
         Gauge to compare (output ``level_<gauge>_mm``); default the FMU's only level output.
     thresholds : sequence of Threshold
-        Applied to every record; none means nothing but the static validation can fail.
+        Applied to every record; none means nothing but the static validation and a failed
+        run (crash, exit, timeout, output not finite) can fail.
     fail_outside_validity : bool
         Fail a record that lies outside the validity envelope the FMU states (one whose
         ``inside_validity`` is False; unknown is not a failure).
+    timeout_s : float, optional
+        Wall-clock limit of each record's run, s; default
+        :func:`~gatetwin.validate.isolation.default_timeout_s` (10 s + 1 ms per FMU step).
+    isolate : bool
+        Run the FMU in a child process (default). False runs it in this process, unguarded:
+        an FMU that crashes or exits takes this process with it, one that hangs hangs it.
 
     Returns
     -------
     FmuValidation
-        Metrics, noise floors, validity findings, static findings and checks; ``passed`` says
-        whether anything failed.
+        Metrics, noise floors, validity findings, static findings, checks and failure
+        causes; ``passed`` says whether anything failed.
 
     Raises
     ------
     ValidationError
         The FMU cannot be run (see :func:`~gatetwin.validate.fmu_runner.inspect_fmu` and
-        :func:`~gatetwin.validate.fmu_runner.run_fmu`), a record lacks the gauge.
+        :func:`~gatetwin.validate.isolation.run_isolated`), a record lacks the gauge or
+        needs more than :data:`~gatetwin.validate.fmu_runner.MAX_FMU_STEPS` FMU steps, the
+        timeout is not a positive number.
     RecordError
         A record breaks the data-format contract.
     """
     if not records:
         raise ValidationError("no records to validate against")
+    check_timeout(timeout_s)
+    if isolate:
+        start_host()  # its imports overlap with the reading and checking below
     info = inspect_fmu(fmu_path)
     output = output_for_gauge(info, gauge)
-    loaded = [_load(r) for r in records]
+    prepared = [_inputs(info, output, _load(r)) for r in records]
     findings = static_findings(info.path)
     envelope = read_envelope(info.path)
     settings = _Settings(tuple(thresholds), envelope, fail_outside_validity)
-    results = tuple(_validate_record(info, output, r, settings) for r in loaded)
+    requests = [RunRequest(output, p.grid, p.opening_mm, p.record.flow_m3h) for p in prepared]
+    runs = run_isolated(info, requests, timeout_s) if isolate else run_in_process(info, requests)
+    results = tuple(_validate_record(p, output, run, settings)
+                    for p, run in zip(prepared, runs, strict=True))  # fmt: skip
     return FmuValidation(info, findings, tuple(thresholds), results, envelope)
 
 
@@ -451,6 +528,8 @@ MATRIX_METRICS = ("fit_percent", "r2", "rmse_mm", "mae_mm", "max_abs_error_mm", 
 
 #: Name of the failed check of a record outside the envelope (with ``fail_outside_validity``).
 VALIDITY_CHECK = "inside validity"
+#: Prefix of the failed check of a record whose FMU run failed (followed by the cause).
+RUN_CHECK = "FMU run failed"
 
 
 def matrix_cells(result: FmuValidation) -> list[dict[str, Any]]:
@@ -470,6 +549,7 @@ def matrix_cells(result: FmuValidation) -> list[dict[str, Any]]:
                 "noise_sigma_mm": rec.noise_floor_dict()["sigma_mm"],
                 "inside_validity": rec.inside_validity,
                 "outside_validity": rec.validity.problems() if rec.validity else [],
+                "failure_cause": rec.failure_cause or None,
                 "static_passed": result.static_passed,
                 "failed_checks": _failed_checks(result, rec),
                 "passed": result.static_passed and rec.passed,
@@ -480,8 +560,9 @@ def matrix_cells(result: FmuValidation) -> list[dict[str, Any]]:
 
 def _failed_checks(result: FmuValidation, rec: RecordValidation) -> list[str]:
     static = [] if result.static_passed else ["fmpy static validation"]
+    run = [f"{RUN_CHECK}: {rec.failure_cause}"] if rec.failure_cause else []
     validity = [VALIDITY_CHECK] if rec.validity_failed else []
-    return static + [c.threshold.text for c in rec.checks if c.failed] + validity
+    return static + run + [c.threshold.text for c in rec.checks if c.failed] + validity
 
 
 def validate_matrix(
@@ -491,6 +572,8 @@ def validate_matrix(
     thresholds: Sequence[Threshold] = (),
     gauge: str | None = None,
     fail_outside_validity: bool = False,
+    timeout_s: float | None = None,
+    isolate: bool = True,
 ) -> list[dict[str, Any]]:
     """Validate every FMU against every record; one flat cell per pair.
 
@@ -498,15 +581,17 @@ def validate_matrix(
     ``test``, ``fit_percent``, ``r2``, ``rmse_mm``, ``mae_mm``, ``max_abs_error_mm``,
     ``bias_mm`` (None where not finite), the noise floor's ``noise_floor_fit_percent``,
     ``fit_vs_floor`` (points) and ``noise_sigma_mm``, ``inside_validity`` (True, False or
-    None) with ``outside_validity`` (what lies outside, as phrases), ``static_passed``,
-    ``failed_checks`` (the passing conditions that failed) and ``passed``. Raises as
-    :func:`validate_fmu`.
+    None) with ``outside_validity`` (what lies outside, as phrases), ``failure_cause`` (why
+    the FMU run failed, None when it did not), ``static_passed``, ``failed_checks`` (the
+    passing conditions that failed) and ``passed``. ``timeout_s`` and ``isolate`` as in
+    :func:`validate_fmu`, which this raises as.
     """
     records = [_load(r) for r in record_paths]
     cells: list[dict[str, Any]] = []
     for fmu in fmu_paths:
         result = validate_fmu(fmu, records, gauge=gauge, thresholds=thresholds,
-                              fail_outside_validity=fail_outside_validity)  # fmt: skip
+                              fail_outside_validity=fail_outside_validity, timeout_s=timeout_s,
+                              isolate=isolate)  # fmt: skip
         cells.extend(matrix_cells(result))
     return cells
 

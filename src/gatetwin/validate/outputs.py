@@ -16,11 +16,11 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from gatetwin import __version__
 from gatetwin._io import write_bytes_atomic, write_json_atomic, write_text_atomic
 from gatetwin.validate.errors import ValidationError
 from gatetwin.validate.harness import VALIDITY_CHECK, FmuValidation, RecordValidation
 from gatetwin.validate.thresholds import FAILED, NOT_APPLICABLE
+from gatetwin.version import __version__
 
 #: JUnit ``classname`` prefix of every test case.
 JUNIT_PREFIX = "gatetwin.validate"
@@ -91,6 +91,8 @@ def _validity_case(suite: ET.Element, classname: str, rec: RecordValidation) -> 
 def _record_cases(suite: ET.Element, fmu_stem: str, rec: RecordValidation) -> None:
     classname = f"{JUNIT_PREFIX}.{fmu_stem}.{Path(rec.record).stem}"
     case = _testcase(suite, classname, f"free run vs level_{rec.gauge}_mm")
+    if rec.failure_cause:
+        ET.SubElement(case, "failure", message=rec.failure_cause, type="FmuRunFailure")
     ET.SubElement(case, "system-out").text = _metrics_text(rec)
     for check in rec.checks:
         case = _testcase(suite, classname, check.threshold.text)
@@ -106,11 +108,13 @@ def junit_xml(results: Sequence[FmuValidation]) -> str:
     """JUnit XML: one ``testsuite`` per FMU, one ``testcase`` per record × check.
 
     Per FMU: a case for fmpy's static validation (failed when it has findings); per record
-    a case for the free run (always passes; the metrics, noise floor and validity in
-    ``system-out``), one per threshold (``failure`` when missed, ``skipped`` when not
-    applicable to the record) and, when the envelope is enforced, one ``inside validity``
-    (``failure`` outside it, ``skipped`` when unknown). The suite's properties carry each
-    record's ``inside_validity`` (``true``, ``false``, ``unknown``).
+    a case for the free run (a ``failure`` of type ``FmuRunFailure`` whose message is the
+    cause when the FMU crashed, exited, gave no result in time or output NaN or infinity;
+    the metrics, noise floor and validity in ``system-out``), one per threshold
+    (``failure`` when missed, ``skipped`` when not applicable to the record) and, when the
+    envelope is enforced, one ``inside validity`` (``failure`` outside it, ``skipped`` when
+    unknown). The suite's properties carry each record's ``inside_validity`` (``true``,
+    ``false``, ``unknown``).
     """
     root = ET.Element("testsuites", name="gatetwin validate")
     totals = {"tests": 0, "failures": 0, "skipped": 0}
@@ -163,7 +167,8 @@ def plot_record(result: FmuValidation, rec: RecordValidation) -> bytes:
     ax_level.set_title(
         f"{result.fmu.name} on {rec.record}: fit {m.fit_percent:.1f} % (noise floor "
         f"{rec.noise_floor_fit_percent:.1f} %), R² {m.r2:.3f}, RMSE {m.rmse_mm:.2f} mm"
-        + (" — outside validity" if rec.inside_validity is False else ""),
+        + (" — outside validity" if rec.inside_validity is False else "")
+        + (f"\nFMU run failed: {rec.failure_cause}" if rec.failure_cause else ""),
         fontsize=10,
     )
     ax_res.plot(tr.time_s, tr.residual_mm, "-", lw=0.8, color="C3")

@@ -1,0 +1,164 @@
+"""The C rendering of a module of plain scalar functions, from their Python syntax tree.
+
+:mod:`gatetwin.plant.blocks` is written as ordinary Python (branches, early returns, a
+loop) so that the reference simulator, the pythonfmu slave (which embeds its source) and
+numba (which compiles it as it is) all run it directly. This module translates the same
+functions into C for the C FMU, statement by statement:
+
+* every argument and local is a ``double``; a function returning a tuple of ``n`` values
+  becomes ``void`` with ``n`` output pointers, otherwise it returns ``double``;
+* every binary operation is written fully parenthesised in the order the syntax tree gives
+  it, so C (compiled with ``-ffp-contract=off``) performs the operations Python performs;
+* ``math.f(x)`` becomes the C library's ``f(x)`` (the same libm Python calls); ``max``
+  and ``min`` of two values become ``fmax``/``fmin``; ``math.pi`` and ``math.nan`` the
+  constants Python holds.
+
+Anything outside that subset (calls to other functions, attributes, containers, ``for``)
+raises ``ValueError`` naming the construct, so the C rendering can never silently differ.
+"""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import math
+import types
+
+_BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
+_COMPARE = {ast.Gt: ">", ast.GtE: ">=", ast.Lt: "<", ast.LtE: "<=", ast.Eq: "==",
+            ast.NotEq: "!="}  # fmt: skip
+_MATH = {"exp", "expm1", "log", "log1p", "sqrt", "cos", "sin", "floor", "ceil", "fabs"}
+_CONSTANTS = {"pi": repr(math.pi), "nan": "NAN"}
+
+
+def _literal(value: object) -> str:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"constant {value!r} is not a number")
+    text = repr(float(value))
+    return text if "e" in text or "." in text else text + ".0"
+
+
+class _Function:
+    """Translation of one function definition."""
+
+    def __init__(self, node: ast.FunctionDef, prefix: str) -> None:
+        self.node, self.prefix = node, prefix
+        self.args = [a.arg for a in node.args.args]
+        returns = [n for n in ast.walk(node) if isinstance(n, ast.Return)]
+        sizes = {len(r.value.elts) if isinstance(r.value, ast.Tuple) else 1 for r in returns
+                 if r.value is not None}  # fmt: skip
+        if len(sizes) != 1:
+            raise ValueError(f"{node.name}: every return must give the same number of values")
+        self.n_out = sizes.pop()
+        assigned = {t.id for n in ast.walk(node) if isinstance(n, ast.Assign | ast.AugAssign)
+                    for t in (n.targets if isinstance(n, ast.Assign) else [n.target])
+                    if isinstance(t, ast.Name)}  # fmt: skip
+        self.locals = sorted(assigned - set(self.args))
+
+    def signature(self) -> str:
+        params = ", ".join(f"double {a}" for a in self.args)
+        if self.n_out == 1:
+            return f"double {self.prefix}{self.node.name}({params})"
+        outs = ", ".join(f"double *out{i}" for i in range(self.n_out))
+        return f"void {self.prefix}{self.node.name}({params}, {outs})"
+
+    def definition(self) -> str:
+        lines = [self.signature(), "{"]
+        if self.locals:
+            lines.append(f"    double {', '.join(self.locals)};")
+        body = self.node.body
+        if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+            body = body[1:]  # the docstring
+        lines += self.block(body, 1)
+        return "\n".join(lines) + "\n}\n"
+
+    def block(self, statements: list[ast.stmt], depth: int) -> list[str]:
+        out: list[str] = []
+        for s in statements:
+            out += self.statement(s, "    " * depth, depth)
+        return out
+
+    def statement(self, s: ast.stmt, pad: str, depth: int) -> list[str]:
+        if isinstance(s, ast.Assign) and len(s.targets) == 1 and isinstance(s.targets[0],
+                                                                             ast.Name):
+            return [f"{pad}{s.targets[0].id} = {self.expr(s.value)};"]
+        if isinstance(s, ast.AugAssign) and isinstance(s.target, ast.Name):
+            op = _BINARY[type(s.op)]
+            return [f"{pad}{s.target.id} = ({s.target.id} {op} {self.expr(s.value)});"]
+        if isinstance(s, ast.Return):
+            return self.ret(s, pad)
+        if isinstance(s, ast.If):
+            lines = [f"{pad}if ({self.expr(s.test)}) {{", *self.block(s.body, depth + 1)]
+            if s.orelse:
+                lines += [f"{pad}}} else {{", *self.block(s.orelse, depth + 1)]
+            return [*lines, f"{pad}}}"]
+        if isinstance(s, ast.While) and not s.orelse:
+            return [f"{pad}while ({self.expr(s.test)}) {{", *self.block(s.body, depth + 1),
+                    f"{pad}}}"]  # fmt: skip
+        raise ValueError(f"{self.node.name}: statement {ast.dump(s)[:60]} has no C rendering")
+
+    def ret(self, s: ast.Return, pad: str) -> list[str]:
+        if s.value is None:
+            raise ValueError(f"{self.node.name}: a bare return has no value")
+        if self.n_out == 1:
+            return [f"{pad}return {self.expr(s.value)};"]
+        elts = s.value.elts  # type: ignore[attr-defined]
+        return [*(f"{pad}*out{i} = {self.expr(e)};" for i, e in enumerate(elts)),
+                f"{pad}return;"]  # fmt: skip
+
+    def expr(self, e: ast.expr) -> str:  # noqa: C901 - one case per construct
+        if isinstance(e, ast.Name):
+            if e.id not in self.args and e.id not in self.locals:
+                raise ValueError(f"{self.node.name}: unknown name {e.id}")
+            return e.id
+        if isinstance(e, ast.Constant):
+            return _literal(e.value)
+        if isinstance(e, ast.BinOp) and type(e.op) in _BINARY:
+            return f"({self.expr(e.left)} {_BINARY[type(e.op)]} {self.expr(e.right)})"
+        if isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.USub):
+            return f"(-{self.expr(e.operand)})"
+        if isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.Not):
+            return f"(!{self.expr(e.operand)})"
+        if isinstance(e, ast.Compare) and len(e.ops) == 1 and type(e.ops[0]) in _COMPARE:
+            return (f"({self.expr(e.left)} {_COMPARE[type(e.ops[0])]} "
+                    f"{self.expr(e.comparators[0])})")  # fmt: skip
+        if isinstance(e, ast.BoolOp):
+            op = " && " if isinstance(e.op, ast.And) else " || "
+            return "(" + op.join(self.expr(v) for v in e.values) + ")"
+        if isinstance(e, ast.IfExp):
+            return f"({self.expr(e.test)} ? {self.expr(e.body)} : {self.expr(e.orelse)})"
+        if isinstance(e, ast.Attribute) and isinstance(e.value, ast.Name) and \
+                e.value.id == "math" and e.attr in _CONSTANTS:  # fmt: skip
+            return _CONSTANTS[e.attr]
+        if isinstance(e, ast.Call) and not e.keywords:
+            return self.call(e)
+        raise ValueError(f"{self.node.name}: expression {ast.dump(e)[:60]} has no C rendering")
+
+    def call(self, e: ast.Call) -> str:
+        args = ", ".join(self.expr(a) for a in e.args)
+        f = e.func
+        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and \
+                f.value.id == "math" and f.attr in _MATH:  # fmt: skip
+            return f"{f.attr}({args})"
+        if isinstance(f, ast.Name) and f.id in ("max", "min") and len(e.args) == 2:
+            return f"f{f.id}({args})"
+        raise ValueError(f"{self.node.name}: call {ast.dump(f)[:60]} has no C rendering")
+
+
+def c_module(module: types.ModuleType, names: tuple[str, ...], prefix: str
+             ) -> tuple[str, str]:  # fmt: skip
+    """C source and header of the functions ``names`` of ``module`` (prefixed ``prefix``)."""
+    tree = ast.parse(inspect.getsource(module))
+    defs = {n.name: n for n in tree.body if isinstance(n, ast.FunctionDef)}
+    missing = [n for n in names if n not in defs]
+    if missing:
+        raise ValueError(f"{module.__name__} has no function {missing[0]}")
+    functions = [_Function(defs[n], prefix) for n in names]
+    stem = module.__name__.rsplit(".", 1)[-1]
+    head = f"/* Generated by gatetwin.plant.ast_render from {module.__name__}: do not edit. */\n"
+    guard = f"GATETWIN_{stem.upper()}_H"
+    header = (head + f"#ifndef {guard}\n#define {guard}\n\n"
+              + "\n".join(f.signature() + ";" for f in functions) + "\n\n#endif\n")  # fmt: skip
+    source = (head + f'#include <math.h>\n\n#include "{stem}.h"\n\n'
+              + "\n".join(f.definition() for f in functions))  # fmt: skip
+    return source, header
