@@ -13,11 +13,18 @@ problems, side by side:
    fastest, and how far each one's first move is from qpOASES's. OSQP is shadowed only
    every ``--osqp-every`` samples: at these tolerances it takes ~1 s per solve.
 
+3. The MPC re-linearised on the envelope at every sample against the single-point MPC,
+   both driving the Python reference of the envelope FOPDT ``models/fopdt_3F.json``
+   through the demo's ``wide_range`` scenario (120 → 300 mm at 50 m³/h, Q ±30 m³/h):
+   solve and whole-step times side by side (the envelope's step includes the tangent, and
+   a rebuild of the condensed QP whenever the tangent has moved by a grid step).
+
 Times are wall-clock for the solver call alone (casadi ``conic`` or the Opti function);
 the MPC's whole step (observer, condensing) is reported for the QP path too. Nothing is
 asserted: the script prints and says which targets were met.
 
 usage: python benchmarks/bench_mpc.py [--minutes 10] [--horizons 50 100 200] [--osqp-every 10]
+       [--wide-minutes 30]
 """
 
 from __future__ import annotations
@@ -25,9 +32,11 @@ from __future__ import annotations
 import argparse
 import time
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
+from gatetwin.modelfile import read_model_file
 from gatetwin.mpc import (
     DemoSettings,
     LoopPlant,
@@ -40,9 +49,13 @@ from gatetwin.mpc import (
     QpBackend,
     demo_plant,
     demo_scenarios,
+    loop_metrics,
     run_closed_loop,
+    wide_scenario,
 )
 
+#: The envelope FOPDT of gauge 3F identified from the bundled records.
+MODEL_3F = Path(__file__).resolve().parents[1] / "models" / "fopdt_3F.json"
 TARGET_RATIO = 10.0
 TARGET_P99_MS = 20.0
 TARGET_DIFF_MM = 1e-3
@@ -174,6 +187,37 @@ def qp_solvers(horizon: int, minutes: float, osqp_every: int) -> None:
     print(f"   ({time.perf_counter() - start:.0f} s)")
 
 
+def envelope_against_single_point(minutes: float) -> None:
+    print(f"\n3. envelope MPC vs single-point MPC, wide_range, {minutes:g} min, N = "
+          f"{MpcSettings().horizon}, Python envelope FOPDT plant, noise 0.7 mm")  # fmt: skip
+    plant_model = read_model_file(MODEL_3F).plant
+    demo = DemoSettings()
+    scenario = wide_scenario(plant_model, minutes, demo)
+    rows = {}
+    for linearisation in ("schedule", "envelope"):
+        controller = MpcController(plant_model, demo.mpc, linearisation=linearisation)
+        plant = LoopPlant(ModelCore(plant_model), noise=demo.noise)
+        run = run_closed_loop(
+            plant,
+            controller,
+            scenario,
+            level_band_mm=demo.mpc.level_band_mm,
+            max_move_mm=demo.mpc.max_move_mm,
+            opening_range_mm=demo.mpc.opening_range_mm,
+        )
+        rows[linearisation] = (ms(run.solve_s), ms(run.step_s), loop_metrics(run))
+    print(f"{'MPC':>13} {'solve med':>10} {'solve p99':>10} {'step med':>9} {'step p99':>9} "
+          f"{'IAE mm·s':>9} {'violations':>10}")  # fmt: skip
+    for name, ((s_med, s_p99), (st_med, st_p99), m) in rows.items():
+        label = "single-point" if name == "schedule" else "envelope"
+        print(f"{label:>13} {s_med:>10.2f} {s_p99:>10.2f} {st_med:>9.2f} {st_p99:>9.2f} "
+              f"{m['iae']:>9.0f} {m['violations']:>10}")  # fmt: skip
+    (s0, _), (t0, t0_99), m0 = rows["schedule"]
+    (s1, _), (t1, t1_99), m1 = rows["envelope"]
+    print(f"   envelope / single-point: solve median {s1 / s0:.2f}x, step median "
+          f"{t1 / t0:.2f}x, step p99 {t1_99 / t0_99:.2f}x, IAE {m1['iae'] / m0['iae']:.3f}")
+
+
 def warm_up(horizons: list[int]) -> None:
     """A short loop at each horizon first: a process's first solves at a new problem size
     pay one-off costs (first touch of fresh memory, library start-up: tens of ms in this
@@ -187,10 +231,15 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=10.0)
     parser.add_argument("--horizons", type=int, nargs="+", default=[50, 100, 200])
     parser.add_argument("--osqp-every", type=int, default=10)
+    parser.add_argument("--wide-minutes", type=float, default=30.0)
+    parser.add_argument("--only-envelope", action="store_true",
+                        help="run part 3 only")  # fmt: skip
     args = parser.parse_args()
     warm_up([*args.horizons, MpcSettings().horizon])
-    qp_against_ipopt(args.horizons, args.minutes)
-    qp_solvers(MpcSettings().horizon, args.minutes, args.osqp_every)
+    if not args.only_envelope:
+        qp_against_ipopt(args.horizons, args.minutes)
+        qp_solvers(MpcSettings().horizon, args.minutes, args.osqp_every)
+    envelope_against_single_point(args.wide_minutes)
 
 
 if __name__ == "__main__":

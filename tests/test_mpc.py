@@ -85,8 +85,11 @@ def test_cli_mpc_demo(tmp_path, capsys):
     data = json.loads(out.read_text())
     assert data["plant"] == "fmu"
     assert METRIC_KEYS <= set(data["scenarios"]["inflow_step"]["mpc"])
+    # the default model (identified from the bundled records) has an envelope: wide_range
+    # compares the envelope MPC with the single-point one
     assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == [
-        "inflow_step.png", "setpoint_steps.png"]  # fmt: skip
+        "inflow_step.png", "setpoint_steps.png", "wide_range.png"]  # fmt: skip
+    assert set(data["envelope_vs_single_point"]) == {"wide_range"}
     capsys.readouterr()
     assert main(["mpc-demo", "--json", str(out), "--plots", str(tmp_path), "--minutes",
                  "nan"]) == 2  # fmt: skip

@@ -222,6 +222,6 @@ def test_bad_settings_and_models_are_refused():
         discretise(fopdt(), math.nan)
     controller = MpcController(fopdt())
     with pytest.raises(ControlError):
-        controller.step(180.0, 40.0, 180.0)  # no reset
+        controller.step(math.nan, 40.0, 180.0)  # a level that is not a number
     with pytest.raises(ControlError):
         controller.reset(200.0, 180.0, 40.0)  # opening outside the range

@@ -3,7 +3,9 @@
 The MPC is built from the same :class:`~gatetwin.plant.model.Plant` object the FMUs are
 exported from (scheduled FOPDT or ARX): exact ZOH discretisation with the dead time as a
 shift register and the modified z-transform's split of its fractional part
-(:mod:`~gatetwin.mpc.discrete`), re-evaluated at each step's measured discharge; a Kalman
+(:mod:`~gatetwin.mpc.discrete`), re-evaluated at each step's measured discharge — or, for
+a plant with an envelope, its tangent at the measured discharge and gate position, re-taken
+at every step (:mod:`~gatetwin.mpc.envelope`); a Kalman
 filter on an input disturbance for offset-free control (:mod:`~gatetwin.mpc.observer`);
 a condensed dense QP through casadi's conic plugins (:mod:`~gatetwin.mpc.qp`), checked
 against a ``casadi.Opti`` + IPOPT formulation (:mod:`~gatetwin.mpc.opti`). The PI
@@ -21,10 +23,13 @@ from gatetwin.mpc.demo import (
     compare_controllers,
     demo_plant,
     demo_scenarios,
+    envelope_comparison,
     load_demo_plant,
     run_mpc_demo,
+    wide_scenario,
 )
 from gatetwin.mpc.discrete import DiscreteModel, discretise, fopdt_split
+from gatetwin.mpc.envelope import linearised_model
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.loop import ClosedLoopRun, LoopSettings, Scenario, loop_metrics, run_closed_loop
 from gatetwin.mpc.observer import DisturbanceObserver
@@ -70,7 +75,9 @@ __all__ = [
     "demo_plant",
     "demo_scenarios",
     "discretise",
+    "envelope_comparison",
     "fopdt_split",
+    "linearised_model",
     "load_demo_plant",
     "loop_margins",
     "loop_metrics",
@@ -78,4 +85,5 @@ __all__ = [
     "run_mpc_demo",
     "simc_pi",
     "simc_pi_for_plant",
+    "wide_scenario",
 ]

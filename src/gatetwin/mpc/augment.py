@@ -26,7 +26,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from gatetwin.mpc.discrete import DiscreteModel
+from gatetwin.mpc.statespace import DiscreteModel
 from gatetwin.plant.effects import EffectSet
 
 

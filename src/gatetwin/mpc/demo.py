@@ -5,6 +5,18 @@ Two scenarios from rest at Q = 40 m³/h and a 25 mm opening, measured with gauge
 * ``setpoint_steps`` — the level set-point steps +20 mm, −20 mm and back;
 * ``inflow_step`` — the discharge steps 40 → 60 m³/h and the set-point holds.
 
+With a model that carries an envelope (``fopdt`` with ``plant.envelope``, as identified
+from the bundled records), a third scenario crosses the gate's range:
+
+* ``wide_range`` — from rest at Q = 50 m³/h and 120 mm (the opening that holds it, ≈ 50 mm),
+  the set-point steps to 300 mm (the gate near 22 mm, where ``|K|`` is ~6 times larger),
+  then the discharge steps +30 m³/h (to 80) and −30 m³/h (back to 50).
+
+It is run by the single-point MPC (``mpc``: the schedule's model, linearised once at
+``opening_ref_mm``, as in the other scenarios) and by the MPC re-linearised on the envelope
+at every sample (``mpc_envelope``, :mod:`gatetwin.mpc.envelope`); the JSON gives both
+scores and ``envelope_vs_single_point`` their IAE side by side.
+
 Each controller runs each scenario on a fresh plant with the same noise sequence; the
 result is the JSON of :func:`run_mpc_demo` and one PNG per scenario.
 
@@ -36,6 +48,12 @@ import numpy as np
 
 from gatetwin.flume import FlumeConfig, run_flume, spin_up
 from gatetwin.mpc.controller import MpcController
+from gatetwin.mpc.envelope import (
+    gate_position_mm,
+    has_envelope,
+    steady_level_mm,
+    steady_opening_mm,
+)
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.loop import (
     ClosedLoopRun,
@@ -50,6 +68,10 @@ from gatetwin.mpc.settings import MpcSettings
 from gatetwin.plant.model import FopdtPlant, Plant, Schedule, plant_from_dict
 
 PLANT_KINDS = ("fmu", "flume", "model")
+#: Controllers the demo compares (see :func:`compare_controllers`).
+CONTROLLERS = ("mpc", "mpc_envelope", "pi")
+#: Name of the scenario across the gate's range (run when the model has an envelope).
+WIDE_SCENARIO = "wide_range"
 
 #: Demo FOPDT of gauge 3F: discharge knots (m³/h), K (mm/mm), T (s), model dead time L (s).
 DEMO_SCHEDULE: dict[str, tuple[float, ...]] = {
@@ -126,6 +148,13 @@ class DemoSettings:
         plant's level).
     setpoint_step_mm : float
         Size of the set-point steps, mm.
+    wide_flow_m3h : float
+        Discharge of the ``wide_range`` scenario, m³/h.
+    wide_levels_mm : tuple[float, float]
+        Its start level (the plants start at the opening the model says holds it, at the
+        actuator's resolution) and its set-point after the step, mm.
+    wide_flow_step_m3h : float
+        Its discharge steps up by this, then back down by this, m³/h.
     noise : MeasurementNoise
         Gauge noise (SD 0.7 mm, AR(1), 0.1 mm resolution).
     actuator_resolution_mm : float
@@ -142,6 +171,9 @@ class DemoSettings:
     inflow_step_to_m3h: float = 60.0
     opening_mm: float = 25.0
     setpoint_step_mm: float = 20.0
+    wide_flow_m3h: float = 50.0
+    wide_levels_mm: tuple[float, float] = (120.0, 300.0)
+    wide_flow_step_m3h: float = 30.0
     noise: MeasurementNoise = field(default_factory=MeasurementNoise)
     actuator_resolution_mm: float = 1.0
     mpc: MpcSettings = field(default_factory=MpcSettings)
@@ -164,6 +196,32 @@ def demo_scenarios(minutes: float, settings: DemoSettings | None = None) -> tupl
             **common,
         ),
         Scenario("inflow_step", flow_changes=((d / 6, s.inflow_step_to_m3h),), **common),
+    )
+
+
+def wide_scenario(
+    plant_model: Plant, minutes: float, settings: DemoSettings | None = None
+) -> Scenario:
+    """``wide_range``: set-point step at 1/15 of the run, discharge +step at 2/5 and −step
+    at 7/10; the start opening and the step's size from the model's envelope."""
+    s = settings or DemoSettings()
+    if not minutes >= 2:
+        raise ControlError(f"demo: need at least 2 simulated minutes (got {minutes})")
+    start_mm, target_mm = s.wide_levels_mm
+    q = s.wide_flow_m3h
+    opening = gate_position_mm(
+        plant_model, steady_opening_mm(plant_model, q, start_mm, s.mpc.opening_range_mm)
+    )
+    offset = target_mm - steady_level_mm(plant_model, q, opening)
+    d = float(minutes) * 60.0
+    dq = s.wide_flow_step_m3h
+    return Scenario(
+        WIDE_SCENARIO,
+        d,
+        flow_m3h=q,
+        opening_mm=opening,
+        setpoint_changes=((d / 15, offset),),
+        flow_changes=((0.4 * d, q + dq), (0.7 * d, q)),
     )
 
 
@@ -221,19 +279,32 @@ def compare_controllers(
     *,
     plant_kind: str = "fmu",
     settings: DemoSettings | None = None,
+    controllers: tuple[str, ...] = ("mpc", "pi"),
 ) -> dict[str, ClosedLoopRun]:
-    """Run ``scenario`` with the MPC and the SIMC PI, each on a fresh plant of one kind.
+    """Run ``scenario`` with each controller, each on a fresh plant of one kind.
 
-    Both runs see the same noise sequence. The PI is tuned at the scenario's initial
-    discharge. Returns ``{"mpc": run, "pi": run}``.
+    All runs see the same noise sequence. ``controllers`` among ``"mpc"`` (the single-point
+    MPC: the schedule's model at the measured discharge), ``"mpc_envelope"`` (re-linearised
+    on the envelope at every sample; the model needs an envelope) and ``"pi"`` (SIMC,
+    tuned at ``settings.flow_m3h``). Returns ``{name: run}``.
     """
     s = settings or DemoSettings()
-    tuning = _pi_tuning(plant_model, s)
+    unknown = [c for c in controllers if c not in CONTROLLERS]
+    if unknown:
+        raise ControlError(f"demo: unknown controller(s) {', '.join(unknown)}; known: "
+                           f"{', '.join(CONTROLLERS)}")  # fmt: skip
     runs = {}
     with _PlantFactory(plant_model, plant_kind, s) as factory:
-        for controller in (MpcController(plant_model, s.mpc), PiController(tuning, s.pi)):
-            runs[controller.name] = _run_one(factory.make(), controller, scenario, s)
+        for name in controllers:
+            runs[name] = _run_one(factory.make(), _controller(name, plant_model, s), scenario, s)
     return runs
+
+
+def _controller(name: str, plant_model: FopdtPlant, s: DemoSettings) -> Any:
+    if name == "pi":
+        return PiController(_pi_tuning(plant_model, s), s.pi)
+    linearisation = "schedule" if name == "mpc" else "envelope"
+    return MpcController(plant_model, s.mpc, linearisation=linearisation)
 
 
 def _pi_tuning(plant_model: Plant, s: DemoSettings) -> PiTuning:
@@ -254,7 +325,7 @@ def run_mpc_demo(
     settings: DemoSettings | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
-    """Run both scenarios with the MPC and the PI on one kind of plant.
+    """Run the scenarios with the MPCs and the PI on one kind of plant.
 
     Parameters
     ----------
@@ -275,8 +346,11 @@ def run_mpc_demo(
     -------
     dict
         ``{"plant", "model", "pi_tuning", "pi_margins", "settings",
-        "scenarios": {name: {"mpc": metrics, "pi": metrics}}}``, JSON-ready; the metrics
-        are those of :func:`gatetwin.mpc.loop.loop_metrics`.
+        "scenarios": {name: {"mpc": metrics, "pi": metrics}}, "envelope_vs_single_point"}``,
+        JSON-ready; the metrics are those of :func:`gatetwin.mpc.loop.loop_metrics`. With
+        an envelope model, ``scenarios["wide_range"]`` holds ``{"mpc": metrics,
+        "mpc_envelope": metrics}`` and ``envelope_vs_single_point`` their IAE and
+        violations (:func:`envelope_comparison`; empty without an envelope).
     """
     s = settings or DemoSettings()
     tuning = _pi_tuning(plant_model, s)
@@ -294,8 +368,13 @@ def run_mpc_demo(
         "settings": _settings_summary(s, minutes),
         "scenarios": {},
     }
-    for scenario in scenarios:
-        runs = compare_controllers(plant_model, scenario, plant_kind=plant_kind, settings=s)
+    plan = [(scenario, ("mpc", "pi")) for scenario in scenarios]
+    if has_envelope(plant_model):
+        plan.append((wide_scenario(plant_model, minutes, s), ("mpc", "mpc_envelope")))
+    for scenario, controllers in plan:
+        runs = compare_controllers(
+            plant_model, scenario, plant_kind=plant_kind, settings=s, controllers=controllers
+        )
         metrics = {name: {**loop_metrics(run, s.loop), **run.extra} for name, run in runs.items()}
         out["scenarios"][scenario.name] = metrics
         if out_plots_dir is not None:
@@ -303,6 +382,25 @@ def run_mpc_demo(
         if progress is not None:
             iae = ", ".join(f"{name} {m['iae']:.0f}" for name, m in metrics.items())
             progress(f"{plant_kind} {scenario.name}: IAE (mm·s) {iae}")
+    out["envelope_vs_single_point"] = envelope_comparison(out["scenarios"])
+    return out
+
+
+def envelope_comparison(scenarios: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """IAE and violations of the envelope and the single-point MPC, per scenario run by
+    both (``iae_ratio`` = envelope / single-point; below 1: the envelope MPC is better)."""
+    out = {}
+    for name, metrics in scenarios.items():
+        if "mpc_envelope" not in metrics or "mpc" not in metrics:
+            continue
+        env, single = metrics["mpc_envelope"], metrics["mpc"]
+        out[name] = {
+            "iae_mpc": single["iae"],
+            "iae_mpc_envelope": env["iae"],
+            "iae_ratio": env["iae"] / single["iae"] if single["iae"] > 0 else None,
+            "violations_mpc": single["violations"],
+            "violations_mpc_envelope": env["violations"],
+        }
     return out
 
 
@@ -324,6 +422,7 @@ def _run_one(
     if isinstance(controller, MpcController):
         run.extra["solver_failures"] = controller.failures
         run.extra["qp_solver"] = s.mpc.qp_solver
+        run.extra["linearisation"] = controller.linearisation
     return run
 
 
@@ -335,6 +434,9 @@ def _settings_summary(s: DemoSettings, minutes: float) -> dict[str, Any]:
         "inflow_step_to_m3h": s.inflow_step_to_m3h,
         "opening_mm": s.opening_mm,
         "setpoint_step_mm": s.setpoint_step_mm,
+        "wide_flow_m3h": s.wide_flow_m3h,
+        "wide_levels_mm": list(s.wide_levels_mm),
+        "wide_flow_step_m3h": s.wide_flow_step_m3h,
         "noise": asdict(s.noise),
         "actuator_resolution_mm": s.actuator_resolution_mm,
         "mpc": {k: v for k, v in asdict(s.mpc).items() if k != "observer"},
@@ -351,10 +453,11 @@ def plot_runs(runs: dict[str, ClosedLoopRun], path: str | Path) -> Path:
 
     fig = Figure(figsize=(10, 8), layout="constrained")
     axes = fig.subplots(3, 1, sharex=True, height_ratios=[3, 2, 1])
-    colors = {"mpc": "tab:blue", "pi": "tab:orange"}
+    colors = {"mpc": "tab:blue", "pi": "tab:orange", "mpc_envelope": "tab:green"}
     first = next(iter(runs.values()))
-    for name, run in reversed(list(runs.items())):  # the MPC drawn last, on top
-        run.plot(axes, color=colors.get(name))
+    on_top = ("pi", "mpc", "mpc_envelope")  # the PI first, the envelope MPC last
+    for name in sorted(runs, key=lambda n: on_top.index(n) if n in on_top else -1):
+        runs[name].plot(axes, color=colors.get(name))
     axes[0].step(
         first.time_s / 60,
         first.setpoint_mm,
@@ -371,7 +474,8 @@ def plot_runs(runs: dict[str, ClosedLoopRun], path: str | Path) -> Path:
     for ax in axes:
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8)
-    fig.suptitle(f"{first.scenario.name} — {first.plant}")
+    iae = ", ".join(f"{name} {loop_metrics(run)['iae']:.0f}" for name, run in runs.items())
+    fig.suptitle(f"{first.scenario.name} — {first.plant} — IAE (mm·s): {iae}")
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(target, dpi=110)
@@ -379,14 +483,18 @@ def plot_runs(runs: dict[str, ClosedLoopRun], path: str | Path) -> Path:
 
 
 __all__ = [
+    "CONTROLLERS",
     "DEMO_SCHEDULE",
     "PLANT_KINDS",
+    "WIDE_SCENARIO",
     "DemoSettings",
     "compare_controllers",
     "demo_plant",
     "demo_scenarios",
+    "envelope_comparison",
     "flume_levels_mm",
     "load_demo_plant",
     "plot_runs",
     "run_mpc_demo",
+    "wide_scenario",
 ]

@@ -88,7 +88,7 @@ class ClosedLoopRun:
     ----------
     scenario : Scenario
     controller : str
-        ``"mpc"`` or ``"pi"``.
+        ``"mpc"``, ``"mpc_envelope"`` or ``"pi"``.
     plant : str
         Description of the plant.
     time_s : ndarray

@@ -115,6 +115,20 @@ class DisturbanceObserver:
         self.covariance = p - np.outer(gain, pc)
         return float(innovation)
 
+    def rescale_disturbance(self, old_gain: float, new_gain: float) -> None:
+        """Keep the disturbance's steady effect on the level when the model's gain changes.
+
+        ``d`` is in mm of opening, so a re-linearised model whose gain goes from
+        ``old_gain`` to ``new_gain`` (mm/mm) would read the same ``d`` as a different level
+        offset; ``d`` and its covariance are scaled by ``old_gain / new_gain`` instead.
+        """
+        if old_gain == 0.0 or new_gain == 0.0 or old_gain == new_gain:
+            return
+        ratio = old_gain / new_gain
+        self.disturbance_mm *= ratio
+        self.covariance[-1, :] *= ratio
+        self.covariance[:, -1] *= ratio
+
     def predict(self, model: DiscreteModel, opening_mm: float) -> None:
         """Advance one sample with ``opening_mm`` held (the model at this sample's flow)."""
         self.state = model.step(self.state, opening_mm, self.disturbance_mm)

@@ -34,16 +34,18 @@ class OptiBackend:
 
     def __init__(self, settings: MpcSettings) -> None:
         self.settings = settings
-        self._functions: dict[int, casadi.Function] = {}
+        self._functions: dict[tuple[MpcSettings, int], casadi.Function] = {}
 
-    def _function(self, n_states: int) -> casadi.Function:
-        if n_states not in self._functions:
-            self._functions[n_states] = _build(self.settings, n_states)
-        return self._functions[n_states]
+    def _function(self, settings: MpcSettings, n_states: int) -> casadi.Function:
+        """The formulation for these weights and this state size (built once each)."""
+        key = (settings, n_states)
+        if key not in self._functions:
+            self._functions[key] = _build(settings, n_states)
+        return self._functions[key]
 
     def solve(self, problem: MpcProblem) -> MpcSolution:
         m = problem.model
-        fn = self._function(m.n_states)
+        fn = self._function(problem.settings, m.n_states)
         args = [
             m.a,
             m.b,

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import io
 import os
 import sys
 import time
@@ -203,13 +204,28 @@ class CondensedQp:
             ]
         )
 
+    def serves(self, model: DiscreteModel, settings: MpcSettings) -> bool:
+        """Whether these matrices are ``model``'s under ``settings``: they depend on ``A``,
+        ``B``, ``C_level`` and the weights only (a model that differs in its known drive or
+        level shares them)."""
+        mine = self.model
+        if settings != self.settings:
+            return False
+        return model is mine or (
+            model.a.shape == mine.a.shape
+            and np.array_equal(model.a, mine.a)
+            and np.array_equal(model.b, mine.b)
+            and np.array_equal(model.c_level, mine.c_level)
+        )
+
     def data(self, problem: MpcProblem) -> QpData:
         """QP data for the problem's state, disturbance, set-point and previous opening."""
         s, n = self.settings, self.settings.horizon
         e_prev = problem.previous_opening_mm
-        free = free_response(self.model, n, problem.state, problem.disturbance_mm)
+        model = problem.model
+        free = free_response(model, n, problem.state, problem.disturbance_mm)
         # levels if the opening stayed at e_prev (the model's input is e − e_ref)
-        hold = free + self.gain.sum(axis=1) * (e_prev - self.model.opening_ref_mm)
+        hold = free + self.gain.sum(axis=1) * (e_prev - model.opening_ref_mm)
         g = 2.0 * s.level_weight * self.move_gain.T @ (hold - problem.setpoint_mm)
         step = np.full(n, problem.move_bound_mm)
         lo_e, hi_e = problem.range_mm
@@ -241,10 +257,9 @@ class CondensedQp:
         return self._dm
 
     def predicted_levels(self, problem: MpcProblem, openings_mm: np.ndarray) -> np.ndarray:
-        free = free_response(
-            self.model, self.settings.horizon, problem.state, problem.disturbance_mm
-        )
-        return free + self.gain @ (openings_mm - self.model.opening_ref_mm)
+        model = problem.model
+        free = free_response(model, self.settings.horizon, problem.state, problem.disturbance_mm)
+        return free + self.gain @ (openings_mm - model.opening_ref_mm)
 
 
 def _solver_options(name: str) -> dict[str, Any]:
@@ -288,16 +303,17 @@ def set_casadi_blas_threads(threads: int) -> bool:
 
 @contextlib.contextmanager
 def _quiet_stdout() -> Iterator[None]:
-    """Silence what C code writes to file descriptor 1 (a library banner), then restore."""
+    """Silence a library banner, then restore: what C code writes to file descriptor 1 and
+    what casadi passes on to ``sys.stdout`` (its messages go there when stdout is not the
+    terminal's, e.g. under doctest)."""
     try:
         fd = sys.stdout.fileno()
-    except (AttributeError, OSError, ValueError):  # no real stdout (e.g. captured in memory)
-        yield
-        return
-    sys.stdout.flush()
+        sys.stdout.flush()
+    except (AttributeError, OSError, ValueError):  # stdout captured in memory: C writes to 1
+        fd = 1
     saved = os.dup(fd)
     try:
-        with open(os.devnull, "wb") as devnull:
+        with open(os.devnull, "wb") as devnull, contextlib.redirect_stdout(io.StringIO()):
             os.dup2(devnull.fileno(), fd)
             try:
                 yield
@@ -309,11 +325,15 @@ def _quiet_stdout() -> Iterator[None]:
         os.close(saved)
 
 
+#: Condensed QPs a backend keeps for models it may see again (oldest dropped first).
+RECENT_QPS = 32
+
+
 class QpBackend:
     """Solves :class:`MpcProblem` s through one casadi conic solver (kept between calls).
 
     The solver is created once for the problem's dimensions; the condensed matrices are
-    rebuilt only when the model object changes.
+    rebuilt only when the model's ``A``, ``B`` or ``C_level`` change.
     """
 
     name = "qp"
@@ -334,15 +354,27 @@ class QpBackend:
                 _solver_options(settings.qp_solver),
             )
         self._qp: CondensedQp | None = None
+        self._recent: dict[bytes, CondensedQp] = {}
         self._x0: np.ndarray | None = None
 
-    def condensed(self, model: DiscreteModel) -> CondensedQp:
-        if self._qp is None or self._qp.model is not model:
-            self._qp = CondensedQp(model, self.settings)
-        return self._qp
+    def condensed(self, model: DiscreteModel, settings: MpcSettings | None = None) -> CondensedQp:
+        settings = settings or self.settings
+        if self._qp is not None and self._qp.serves(model, settings):
+            return self._qp
+        # a re-linearised model often comes back to matrices it had a few samples ago
+        # (the gate dithering by its resolution): those are kept, a few dozen at most
+        key = b"".join(v.tobytes() for v in (model.a, model.b, model.c_level))
+        key += np.float64(settings.move_weight).tobytes()
+        qp = self._recent.get(key)
+        if qp is None:
+            if len(self._recent) >= RECENT_QPS:
+                self._recent.pop(next(iter(self._recent)))
+            qp = self._recent[key] = CondensedQp(model, settings)
+        self._qp = qp
+        return qp
 
     def solve(self, problem: MpcProblem) -> MpcSolution:
-        qp = self.condensed(problem.model)
+        qp = self.condensed(problem.model, problem.settings)
         args = qp.data(problem).as_casadi_args()
         args["h"], args["a"] = qp.casadi_matrices()  # converted once per model, not per call
         if self._x0 is not None:

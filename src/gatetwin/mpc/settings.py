@@ -97,6 +97,18 @@ class MpcSettings:
         costs a crossing of the dead band; :class:`gatetwin.mpc.actuation.CommandShaper`).
         Larger values do not stop the plan's small reversals near a set-point: they trade
         them for a steady error of up to ``|K|`` × the hold.
+    tangent_grid_rel : float
+        For the envelope linearisation: the tangent's ``K`` and ``T`` are kept on a
+        geometric grid of this relative step (0.01), so the QP's matrices are rebuilt only
+        when the gain or time constant has moved by ~1 % (a gain error of 0.5 % at most,
+        far inside what the offset-free observer absorbs), not at every sample
+        (:func:`gatetwin.mpc.envelope.linearised_model`). 0: the exact tangent each time.
+    move_weight_gain_mm_per_mm : float
+        The gain magnitude ``move_weight`` was tuned for, mm/mm (12.5: gauge 3F at
+        50 m³/h). With the envelope linearisation, where the tangent's ``|K|`` is larger
+        (a nearly closed gate: −28 mm/mm at 20 mm and 50 m³/h), the move weight grows with
+        ``(K / this)²``, so that a move costs what a move of the same effect on the level
+        cost at the tuning point; it never shrinks below ``move_weight``.
     observer : ObserverSettings
         The disturbance observer's tuning.
     """
@@ -113,6 +125,8 @@ class MpcSettings:
     qp_solver: str = "qpoases"
     blas_threads: int | None = 1
     backlash_hold_mm: float = 1e-6
+    tangent_grid_rel: float = 0.01
+    move_weight_gain_mm_per_mm: float = 12.5
     observer: ObserverSettings = field(default_factory=ObserverSettings)
 
     def __post_init__(self) -> None:
@@ -129,6 +143,8 @@ class MpcSettings:
             "qp_solver": self.qp_solver in QP_SOLVERS,
             "blas_threads": self.blas_threads is None or self.blas_threads >= 1,
             "backlash_hold_mm": 0 <= self.backlash_hold_mm < math.inf,
+            "tangent_grid_rel": 0 <= self.tangent_grid_rel < 1,
+            "move_weight_gain_mm_per_mm": 0 < self.move_weight_gain_mm_per_mm < math.inf,
         }
         if self.level_band_mm is not None:
             checks["level_band_mm"] = self.level_band_mm[0] < self.level_band_mm[1]
