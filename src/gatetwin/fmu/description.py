@@ -46,7 +46,12 @@ from gatetwin.plant.model import (
     plant_to_dict,
 )
 from gatetwin.plant.physical import MAX_SUBSTEPS
-from gatetwin.plant.simulate import ARX_MAX_SUBSTEPS, ARX_STEP_RTOL, DELAY_HISTORY_CAPACITY
+from gatetwin.plant.simulate import (
+    ARX_MAX_SUBSTEPS,
+    ARX_STEP_RTOL,
+    DELAY_HISTORY_CAPACITY,
+    FOPDT_MAX_STEP_S,
+)
 
 #: Largest ARX orders the FMUs accept (fixed-size C state).
 MAX_ARX_ORDER = 8
@@ -432,6 +437,8 @@ def slave_config(desc: FmuDescription) -> dict[str, Any]:
         "history_capacity": DELAY_HISTORY_CAPACITY,
         "arx_step_rtol": ARX_STEP_RTOL,
         "arx_max_substeps": ARX_MAX_SUBSTEPS,
+        "fopdt_max_step_s": FOPDT_MAX_STEP_S,
+        "validity": validity_ranges(desc.provenance),
         "communication_point_rtol": COMMUNICATION_POINT_RTOL,
         "effects": desc.effects,
         "kernel_first": desc.kernel_first,
@@ -445,6 +452,40 @@ def slave_config(desc: FmuDescription) -> dict[str, Any]:
             for v in desc.variables
         ],
     }
+
+
+#: Word and unit of each quantity of a validity envelope in the FMU's warnings.
+VALIDITY_LABELS = {"opening_mm": ("opening", "mm"), "flow_m3h": ("flow", "m³/h"),
+                   "level_mm": ("level", "mm")}  # fmt: skip
+
+
+def validity_ranges(provenance: dict[str, Any]) -> dict[str, list[Any]]:
+    """The provenance's ``validity`` envelope as ``{quantity: [low, high, word, unit]}``.
+
+    Only the quantities of :data:`VALIDITY_LABELS` that the envelope states; an FMU without
+    an envelope warns about none.
+
+    Raises
+    ------
+    ExportError
+        A stated range that is not two finite numbers with low <= high.
+    """
+    stated = provenance.get("validity")
+    if not isinstance(stated, dict):
+        return {}
+    out: dict[str, list[Any]] = {}
+    for quantity, (word, unit) in VALIDITY_LABELS.items():
+        if quantity not in stated:
+            continue
+        try:
+            lo, hi = (float(v) for v in stated[quantity])
+        except (TypeError, ValueError):
+            lo = hi = math.nan
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+            raise ExportError(f"provenance validity.{quantity} must be [low, high], got "
+                              f"{stated[quantity]!r}")  # fmt: skip
+        out[quantity] = [lo, hi, word, unit]
+    return out
 
 
 @dataclass(frozen=True)

@@ -30,8 +30,11 @@ from gatetwin.plant.physical import PhysicalSimulator
 DELAY_HISTORY_CAPACITY = 4096
 #: Relative tolerance for "the communication step is a whole number of ARX samples".
 ARX_STEP_RTOL = 1e-9
-#: Most ARX samples one communication step may span (guards against h / Ts overflowing).
-ARX_MAX_SUBSTEPS = 1e9
+#: Most ARX samples one communication step may span (a step is computed sample by sample).
+ARX_MAX_SUBSTEPS = 1e5
+#: Longest FOPDT communication step, s (the dead-time history and the exact solution stay
+#: meaningful; every FMU rendering refuses a longer one).
+FOPDT_MAX_STEP_S = 1e6
 
 
 @dataclass
@@ -280,7 +283,12 @@ class PlantSimulator:
         return fopdt_parameters(self.plant, self.fx, q)  # type: ignore[arg-type]
 
     def _fopdt_check_step(self, h: float, command: float) -> None:
-        """Refuse a step whose input changes would overflow the dead-time history."""
+        """Refuse a step that is too long or whose input changes would overflow the dead-time
+        history."""
+        if not h <= FOPDT_MAX_STEP_S:
+            raise SimulationError(
+                f"communication step {h} s exceeds the longest FOPDT step {FOPDT_MAX_STEP_S:g} s"
+            )
         es = self.es
         if self.fx.rate_limit:
             delta, origin, t0 = self.fx.rate_limit.substep_s, es.grid_origin_s, self.time_s
