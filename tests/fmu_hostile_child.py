@@ -135,7 +135,10 @@ def double_free(d: Driver) -> dict[str, Any]:
     restore = status(d.slave.setFMUstate, kept)
     d.slave.freeFMUstate(kept)
     gc.collect()
-    return {"restore": restore, "step_after": status(d.slave.doStep, 0.0, d.step_s)}
+    cls = next(m for n, m in sys.modules.items() if n.startswith("gatetwin_slave_")).GatetwinPlant
+    handles = getattr(cls, "_handles", [])
+    return {"restore": restore, "step_after": status(d.slave.doStep, 0.0, d.step_s),
+            "handle_refcounts": [sys.getrefcount(h) for h in handles]}  # fmt: skip
 
 
 def after_terminate(d: Driver) -> dict[str, Any]:
