@@ -89,7 +89,8 @@ def _code_digest(backend: str) -> str:
 
         files = sorted(p for p in templates_dir().iterdir() if p.suffix in {".c", ".h"})
     else:
-        files = [Path(__file__).with_name(n) for n in ("slave_template.py", "slave_guard.py")]
+        names = ("slave_template.py", "slave_guard.py", "slave_state.py")
+        files = [Path(__file__).with_name(name) for name in names]
     files.append(Path(__file__).resolve().parents[1] / "plant" / "physical_kernel.py")
     digest = hashlib.sha256()
     for path in files:

@@ -32,6 +32,9 @@ _BLOCKS_END = "# END gatetwin.plant.blocks\n"
 GUARD = Path(__file__).with_name("slave_guard.py")
 _GUARD_BEGIN = "# BEGIN gatetwin.fmu.slave_guard\n"
 _GUARD_END = "# END gatetwin.fmu.slave_guard\n"
+STATE = Path(__file__).with_name("slave_state.py")
+_STATE_BEGIN = "# BEGIN gatetwin.fmu.slave_state\n"
+_STATE_END = "# END gatetwin.fmu.slave_state\n"
 KERNEL = Path(__file__).resolve().parents[1] / "plant" / "physical_kernel.py"
 _KERNEL_BEGIN = "# BEGIN gatetwin.plant.physical_kernel\n"
 _KERNEL_END = "# END gatetwin.plant.physical_kernel\n"
@@ -90,6 +93,8 @@ def slave_source(desc: FmuDescription) -> str:
         raise ExportError(f"{TEMPLATE.name}: CONFIG_JSON marker line missing")
     text = _splice(text, _BLOCKS_BEGIN, _BLOCKS_END, blocks_source())
     text = _splice(text, _GUARD_BEGIN, _GUARD_END, guard_source())
+    text = _splice(text, _STATE_BEGIN, _STATE_END,
+                   _embedded(STATE, "gatetwin/fmu/slave_state.py"))  # fmt: skip
     text = _splice(text, _KERNEL_BEGIN, _KERNEL_END, kernel_source())
     config = json.dumps(slave_config(desc), sort_keys=True, allow_nan=False)
     return text.replace(_CONFIG_LINE, f"CONFIG_JSON = {config!r}")

@@ -137,8 +137,8 @@ class GuardedSlave(Fmi2Slave):
         except Exception as exc:
             self._restore(snapshot)
             message = str(exc) if isinstance(exc, RefusedError) else (
-                f"internal error {type(exc).__name__}: {exc}")
-            self.log(f"fmi2DoStep: {message}", Fmi2Status.error, "logStatusError")
+                f"fmi2DoStep: internal error {type(exc).__name__}: {exc}")
+            self.log(message, Fmi2Status.error, "logStatusError")  # the plant's words only
             return False
         return True
 

@@ -26,6 +26,10 @@ from pythonfmu.enums import Fmi2Status
 from gatetwin.fmu.slave_guard import GuardedSlave, RefusedError  # replaced by its source at export
 
 # END gatetwin.fmu.slave_guard
+# BEGIN gatetwin.fmu.slave_state
+from gatetwin.fmu.slave_state import StateError, check_state  # replaced by its source at export
+
+# END gatetwin.fmu.slave_state
 # BEGIN gatetwin.plant.physical_kernel
 from gatetwin.plant import physical_kernel  # replaced at export by the module's source
 
@@ -72,90 +76,6 @@ def interp_clamped(knots: list[float], column: list[float], q: float) -> float:
 def _g(value: float) -> str:
     """C's %.17g for the messages."""
     return f"{value:.17g}"
-
-
-#: The keys of a state and of its effect-block part (as _effects_initialize makes them).
-STATE_KEYS = ("time_s", "real", "flow_in_force_m3h", "initialized", "warned_flow_range",
-              "warned_validity", "parameters_changed", "dyn", "fx")  # fmt: skip
-FX_KEYS = ("seiche_x1", "seiche_x2", "inflow_mm", "drift_mm", "actuator_mm", "gate_mm",
-           "held_gate_mm", "grid_origin_s", "sensed_mm")  # fmt: skip
-
-
-def _number(value: Any, where: str) -> float:
-    if type(value) not in (int, float) or not math.isfinite(value):
-        raise PlantError(f"FMU state: {where} = {value!r} is not a finite number")
-    return float(value)
-
-
-def _numbers(value: Any, where: str, size: tuple[int, int]) -> list[float]:
-    if type(value) is not list or not size[0] <= len(value) <= size[1]:
-        raise PlantError(f"FMU state: {where} must be a list of {size[0]}..{size[1]} numbers")
-    return [_number(v, f"{where}[{i}]") for i, v in enumerate(value)]
-
-
-def _flag(value: Any, where: str) -> bool:
-    if type(value) is not bool:
-        raise PlantError(f"FMU state: {where} = {value!r} is not true or false")
-    return value
-
-
-def _keys(value: Any, where: str, keys: Any) -> None:
-    if type(value) is not dict or set(value) != set(keys):
-        found = sorted(value) if type(value) is dict else type(value).__name__
-        raise PlantError(f"FMU state: {where} must have the keys {sorted(keys)}, got {found}")
-
-
-def _dyn_sizes() -> dict[str, tuple[int, int] | None]:
-    """The family's dynamic state: None for a number, (fewest, most) for a list."""
-    if CONFIG["family"] == "fopdt":
-        history = (1, CONFIG["history_capacity"])
-        return {"x": None, "change_t": history, "change_u": history, "max_dead_time_s": None}
-    if CONFIG["family"] == "physical":
-        return {"x": None, "depth_m": None, "gate_mm": None}
-    na, nb, nk = CONFIG["arx_orders"]
-    return {"x": None, "x_hist": (na, na), "u_hist": (nk + nb - 1, nk + nb - 1)}
-
-
-def _checked_dyn(dyn: Any) -> dict[str, Any]:
-    sizes = _dyn_sizes()
-    _keys(dyn, "dyn", sizes)
-    out = {key: _number(dyn[key], f"dyn.{key}") if size is None
-           else _numbers(dyn[key], f"dyn.{key}", size) for key, size in sizes.items()}  # fmt: skip
-    if CONFIG["family"] == "fopdt":
-        times = out["change_t"]
-        if len(times) != len(out["change_u"]):
-            raise PlantError("FMU state: dyn.change_t and dyn.change_u differ in length")
-        ordered = all(a <= b for a, b in zip(times, times[1:], strict=False))
-        if not ordered or out["max_dead_time_s"] < 0.0:
-            raise PlantError("FMU state: the input-change history is not in time order")
-    return out
-
-
-def check_state(state: Any, n_real: int) -> dict[str, Any]:
-    """A complete, validated copy of a restored state; PlantError naming the first fault."""
-    _keys(state, "state", STATE_KEYS)
-    warned = state["warned_validity"]
-    if type(warned) is not list or len(set(warned)) != len(warned) or any(
-            q not in CONFIG["validity"] for q in warned):
-        raise PlantError(f"FMU state: warned_validity = {warned!r} is not a list of quantities")
-    out = {
-        "time_s": _number(state["time_s"], "time_s"),
-        "real": _numbers(state["real"], "real", (n_real, n_real)),
-        "flow_in_force_m3h": _number(state["flow_in_force_m3h"], "flow_in_force_m3h"),
-        "initialized": _flag(state["initialized"], "initialized"),
-        "warned_flow_range": _flag(state["warned_flow_range"], "warned_flow_range"),
-        "warned_validity": list(warned),
-        "parameters_changed": _flag(state["parameters_changed"], "parameters_changed"),
-    }
-    if out["initialized"]:
-        out["dyn"] = _checked_dyn(state["dyn"])
-        _keys(state["fx"], "fx", FX_KEYS)
-        out["fx"] = {key: _number(state["fx"][key], f"fx.{key}") for key in FX_KEYS}
-    else:
-        _keys(state["dyn"], "dyn", ("x",))
-        _keys(state["fx"], "fx", ())
-        out["dyn"], out["fx"] = {"x": _number(state["dyn"]["x"], "dyn.x")}, {}
-    return out
 
 
 class GatetwinPlant(GuardedSlave):
@@ -269,8 +189,8 @@ class GatetwinPlant(GuardedSlave):
             raise PlantError("fmi2DoStep must not be called before fmi2ExitInitializationMode")
         if not abs(current_time - self.time_s) <= rtol * max(1.0, abs(self.time_s)):
             raise PlantError(
-                f"currentCommunicationPoint {_g(current_time)} s differs from the FMU's time "
-                f"{_g(self.time_s)} s"
+                f"fmi2DoStep: currentCommunicationPoint {_g(current_time)} s differs from the "
+                f"FMU's time {_g(self.time_s)} s"
             )
         status, message = self._do_step(step_size)
         level = self._finite_output(f"the step of {_g(step_size)} s")
@@ -338,7 +258,10 @@ class GatetwinPlant(GuardedSlave):
 
     def _checked_state(self, state: dict[str, Any]) -> dict[str, Any]:
         """A restorable copy of ``state`` after checking all of it; PlantError otherwise."""
-        checked = check_state(state, len(self.variables))
+        try:
+            checked = check_state(state, len(self.variables), CONFIG)
+        except StateError as exc:
+            raise PlantError(str(exc)) from None
         current = self._snapshot()
         self._restore(checked)  # the parameter checks read the instance
         try:
