@@ -63,8 +63,12 @@ def refused_calls(d: Driver) -> dict[str, Any]:
         statuses.append(status(d.slave.getReal, [10**6]))
     after = slave_refcounts()
     step = status(d.slave.doStep, 0.0, d.step_s)
+    level = d.level()
+    reset = status(d.slave.reset)
+    d.start(20.0, 50.0)
     return {"statuses": statuses, "refcounts_before": before, "refcounts_after": after,
-            "step_after": step, "level_after": d.level()}  # fmt: skip
+            "step_after": step, "level_after": level, "reset": reset,
+            "step_after_reset": status(d.slave.doStep, 0.0, d.step_s)}  # fmt: skip
 
 
 def _bad_states(good: bytes) -> dict[str, bytes]:
@@ -163,10 +167,13 @@ def refused_initialisation(d: Driver, name: str, value: float) -> dict[str, Any]
     d.slave.setupExperiment(startTime=0.0)
     d.slave.enterInitializationMode()
     d.set_inputs(30.0, 50.0)  # 10 mm away from the reference opening
+    original = d.slave.getReal([d.vr[name]])[0]
     d.slave.setReal([d.vr[name]], [value])
     first = status(d.slave.exitInitializationMode)
     gc.collect()
-    return {"exit": first}
+    d.slave.setReal([d.vr[name]], [original])  # the refusal left the instance as it was
+    second = status(d.slave.exitInitializationMode)
+    return {"exit": first, "retry": second, "step": status(d.slave.doStep, 0.0, d.step_s)}
 
 
 def envelope(d: Driver, inputs: list[list[float]]) -> dict[str, Any]:
