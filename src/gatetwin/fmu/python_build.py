@@ -1,8 +1,10 @@
 """Build the pythonfmu backend of a plant FMU.
 
-The slave is ``slave_template.py`` with the description embedded as JSON, so the FMU carries
-its own code and needs neither gatetwin nor numpy where it runs (only a Python with the
-pythonfmu runtime that pythonfmu bundles into the FMU). pythonfmu's own modelDescription.xml
+The slave is ``slave_template.py`` with the description embedded as JSON and the sources of
+the FMI guard (``slave_guard.py``), the state checks (``slave_state.py``), the effect blocks
+and the physical kernel pasted in, so the FMU carries its own code and needs neither gatetwin
+nor numpy where it runs (only a Python with the pythonfmu runtime that pythonfmu bundles into
+the FMU). pythonfmu's own modelDescription.xml
 lacks ModelStructure/InitialUnknowns, units and descriptions; it is replaced by the one
 rendered from the same description as the C FMU's, keeping pythonfmu's modelIdentifier (the
 name of the binary it ships).

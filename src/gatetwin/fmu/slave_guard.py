@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import ctypes
 import json
-import math
 import sys
 from typing import Any, ClassVar
 
@@ -66,10 +65,6 @@ class StateHandle:
 def _pin(handle: StateHandle, count: int) -> None:
     for _ in range(count):
         ctypes.pythonapi.Py_IncRef(ctypes.py_object(handle))
-
-
-def _finite(value: Any) -> bool:
-    return type(value) in (int, float) and math.isfinite(value)
 
 
 class GuardedSlave(Fmi2Slave):
