@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 import gatetwin.mpc.controller
-from gatetwin._stages import _mpc_markdown, _mpc_rows
 from gatetwin.modelfile import read_model_file
 from gatetwin.mpc import (
     ControlError,
@@ -32,6 +31,7 @@ from gatetwin.mpc import (
 from gatetwin.mpc.envelope import steady_level_mm, steady_opening_mm
 from gatetwin.plant.model import local_fopdt
 from gatetwin.plant.simulate import PlantSimulator
+from gatetwin.run.stages import _mpc_markdown, _mpc_rows
 
 ROOT = Path(__file__).resolve().parents[1]
 FOPDT_3F = ROOT / "models" / "fopdt_3F.json"

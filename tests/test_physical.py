@@ -200,9 +200,9 @@ def test_identification_recovers_a_known_plant(tmp_path):
 
 
 def test_c_fmu_refuses_a_non_positive_parameter_with_an_error_status(plant, tmp_path):
-    """The python backend refuses it as well (``_physical_check_parameters``), but a pythonfmu
-    instance freed after a refused initialisation corrupts the interpreter it runs in (a
-    later garbage collection crashes), so it is not driven into that state here."""
+    """The python backend refuses it as well (``_physical_check_parameters``); refused
+    initialisations of python FMUs are driven in child processes by
+    tests/test_fmu_python_hostile.py, where a crash cannot take pytest down."""
     backend = "c"
     from fmpy import extract, read_model_description
     from fmpy.fmi1 import FMICallException

@@ -100,7 +100,8 @@ def _code_digest(backend: str) -> str:
 
         files = sorted(p for p in templates_dir().iterdir() if p.suffix in {".c", ".h"})
     else:
-        files = [Path(__file__).with_name("slave_template.py")]
+        names = ("slave_template.py", "slave_guard.py", "slave_state.py")
+        files = [Path(__file__).with_name(name) for name in names]
     plant_dir = Path(__file__).resolve().parents[1] / "plant"
     files += [plant_dir / "physical_kernel.py", plant_dir / "blocks.py"]
     digest = hashlib.sha256()

@@ -61,7 +61,12 @@ from gatetwin.plant.model import (
     plant_to_dict,
 )
 from gatetwin.plant.physical import MAX_SUBSTEPS
-from gatetwin.plant.simulate import ARX_MAX_SUBSTEPS, ARX_STEP_RTOL, DELAY_HISTORY_CAPACITY
+from gatetwin.plant.simulate import (
+    ARX_MAX_SUBSTEPS,
+    ARX_STEP_RTOL,
+    DELAY_HISTORY_CAPACITY,
+    FOPDT_MAX_STEP_S,
+)
 
 #: Largest ARX orders the FMUs accept (fixed-size C state).
 MAX_ARX_ORDER = 8
@@ -479,6 +484,8 @@ def slave_config(desc: FmuDescription) -> dict[str, Any]:
         "history_capacity": DELAY_HISTORY_CAPACITY,
         "arx_step_rtol": ARX_STEP_RTOL,
         "arx_max_substeps": ARX_MAX_SUBSTEPS,
+        "fopdt_max_step_s": FOPDT_MAX_STEP_S,
+        "validity": _slave_validity(desc),
         "communication_point_rtol": COMMUNICATION_POINT_RTOL,
         "effects": desc.effects,
         "kernel_first": desc.kernel_first,
@@ -492,6 +499,15 @@ def slave_config(desc: FmuDescription) -> dict[str, Any]:
             for v in desc.variables
         ],
     }
+
+
+def _slave_validity(desc: FmuDescription) -> dict[str, list[Any]]:
+    """The validity envelope for the python FMU, ``{quantity: [low, high, name, unit]}``: the
+    same ranges, names and units the C FMU's warning uses (``model_config.h``)."""
+    output = next(v.name for v in desc.variables if v.causality == "output")
+    units = {name: unit for name, unit, _ in VALIDITY_QUANTITIES}
+    return {q: [lo, hi, output if q == "level_mm" else q, units[q]]
+            for q, (lo, hi) in validity_ranges(desc.provenance).items()}  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,10 @@
 """Build the pythonfmu backend of a plant FMU.
 
-The slave is ``slave_template.py`` with the description embedded as JSON, so the FMU carries
-its own code and needs neither gatetwin nor numpy where it runs (only a Python with the
-pythonfmu runtime that pythonfmu bundles into the FMU). pythonfmu's own modelDescription.xml
+The slave is ``slave_template.py`` with the description embedded as JSON and the sources of
+the FMI guard (``slave_guard.py``), the state checks (``slave_state.py``), the effect blocks
+and the physical kernel pasted in, so the FMU carries its own code and needs neither gatetwin
+nor numpy where it runs (only a Python with the pythonfmu runtime that pythonfmu bundles into
+the FMU). pythonfmu's own modelDescription.xml
 lacks ModelStructure/InitialUnknowns, units and descriptions; it is replaced by the one
 rendered from the same description as the C FMU's, keeping pythonfmu's modelIdentifier (the
 name of the binary it ships).
@@ -29,6 +31,12 @@ BLOCKS = Path(__file__).resolve().parents[1] / "plant" / "blocks.py"
 _CONFIG_LINE = 'CONFIG_JSON = "{}"  # replaced at export by gatetwin.fmu.python_build'
 _BLOCKS_BEGIN = "# BEGIN gatetwin.plant.blocks\n"
 _BLOCKS_END = "# END gatetwin.plant.blocks\n"
+GUARD = Path(__file__).with_name("slave_guard.py")
+_GUARD_BEGIN = "# BEGIN gatetwin.fmu.slave_guard\n"
+_GUARD_END = "# END gatetwin.fmu.slave_guard\n"
+STATE = Path(__file__).with_name("slave_state.py")
+_STATE_BEGIN = "# BEGIN gatetwin.fmu.slave_state\n"
+_STATE_END = "# END gatetwin.fmu.slave_state\n"
 KERNEL = Path(__file__).resolve().parents[1] / "plant" / "physical_kernel.py"
 _KERNEL_BEGIN = "# BEGIN gatetwin.plant.physical_kernel\n"
 _KERNEL_END = "# END gatetwin.plant.physical_kernel\n"
@@ -41,12 +49,22 @@ FLAGS = CoSimulationFlags(
 )
 
 
-def blocks_source() -> str:
-    """gatetwin/plant/blocks.py without its docstring and ``__future__`` import (the slave
-    has its own); it uses the standard library only."""
-    text = BLOCKS.read_text(encoding="utf-8")
+def _embedded(path: Path, name: str) -> str:
+    """A module's source without its docstring and ``__future__`` import (the slave has its
+    own), to be pasted into the slave."""
+    text = path.read_text(encoding="utf-8")
     body = text.split("from __future__ import annotations\n", 1)[-1]
-    return "# gatetwin/plant/blocks.py, embedded at export\n" + body.strip() + "\n"
+    return f"# {name}, embedded at export\n" + body.strip() + "\n"
+
+
+def blocks_source() -> str:
+    """gatetwin/plant/blocks.py (standard library only), embedded."""
+    return _embedded(BLOCKS, "gatetwin/plant/blocks.py")
+
+
+def guard_source() -> str:
+    """gatetwin/fmu/slave_guard.py (standard library and pythonfmu only), embedded."""
+    return _embedded(GUARD, "gatetwin/fmu/slave_guard.py")
 
 
 def kernel_source() -> str:
@@ -76,6 +94,9 @@ def slave_source(desc: FmuDescription) -> str:
     if text.count(_CONFIG_LINE) != 1:
         raise ExportError(f"{TEMPLATE.name}: CONFIG_JSON marker line missing")
     text = _splice(text, _BLOCKS_BEGIN, _BLOCKS_END, blocks_source())
+    text = _splice(text, _GUARD_BEGIN, _GUARD_END, guard_source())
+    text = _splice(text, _STATE_BEGIN, _STATE_END,
+                   _embedded(STATE, "gatetwin/fmu/slave_state.py"))  # fmt: skip
     text = _splice(text, _KERNEL_BEGIN, _KERNEL_END, kernel_source())
     config = json.dumps(slave_config(desc), sort_keys=True, allow_nan=False)
     return text.replace(_CONFIG_LINE, f"CONFIG_JSON = {config!r}")

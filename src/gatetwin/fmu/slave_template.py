@@ -7,9 +7,10 @@ The effect blocks' arithmetic is gatetwin/plant/blocks.py itself, and the physic
 gatetwin/plant/physical_kernel.py: at export their sources replace the imports between the
 BEGIN/END markers below, so the FMU carries them.
 
-pythonfmu 0.7.0 maps ``do_step() -> False`` to fmi2Discard and any exception to fmi2Fatal, and
-forwards log messages only when the importer turned logging on; refused steps therefore return
-fmi2Discard with the reason logged at error level, and leave the state unchanged.
+The FMI callbacks themselves are gatetwin/fmu/slave_guard.py's GuardedSlave (embedded the same
+way): it answers every refusal with a status and a log line and keeps pythonfmu's wrapper from
+crashing the host; this class is the plant behind it and raises PlantError with the reason.
+pythonfmu forwards log messages only when the importer turned logging on.
 """
 
 from __future__ import annotations
@@ -18,9 +19,17 @@ import json
 import math
 from typing import Any
 
-from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
 
+# BEGIN gatetwin.fmu.slave_guard
+from gatetwin.fmu.slave_guard import GuardedSlave, RefusedError  # replaced by its source at export
+
+# END gatetwin.fmu.slave_guard
+# BEGIN gatetwin.fmu.slave_state
+from gatetwin.fmu.slave_state import StateError, check_state  # replaced by its source at export
+
+# END gatetwin.fmu.slave_state
 # BEGIN gatetwin.plant.physical_kernel
 from gatetwin.plant import physical_kernel  # replaced at export by the module's source
 
@@ -49,8 +58,8 @@ CONFIG: dict[str, Any] = json.loads(CONFIG_JSON)
 OK, WARNING, ERROR = 0, 1, 2
 
 
-class PlantError(Exception):
-    """An input, parameter or step the plant refuses (the message says why)."""
+class PlantError(RefusedError):
+    """An input, parameter, state or step the plant refuses (the message says why)."""
 
 
 def interp_clamped(knots: list[float], column: list[float], q: float) -> float:
@@ -72,9 +81,10 @@ def _g(value: float) -> str:
     return f"{value:.17g}"
 
 
-class GatetwinPlant(Fmi2Slave):
+class GatetwinPlant(GuardedSlave):
     author = "gatetwin"
     description = CONFIG.get("summary")
+    model_guid = CONFIG.get("guid", "")
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
@@ -91,6 +101,7 @@ class GatetwinPlant(Fmi2Slave):
         self.flow_in_force_m3h = 0.0
         self.initialized = False
         self.warned_flow_range = False
+        self.warned_validity: list[str] = []
         self.parameters_changed = True
         self.dyn: dict[str, Any] = {"x": 0.0}
         self.fx: dict[str, float] = {}
@@ -120,24 +131,37 @@ class GatetwinPlant(Fmi2Slave):
 
     # -- variables ----------------------------------------------------------------------------
     def _get(self, vr: int) -> float:
-        if self.variables[vr]["kind"] != "output":
-            return self.real[vr]
-        try:
-            return self._output()
-        except PlantError as exc:
-            self.log(f"fmi2GetReal: {exc}", Fmi2Status.error, "logStatusError")
-            return math.nan
+        """The getter pythonfmu registers (it reads start values at build time)."""
+        return self._read(vr)
 
     def _set(self, vr: int, value: float) -> None:
-        kind = self.variables[vr]["kind"]
-        if kind == "fixed" and self.initialized:
-            raise PlantError(
-                f"fmi2SetReal: {self.variables[vr]['name']} is a fixed parameter, settable only "
-                "before fmi2ExitInitializationMode"
-            )
-        self.real[vr] = float(value)
-        if kind != "input":
-            self.parameters_changed = True
+        self._write([vr], [value])
+
+    def _variable(self, vr: Any) -> dict[str, Any]:
+        if type(vr) is not int or not 0 <= vr < len(self.variables):
+            raise PlantError(f"unknown value reference {vr!r}")
+        return self.variables[vr]
+
+    def _read(self, vr: int) -> float:
+        if self._variable(vr)["kind"] != "output":
+            return self.real[vr]
+        return self._output()
+
+    def _write(self, vrs: list[int], values: list[float]) -> None:
+        """Check every (value reference, value), then apply them all (or none)."""
+        for vr in vrs:
+            v = self._variable(vr)
+            if v["kind"] == "output":
+                raise PlantError(f"{v['name']} is an output and cannot be set")
+            if v["kind"] == "fixed" and self.initialized:
+                raise PlantError(
+                    f"{v['name']} is a fixed parameter, settable only before "
+                    "fmi2ExitInitializationMode"
+                )
+        for vr, value in zip(vrs, values, strict=True):
+            self.real[vr] = float(value)
+            if self.variables[vr]["kind"] != "input":
+                self.parameters_changed = True
 
     def _column(self, name: str) -> list[float]:
         first = self.columns[name]
@@ -146,65 +170,114 @@ class GatetwinPlant(Fmi2Slave):
     def _at(self, name: str, q: float) -> float:
         return interp_clamped(self._column("flow_m3h"), self._column(name), q)
 
-    # -- FMI ------------------------------------------------------------------------------------
-    def setup_experiment(self, start_time: float, stop_time: Any = None, tolerance: Any = None):
+    # -- FMI (called by GuardedSlave, which refuses on PlantError) -------------------------------
+    def _setup(self, start_time: float) -> None:
+        if self.initialized:
+            raise PlantError("the experiment is already initialised")
+        if not math.isfinite(start_time):
+            raise PlantError(f"startTime {_g(start_time)} s must be finite")
         self.time_s = float(start_time)
 
-    def exit_initialization_mode(self) -> None:
-        # pythonfmu turns this exception into fmi2Fatal carrying the message
-        status, message = self._initialize()
+    def _initialize(self) -> None:
+        if self.initialized:
+            raise PlantError("the instance is already initialised")
+        status, message = self._initial_state()
+        level = self._finite_output("parameters and inputs")
         self._log_status(status, message)
+        self._check_validity(level)
 
-    def do_step(self, current_time: float, step_size: float) -> bool:
+    def _step(self, current_time: float, step_size: float) -> None:
         rtol = CONFIG["communication_point_rtol"]
-        message = ""
         if not self.initialized:
-            message = "fmi2DoStep must not be called before fmi2ExitInitializationMode"
-        elif not abs(current_time - self.time_s) <= rtol * max(1.0, abs(self.time_s)):
-            message = (
+            raise PlantError("fmi2DoStep must not be called before fmi2ExitInitializationMode")
+        if not abs(current_time - self.time_s) <= rtol * max(1.0, abs(self.time_s)):
+            raise PlantError(
                 f"fmi2DoStep: currentCommunicationPoint {_g(current_time)} s differs from the "
                 f"FMU's time {_g(self.time_s)} s"
             )
-        if message:
-            self.log(message, Fmi2Status.error, "logStatusError")
-            return False
-        try:
-            status, message = self._do_step(step_size)
-        except PlantError as exc:
-            self.log(str(exc), Fmi2Status.error, "logStatusError")
-            return False
+        status, message = self._do_step(step_size)
+        level = self._finite_output(f"the step of {_g(step_size)} s")
         self._log_status(status, message)
-        return True
+        self._check_validity(level)
+
+    def _finite_output(self, cause: str) -> float:
+        level = self._output()
+        if not math.isfinite(level):
+            name = self.variables[self._vr_output()]["name"]
+            raise PlantError(f"{cause} make the output {name} = {_g(level)} (not finite)")
+        return level
+
+    def _vr_output(self) -> int:
+        return next(v["vr"] for v in self.variables if v["kind"] == "output")
 
     def _log_status(self, status: int, message: str) -> None:
         if status == WARNING:
             self.log(message, Fmi2Status.warning, "logStatusWarning")
 
-    def _get_fmu_state(self) -> dict[str, Any]:
-        return json.loads(json.dumps(self._state()))  # a deep copy the caller may keep
+    def _check_validity(self, level_mm: float) -> None:
+        """Warn once per instance, the first time the opening, the discharge or the level
+        leaves the model's validity envelope (in that order; plant.c's check_validity)."""
+        values = {"opening_mm": self.real[self.vr_opening], "flow_m3h": self.real[self.vr_flow],
+                  "level_mm": level_mm}  # fmt: skip
+        if self.warned_validity:
+            return
+        for quantity, (lo, hi, word, unit) in CONFIG["validity"].items():
+            value = values[quantity]
+            if lo <= value <= hi:
+                continue
+            self.warned_validity.append(quantity)
+            message = (f"{word} {value:g} outside the model's validity {lo:g}..{hi:g} {unit}; "
+                       "results are extrapolated")
+            self.log(message, Fmi2Status.warning, "logStatusWarning")
+            return
 
-    def _set_fmu_state(self, state: dict[str, Any]) -> None:
-        state = json.loads(json.dumps(state))
-        self.time_s = state["time_s"]
-        self.real = state["real"]
-        self.flow_in_force_m3h = state["flow_in_force_m3h"]
-        self.initialized = state["initialized"]
-        self.warned_flow_range = state["warned_flow_range"]
-        self.parameters_changed = state["parameters_changed"]
-        self.dyn = state["dyn"]
-        self.fx = state["fx"]
-
-    def _state(self) -> dict[str, Any]:
+    # -- FMU state (plain JSON data; GuardedSlave owns the handles) -----------------------------
+    def _snapshot(self) -> dict[str, Any]:
+        """A copy of everything a step or an initialisation changes (cheap: no JSON)."""
         return {
             "time_s": self.time_s,
-            "real": self.real,
+            "real": list(self.real),
             "flow_in_force_m3h": self.flow_in_force_m3h,
             "initialized": self.initialized,
             "warned_flow_range": self.warned_flow_range,
+            "warned_validity": list(self.warned_validity),
             "parameters_changed": self.parameters_changed,
-            "dyn": self.dyn,
-            "fx": self.fx,
+            "dyn": {k: list(v) if isinstance(v, list) else v for k, v in self.dyn.items()},
+            "fx": dict(self.fx),
         }
+
+    def _restore(self, snapshot: dict[str, Any]) -> None:
+        self.time_s = snapshot["time_s"]
+        self.real = snapshot["real"]
+        self.flow_in_force_m3h = snapshot["flow_in_force_m3h"]
+        self.initialized = snapshot["initialized"]
+        self.warned_flow_range = snapshot["warned_flow_range"]
+        self.warned_validity = snapshot["warned_validity"]
+        self.parameters_changed = snapshot["parameters_changed"]
+        self.dyn = snapshot["dyn"]
+        self.fx = snapshot["fx"]
+
+    def _state(self) -> dict[str, Any]:
+        return self._snapshot()
+
+    def _load_state(self, state: dict[str, Any]) -> None:
+        self._restore(state)
+
+    def _checked_state(self, state: dict[str, Any]) -> dict[str, Any]:
+        """A restorable copy of ``state`` after checking all of it; PlantError otherwise."""
+        try:
+            checked = check_state(state, len(self.variables), CONFIG)
+        except StateError as exc:
+            raise PlantError(str(exc)) from None
+        current = self._snapshot()
+        self._restore(checked)  # the parameter checks read the instance
+        try:
+            self._check_parameters()
+            if self.initialized:
+                self._finite_output("the restored state's parameters")
+        finally:
+            self._restore(current)
+        return checked
 
     # -- the plant (plant.c) --------------------------------------------------------------------
     def _check_inputs(self, opening_mm: float, flow_m3h: float) -> None:
@@ -258,7 +331,7 @@ class GatetwinPlant(Fmi2Slave):
             return self._physical_level(self._physical_depth(gate, q), gate, q)
         return self._arx_equilibrium(u, q)
 
-    def _initialize(self) -> tuple[int, str]:
+    def _initial_state(self) -> tuple[int, str]:
         opening_mm, flow_m3h = self.real[self.vr_opening], self.real[self.vr_flow]
         self._check_inputs(opening_mm, flow_m3h)
         self._check_parameters()
@@ -410,6 +483,11 @@ class GatetwinPlant(Fmi2Slave):
         return k, tau
 
     def _fopdt_check_step(self, h: float, command: float) -> None:
+        if not h <= CONFIG["fopdt_max_step_s"]:
+            raise PlantError(
+                f"communication step {_g(h)} s exceeds the longest FOPDT step "
+                f"{_g(CONFIG['fopdt_max_step_s'])} s"
+            )
         capacity = CONFIG["history_capacity"]
         count = len(self.dyn["change_u"])
         if self._has("actuator_rate_limit"):

@@ -34,7 +34,7 @@ from gatetwin.plant.inputs import SimulationError, check_inputs
 from gatetwin.plant.model import PhysicalPlant, steady_depth_m
 
 #: Most sub-steps one communication step may take.
-MAX_SUBSTEPS = 1_000_000
+MAX_SUBSTEPS = 100_000
 @dataclass
 class PhysicalSimulator:
     """Stepwise simulation of a :class:`PhysicalPlant` (same verbs as ``PlantSimulator``)."""

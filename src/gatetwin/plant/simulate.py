@@ -33,6 +33,9 @@ ARX_STEP_RTOL = 1e-9
 #: Most ARX samples one communication step may span: a budget of work per step (1e6 samples
 #: take milliseconds) that also guards against h / Ts overflowing.
 ARX_MAX_SUBSTEPS = 1e6
+#: Longest FOPDT communication step, s (the dead-time history and the exact solution stay
+#: meaningful; every FMU rendering refuses a longer one).
+FOPDT_MAX_STEP_S = 1e6
 
 
 @dataclass
@@ -290,7 +293,12 @@ class PlantSimulator:
         return fopdt_parameters(self.plant, self.fx, q)  # type: ignore[arg-type]
 
     def _fopdt_check_step(self, h: float, command: float) -> None:
-        """Refuse a step whose input changes would overflow the dead-time history."""
+        """Refuse a step that is too long or whose input changes would overflow the dead-time
+        history."""
+        if not h <= FOPDT_MAX_STEP_S:
+            raise SimulationError(
+                f"communication step {h} s exceeds the longest FOPDT step {FOPDT_MAX_STEP_S:g} s"
+            )
         es = self.es
         if self.fx.rate_limit:
             delta, origin, t0 = self.fx.rate_limit.substep_s, es.grid_origin_s, self.time_s
