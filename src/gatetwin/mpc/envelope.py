@@ -100,6 +100,9 @@ def linearised_model(
 ) -> DiscreteModel:
     """The plant's tangent FOPDT at (``flow_m3h``, ``opening_mm``), sampled exactly.
 
+    The plant's effect blocks are not in it: the seiche the envelope models carry has no
+    steady gain, and the MPC's disturbance observer absorbs what it leaves.
+
     Parameters
     ----------
     plant : FopdtPlant or PhysicalPlant
