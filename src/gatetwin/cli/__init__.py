@@ -140,6 +140,18 @@ def _add_flume_arguments(parser: argparse.ArgumentParser) -> None:
         help="reference records to write (A B C D Q40 Q50 Q60 Q85 Q55, the validation "
         "records Emoves35 Emoves75 EflowLow EflowHigh Eboth Erandom60, static); default all",
     )  # fmt: skip
+    parser.add_argument(
+        "--district", metavar="N", type=int,
+        help="instead, generate a synthetic district of N gates around the calibrated flume: "
+        "one folder of records per gate, each with its truth.json, and truth.json for all",
+    )  # fmt: skip
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed of the district's draws (default 0)"
+    )
+    parser.add_argument(
+        "--workers", metavar="N", type=int, default=1,
+        help="local processes generating the district's gates (default 1)",
+    )  # fmt: skip
 
 
 def _run_flume(args: argparse.Namespace) -> int:
@@ -150,6 +162,8 @@ def _run_flume(args: argparse.Namespace) -> int:
         write_reference_records,
     )
 
+    if args.district is not None:
+        return _run_district(args)
     if args.scenario:
         scn = load_scenario(args.scenario)
         path = run_scenario(scn).write(Path(args.out) / f"{scn.name}.csv")
@@ -165,6 +179,19 @@ def _run_flume(args: argparse.Namespace) -> int:
     paths = write_reference_records(args.out, progress=print_to_stderr, only=tuple(args.only))
     for path in paths:
         print(f"wrote {path}")
+    return 0
+
+
+def _run_district(args: argparse.Namespace) -> int:
+    from gatetwin.fleet import write_district
+
+    if args.scenario or args.only:
+        raise GatetwinError("--district generates its own records; drop --scenario and --only")
+    if args.district < 1 or args.workers < 1:
+        raise GatetwinError("--district and --workers: expected whole numbers >= 1")
+    path = write_district(args.district, args.out, seed=args.seed, workers=args.workers,
+                          progress=print_to_stderr)  # fmt: skip
+    print(f"wrote {args.district} gate folders in {args.out} and {path}")
     return 0
 
 

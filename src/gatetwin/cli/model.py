@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from gatetwin._io import check_writable, write_json_atomic
@@ -72,9 +73,58 @@ def run_identify(args: argparse.Namespace) -> int:
 
 def add_models_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--records", metavar="DIR", help="records folder (default: the bundled records)"
-    )
+        "--records", metavar="SOURCE", nargs="+",
+        help="records folder (default: the bundled records); for many gates: a folder of "
+        "gate folders, glob patterns (quoted), CSV files whose sidecars name their 'gate', or "
+        "a manifest listing any of these one per line",
+    )  # fmt: skip
     parser.add_argument("--out", metavar="DIR", required=True, help="where to write the models")
+    parser.add_argument(
+        "--scheduler", metavar="ADDRESS",
+        help="run one task per gate on this dask.distributed scheduler (tcp://host:8786); "
+        "needs gatetwin[fleet]",
+    )  # fmt: skip
+    parser.add_argument(
+        "--workers", metavar="N", type=int,
+        help="local processes, one gate per task, when no --scheduler is given (default: the "
+        "CPUs available; 1 runs the gates one after another in this process)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--fmus", metavar="BACKEND", choices=("c", "python"),
+        help="also build each gate's FMUs (into OUT/<gate>/fmus/) with this backend",
+    )  # fmt: skip
+
+
+def _is_fleet(args: argparse.Namespace) -> bool:
+    """Many gates unless the records are one plain records folder and nothing asks for more."""
+    from gatetwin.fleet import is_one_records_folder
+
+    if args.scheduler or args.workers is not None or args.fmus:
+        return True
+    return bool(args.records) and not is_one_records_folder(args.records)
+
+
+def _run_fleet(args: argparse.Namespace) -> int:
+    from gatetwin.bundled import bundled_records_dir
+    from gatetwin.fleet import FleetSettings, default_workers, run_fleet
+
+    if args.workers is not None and args.workers < 1:
+        raise GatetwinError(f"--workers: expected a whole number >= 1, got {args.workers}")
+    if args.scheduler and args.workers is not None:
+        raise GatetwinError("--workers applies to a local run; the dask workers run the "
+                            "gates when --scheduler is given")  # fmt: skip
+    settings = FleetSettings(scheduler=args.scheduler,
+                             workers=args.workers or default_workers())  # fmt: skip
+    sources = args.records or [str(bundled_records_dir())]
+    doc = run_fleet(sources, args.out, settings, fmu_backend=args.fmus,
+                    progress=_print_to_stderr)  # fmt: skip
+    print(f"wrote {doc['n_ok']} model sets of {doc['n_gates']} gates and the summary "
+          f"{Path(args.out) / 'fleet.json'}; {doc['n_failed']} failed")  # fmt: skip
+    return 0
+
+
+def _print_to_stderr(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
 
 
 def run_models(args: argparse.Namespace) -> int:
@@ -82,7 +132,9 @@ def run_models(args: argparse.Namespace) -> int:
     from gatetwin.identify.suite import identify_folder
     from gatetwin.modelfile import write_model_files
 
-    folder = Path(args.records) if args.records else bundled_records_dir()
+    if _is_fleet(args):
+        return _run_fleet(args)
+    folder = Path(args.records[0]) if args.records else bundled_records_dir()
     check_writable(args.out, folder=True)
     ident = identify_folder(folder)
     for path in write_model_files(ident.models, Path(args.out)):

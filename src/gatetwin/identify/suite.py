@@ -71,8 +71,13 @@ def load_folder(folder: Path, progress: Any = None) -> Identified:
     Records of role ``validation`` are read (``records``) but not identified: they are in
     neither ``steps`` nor ``prbs``, so no model is fitted or checked on them here.
     """
+    return load_records(sorted(folder.glob("*.csv")), str(folder), progress)
+
+
+def load_records(paths: list[Path], where: str, progress: Any = None) -> Identified:
+    """Like :func:`load_folder` on the CSV files ``paths`` (``where`` names them in errors)."""
     out = Identified()
-    for path in sorted(folder.glob("*.csv")):
+    for path in paths:
         if detect_table_kind(path) == "static":
             table = read_static_table(path)
             out.ratings = fit_static_table(table)
@@ -92,7 +97,7 @@ def load_folder(folder: Path, progress: Any = None) -> Identified:
         elif rec.test == "prbs":
             out.prbs[path.stem] = identify_prbs(rec, gauge=ARX_GAUGE, orders=ARX_ORDERS)
     if not out.ratings:
-        raise IdentificationError(f"{folder}: no static rating table (static.csv) found")
+        raise IdentificationError(f"{where}: no static rating table (static.csv) found")
     return out
 
 
@@ -348,7 +353,13 @@ def _rows(ident: Identified) -> str:
 
 def identify_folder(folder: Path, progress: Any = None) -> Identified:
     """Identify every record of ``folder`` and build the model files."""
-    ident = load_folder(folder, progress)
+    return identify_records(sorted(folder.glob("*.csv")), str(folder), progress)
+
+
+def identify_records(paths: list[Path], where: str, progress: Any = None) -> Identified:
+    """Identify the records ``paths`` (one gate's records and its static table) and build
+    the model files; ``where`` names them in errors."""
+    ident = load_records(paths, where, progress)
     gauges = sorted({g for s in ident.steps.values() for g in s.gauges})
     for gauge in gauges:
         if progress:

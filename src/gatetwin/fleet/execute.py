@@ -1,0 +1,154 @@
+"""Run one task per gate: in this process, on a local process pool, or on a dask cluster.
+
+Processes, never threads: the FMU binaries and the numba kernels are not assumed
+thread-safe. Every mode runs the same :func:`~gatetwin.fleet.gate.identify_gate` on the same
+inputs, so every mode gives the same model documents. Results come back in completion
+order (each one reported to ``progress``) and are returned sorted by gate name.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from typing import Any
+
+from gatetwin.errors import GatetwinError
+from gatetwin.fleet.gate import GateJob, failed_summary, identify_gate
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class FleetSettings:
+    """Where the gates run.
+
+    Attributes
+    ----------
+    scheduler : str | None
+        Address of a ``dask.distributed`` scheduler (``tcp://host:8786``); ``None`` for a
+        local run.
+    workers : int
+        Local processes when no scheduler is given; 1 runs every gate in this process.
+    connect_timeout_s : float
+        How long to wait for the scheduler to answer and for its first worker, s.
+    """
+
+    scheduler: str | None = None
+    workers: int = 1
+    connect_timeout_s: float = 20.0
+
+    def describe(self) -> str:
+        if self.scheduler:
+            return f"dask scheduler {self.scheduler}"
+        if self.workers <= 1:
+            return "serial, one process"
+        return f"local process pool, {self.workers} workers"
+
+
+def default_workers() -> int:
+    """Local workers by default: the CPUs this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _crashed(job: GateJob, exc: BaseException) -> dict[str, Any]:
+    """The result of a task whose process died or could not run it."""
+    reason = f"task failed ({type(exc).__name__}: {exc})"
+    return {"gate": job.gate, "status": "failed", "models": {}, "fmus": {},
+            "summary": failed_summary(job.gate, reason, len(job.paths)), "seconds": 0.0}
+
+
+def _serial(jobs: list[GateJob]) -> Iterator[dict[str, Any]]:
+    for job in jobs:
+        yield identify_gate(job)
+
+
+def _pool(jobs: list[GateJob], workers: int) -> Iterator[dict[str, Any]]:
+    # spawn: a fresh interpreter per worker, no fork of this process's threads or locks
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context) as pool:
+        futures = {pool.submit(identify_gate, job): job for job in jobs}
+        for future in as_completed(futures):
+            try:
+                yield future.result()
+            except Exception as exc:  # a dead worker fails its gate only
+                yield _crashed(futures[future], exc)
+
+
+def connect(address: str, timeout_s: float) -> Any:
+    """A ``distributed.Client`` on ``address`` with at least one worker, or one clear error."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise GatetwinError(
+            "--scheduler needs dask.distributed, which is not installed; install it with "
+            "pip install 'gatetwin[fleet]'"
+        ) from None
+    try:
+        client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise GatetwinError(
+            f"--scheduler {address}: cannot reach the dask scheduler ({' '.join(str(exc).split())})"
+        ) from None
+    try:
+        client.wait_for_workers(1, timeout=timeout_s)
+    except TimeoutError:
+        client.close()
+        raise GatetwinError(
+            f"--scheduler {address}: the scheduler has no worker after {timeout_s:g} s; start "
+            f"one with: dask worker {address}"
+        ) from None
+    return client
+
+
+def _dask(jobs: list[GateJob], address: str, timeout_s: float) -> Iterator[dict[str, Any]]:
+    from distributed import as_completed as dask_completed
+
+    client = connect(address, timeout_s)
+    try:
+        futures = {}
+        for job in jobs:
+            future = client.submit(identify_gate, job, pure=False,
+                                   key=f"gatetwin-gate-{job.gate}-{os.getpid()}-{id(job)}")
+            futures[future.key] = (future, job)
+        for future in dask_completed([f for f, _ in futures.values()]):
+            job = futures[future.key][1]
+            try:
+                yield future.result()
+            except Exception as exc:  # a lost worker fails its gate only
+                yield _crashed(job, exc)
+            future.release()
+    finally:
+        client.close()
+
+
+def run_gates(jobs: Iterable[GateJob], settings: FleetSettings,
+              progress: Progress | None = None) -> list[dict[str, Any]]:  # fmt: skip
+    """Run every job; the results (see :func:`identify_gate`) sorted by gate name."""
+    jobs = list(jobs)
+    if not jobs:
+        return []
+    if settings.scheduler:
+        stream = _dask(jobs, settings.scheduler, settings.connect_timeout_s)
+    elif settings.workers <= 1 or len(jobs) == 1:
+        stream = _serial(jobs)
+    else:
+        stream = _pool(jobs, settings.workers)
+    results = []
+    for k, res in enumerate(stream, start=1):
+        if progress:
+            progress(_progress_line(k, len(jobs), res))
+        results.append(res)
+    return sorted(results, key=lambda r: r["gate"])
+
+
+def _progress_line(k: int, n: int, res: dict[str, Any]) -> str:
+    head = f"fleet: [{k}/{n}] {res['gate']}"
+    if res["status"] != "ok":
+        return f"{head} FAILED: {res['summary']['error']}"
+    return f"{head} ok, {len(res['models'])} models in {res['seconds']:.1f} s"

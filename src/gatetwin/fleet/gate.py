@@ -1,0 +1,141 @@
+"""One gate's task: identify its model set (and optionally its FMUs) and summarise it.
+
+:func:`identify_gate` is what a pool process or a dask worker runs, one call per gate. It
+takes and returns plain picklable data and never raises: a gate whose records are refused
+or whose identification fails comes back with ``status: failed`` and the one-line reason,
+so that one bad gate never stops the fleet. It writes nothing: the model documents (and
+FMU bytes) travel back to the caller, which writes them, so workers need to read the
+records but never to share an output folder.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from gatetwin.errors import GatetwinError
+
+#: Model-file families, by the prefix of the model name.
+FAMILIES = ("fopdt", "physical", "arx")
+
+
+@dataclass(frozen=True)
+class GateJob:
+    """What one task does.
+
+    Attributes
+    ----------
+    gate : str
+        Gate name.
+    paths : tuple[str, ...]
+        The gate's CSV files (records and its static table), as the worker sees them.
+    fmu_backend : str | None
+        ``"c"`` or ``"python"`` to also build one FMU per model; ``None`` for none.
+    """
+
+    gate: str
+    paths: tuple[str, ...]
+    fmu_backend: str | None = None
+
+
+def identify_gate(job: GateJob) -> dict[str, Any]:
+    """Identify one gate; a plain dict with ``gate``, ``status``, ``models``, ``fmus``,
+    ``summary`` and ``seconds`` (never raises for a bad gate)."""
+    from gatetwin.identify.suite import identify_records
+
+    start = time.perf_counter()
+    models: dict[str, dict[str, Any]] = {}
+    fmus: dict[str, bytes] = {}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            ident = identify_records([Path(p) for p in job.paths], f"gate {job.gate}")
+            models = ident.models
+            if job.fmu_backend:
+                fmus = _export_fmus(models, job.fmu_backend)
+            summary = gate_summary(job.gate, ident, _messages(caught))
+        except GatetwinError as exc:
+            summary = failed_summary(job.gate, str(exc), len(job.paths))
+        except Exception as exc:  # one gate's crash is reported, not fatal
+            summary = failed_summary(job.gate, f"{type(exc).__name__}: {exc}", len(job.paths))
+    ok = summary["status"] == "ok"
+    return {"gate": job.gate, "status": summary["status"], "models": models if ok else {},
+            "fmus": fmus if ok else {}, "summary": summary,
+            "seconds": time.perf_counter() - start}  # fmt: skip
+
+
+def _messages(caught: list[warnings.WarningMessage]) -> list[str]:
+    seen: dict[str, None] = {}
+    for w in caught:
+        seen[f"{w.category.__name__}: {' '.join(str(w.message).split())}"] = None
+    return list(seen)
+
+
+def failed_summary(gate: str, error: str, n_files: int) -> dict[str, Any]:
+    """The summary entry of a gate that produced no model set."""
+    return {"gate": gate, "status": "failed", "error": " ".join(error.split()),
+            "files": n_files, "records": [], "samples": 0, "families": [], "models": [],
+            "validity": {}, "held_out": {}, "warnings": []}  # fmt: skip
+
+
+def _held_out(name: str, doc: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """Free-run fit of ``doc`` on each held-out record: fit %, RMSE mm."""
+    held = doc.get("provenance", {}).get("metrics", {}).get("held_out", {})
+    out = {}
+    for rec, entry in sorted(held.items()):
+        free = entry.get("free_run", entry) if name.startswith("fopdt") else entry
+        if "fit_percent" in free:
+            out[rec] = {"fit_percent": round(float(free["fit_percent"]), 2),
+                        "rmse_mm": round(float(free["rmse_mm"]), 3)}  # fmt: skip
+    return out
+
+
+def _validity(doc: dict[str, Any]) -> dict[str, list[float]]:
+    v = doc.get("validity", {})
+    keys = {"flow_m3h": "flow_m3h", "opening_range_mm": "opening_mm",
+            "level_range_mm": "level_mm"}  # fmt: skip
+    return {short: [float(x) for x in v[k]] for k, short in keys.items() if k in v}
+
+
+def gate_summary(gate: str, ident: Any, messages: list[str]) -> dict[str, Any]:
+    """The summary entry of an identified gate (see :func:`~gatetwin.fleet.summary`)."""
+    models = ident.models
+    samples = sum(int(r.n_samples) for r in ident.records.values())
+    samples += int(ident.static.n_points) if ident.static is not None else 0
+    held = {name: _held_out(name, doc) for name, doc in sorted(models.items())}
+    warns = list(messages)
+    if not any(held.values()):
+        warns.append("no held-out record: the model set is not checked on unseen data")
+    return {
+        "gate": gate, "status": "ok", "error": "",
+        "files": len(ident.records) + (1 if ident.static is not None else 0),
+        "records": sorted(ident.records), "samples": samples,
+        "families": [f for f in FAMILIES if any(n.startswith(f + "_") for n in models)],
+        "models": sorted(models),
+        "validity": {n: _validity(d) for n, d in sorted(models.items())},
+        "held_out": held,
+        "warnings": warns,
+    }  # fmt: skip
+
+
+def _export_fmus(models: dict[str, dict[str, Any]], backend: str) -> dict[str, bytes]:
+    """One FMU per model document, built in a private temporary folder, as bytes."""
+    from gatetwin.fmu import export_fmu
+    from gatetwin.fmu.provenance import fmu_provenance
+    from gatetwin.modelfile import read_model_file
+    from gatetwin.modelfile import write_model_files as write_models
+
+    out: dict[str, bytes] = {}
+    with tempfile.TemporaryDirectory(prefix="gatetwin-fleet-") as tmp:
+        folder = Path(tmp)
+        write_models(models, folder)
+        for name in sorted(models):
+            model = read_model_file(folder / f"{name}.json")
+            path = export_fmu(model.plant, folder / f"{name}.fmu", backend=backend,
+                              model_name=model.name, provenance=fmu_provenance(model))
+            out[name] = path.read_bytes()
+    return out

@@ -1,0 +1,80 @@
+"""``gatetwin models`` over many gates: discover, run one task per gate, write the results.
+
+Output layout under ``out``: one folder per identified gate holding its model files and
+``schema.json`` (exactly what ``gatetwin models`` writes for one records folder), its FMUs
+under ``<gate>/fmus/`` when asked for, and the fleet summary ``fleet.json``, ``fleet.md``,
+``fleet.html`` and ``fleet.png``. Bad input (a source that does not exist, no records) is
+refused before anything is written; a gate that fails is reported in the summary and gets
+no folder.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from gatetwin._io import write_bytes_atomic, write_json_atomic, write_text_atomic
+from gatetwin.fleet.execute import FleetSettings, Progress, run_gates
+from gatetwin.fleet.gate import GateJob
+from gatetwin.fleet.sources import discover_gates
+from gatetwin.fleet.summary import (
+    fleet_document,
+    fleet_figure_png,
+    fleet_html,
+    fleet_markdown,
+    summary_paths,
+)
+
+
+def write_gate_outputs(result: dict[str, Any], out: Path) -> list[Path]:
+    """Write one identified gate's model files (and FMUs) into ``out/<gate>/``."""
+    from gatetwin.modelfile import write_model_files as write_models
+
+    folder = out / result["gate"]
+    paths = write_models(result["models"], folder)
+    for name, data in sorted(result["fmus"].items()):
+        paths.append(write_bytes_atomic(folder / "fmus" / f"{name}.fmu", data))
+    return paths
+
+
+def run_fleet(sources: list[str], out: str | Path, settings: FleetSettings, *,
+              fmu_backend: str | None = None,
+              progress: Progress | None = None) -> dict[str, Any]:  # fmt: skip
+    """Identify every gate of ``sources`` and write the model sets and the summary.
+
+    Parameters
+    ----------
+    sources : list of str
+        Folders (of records, or of gate folders), glob patterns, CSV files or manifests
+        (see :mod:`gatetwin.fleet.sources`).
+    out : str or Path
+        Output folder.
+    settings : FleetSettings
+        Serial, local pool or dask scheduler.
+    fmu_backend : str, optional
+        ``"c"`` or ``"python"`` to build every model's FMU as well.
+    progress : callable, optional
+        Receives one line per finished gate.
+
+    Returns
+    -------
+    dict
+        The fleet summary (the content of ``fleet.json``).
+    """
+    gates = discover_gates(sources)
+    out_dir = Path(out)
+    if progress:
+        progress(f"fleet: {len(gates)} gates, {settings.describe()}")
+    jobs = [GateJob(g.gate, g.paths, fmu_backend) for g in gates]
+    results = run_gates(jobs, settings, progress)
+    for res in results:
+        if res["status"] == "ok":
+            write_gate_outputs(res, out_dir)
+    doc = fleet_document(results, settings.describe())
+    paths = summary_paths(out_dir)
+    png = fleet_figure_png(doc)
+    write_bytes_atomic(paths["figure"], png)
+    write_text_atomic(paths["markdown"], fleet_markdown(doc))
+    write_text_atomic(paths["html"], fleet_html(doc, png))
+    write_json_atomic(paths["json"], doc)
+    return doc
