@@ -93,6 +93,11 @@ def add_models_arguments(parser: argparse.ArgumentParser) -> None:
         "--fmus", metavar="BACKEND", choices=("c", "python"),
         help="also build each gate's FMUs (into OUT/<gate>/fmus/) with this backend",
     )  # fmt: skip
+    parser.epilog = (
+        "with many gates: exit status 0 when every gate was identified, 1 when some failed "
+        "(each named with its reason in OUT/fleet.json; the others are written), 2 for input "
+        "that cannot be read"
+    )
 
 
 def _is_fleet(args: argparse.Namespace) -> bool:
@@ -120,7 +125,7 @@ def _run_fleet(args: argparse.Namespace) -> int:
                     progress=_print_to_stderr)  # fmt: skip
     print(f"wrote {doc['n_ok']} model sets of {doc['n_gates']} gates and the summary "
           f"{Path(args.out) / 'fleet.json'}; {doc['n_failed']} failed")  # fmt: skip
-    return 0
+    return 1 if doc["n_failed"] else 0
 
 
 def _print_to_stderr(message: str) -> None:

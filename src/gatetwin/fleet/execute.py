@@ -116,7 +116,7 @@ def _dask(jobs: list[GateJob], address: str, timeout_s: float) -> Iterator[dict[
             future = client.submit(identify_gate, job, pure=False,
                                    key=f"gatetwin-gate-{job.gate}-{os.getpid()}-{id(job)}")
             futures[future.key] = (future, job)
-        for future in dask_completed([f for f, _ in futures.values()]):
+        for future in dask_completed([f for f, _ in futures.values()], loop=client.loop):
             job = futures[future.key][1]
             try:
                 yield future.result()

@@ -1,0 +1,7 @@
+"""``python -m gatetwin.cli`` runs the command line."""
+
+import sys
+
+from gatetwin.cli import main
+
+sys.exit(main())
