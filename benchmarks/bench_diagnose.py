@@ -39,13 +39,17 @@ def main() -> None:
         worst = f"{errors[-1]:.3f}" if errors else "-"
         median = f"{errors[len(errors) // 2]:.3f}" if errors else "-"
         gap = min(o.gap_reduction for o in rows)
-        print(f"  {effect:22s} {sum(o.right for o in rows)}/{len(rows)}  {worst:>6s} {median:>6s}"
-              f"  {gap:.2f}")
+        print(
+            f"  {effect:22s} {sum(o.right for o in rows)}/{len(rows)}  {worst:>6s} {median:>6s}"
+            f"  {gap:.2f}"
+        )
     for o in outcomes:
         errors = {k: round(v, 3) for k, v in o.parameter_errors.items()}
         if not o.right or (o.truth != "none" and (o.gap_reduction < 0.5 or not o.parameters_ok)):
-            print(f"  seed {o.seed}: {o.truth} -> {o.named}, gap reduction "
-                  f"{o.gap_reduction:.2f}, parameter errors {errors}")
+            print(
+                f"  seed {o.seed}: {o.truth} -> {o.named}, gap reduction "
+                f"{o.gap_reduction:.2f}, parameter errors {errors}"
+            )
 
 
 if __name__ == "__main__":

@@ -38,20 +38,32 @@ STEP_S = 1.0
 
 def test_plant() -> FopdtPlant:
     """The FOPDT plant of tests/test_fmu_*.py."""
-    return FopdtPlant("3F", 20.0, Schedule((30.0, 55.0, 85.0), {
-        "gain_mm_per_mm": (-15.4, -12.0, -10.5),
-        "time_constant_s": (71.0, 55.0, 42.0),
-        "dead_time_s": (4.5, 7.0, 9.5),
-        "level_ref_mm": (231.0, 300.0, 360.0),
-    }))
+    return FopdtPlant(
+        "3F",
+        20.0,
+        Schedule(
+            (30.0, 55.0, 85.0),
+            {
+                "gain_mm_per_mm": (-15.4, -12.0, -10.5),
+                "time_constant_s": (71.0, 55.0, 42.0),
+                "dead_time_s": (4.5, 7.0, 9.5),
+                "level_ref_mm": (231.0, 300.0, 360.0),
+            },
+        ),
+    )
 
 
 def build(folder: Path, plant: Any) -> dict[str, Path]:
     """Export and extract both FMUs; return backend -> extracted folder."""
     out = {}
     for backend in ("c", "python"):
-        fmu = export_fmu(plant, folder / f"bench_{backend}.fmu", backend=backend,
-                         model_name="bench_fopdt", provenance={"purpose": "benchmark"})
+        fmu = export_fmu(
+            plant,
+            folder / f"bench_{backend}.fmu",
+            backend=backend,
+            model_name="bench_fopdt",
+            provenance={"purpose": "benchmark"},
+        )
         out[backend] = Path(extract(str(fmu), str(folder / backend)))
     return out
 
@@ -62,8 +74,14 @@ def host_args(extracted: Path, gauge: str = "3F") -> list[str]:
     name = md.coSimulation.modelIdentifier + sharedLibraryExtension
     binary = extracted / "binaries" / platform / name
     resources = (extracted / "resources").as_uri()
-    return [str(binary), md.guid, resources, vr["opening_mm"], vr["flow_m3h"],
-            vr[f"level_{gauge}_mm"]]
+    return [
+        str(binary),
+        md.guid,
+        resources,
+        vr["opening_mm"],
+        vr["flow_m3h"],
+        vr[f"level_{gauge}_mm"],
+    ]
 
 
 def libpython() -> tuple[Path | None, str]:
@@ -75,11 +93,18 @@ def libpython() -> tuple[Path | None, str]:
     return (path, "") if path.is_file() else (None, f"{path} not found")
 
 
-def run_host(host: Path, args: list[str], n: int, lib: Path | None = None,
-             env: dict[str, str] | None = None) -> dict[str, float]:
+def run_host(
+    host: Path, args: list[str], n: int, lib: Path | None = None, env: dict[str, str] | None = None
+) -> dict[str, float]:
     extra = [str(lib)] if lib else []
-    done = subprocess.run([str(host), *args, str(STEP_S), str(n), *extra], capture_output=True,
-                          text=True, env=env, timeout=1800, check=False)
+    done = subprocess.run(
+        [str(host), *args, str(STEP_S), str(n), *extra],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=1800,
+        check=False,
+    )
     if done.returncode != 0:
         raise RuntimeError(f"bench_host failed: {done.stderr.strip()[-500:]}")
     return {k: float(v) for k, v in (line.split() for line in done.stdout.splitlines())}
@@ -88,8 +113,12 @@ def run_host(host: Path, args: list[str], n: int, lib: Path | None = None,
 def fmpy_loop(extracted: Path, n: int) -> dict[str, float]:
     md = read_model_description(str(extracted))
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    slave = FMU2Slave(guid=md.guid, unzipDirectory=str(extracted),
-                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="bench")
+    slave = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=str(extracted),
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName="bench",
+    )
     slave.instantiate()
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
@@ -126,8 +155,11 @@ def main() -> None:
     parser.add_argument("--n-c", type=int, default=5_000_000, help="doSteps timed, C FMU")
     parser.add_argument("--n-python", type=int, default=20_000, help="doSteps, python FMU")
     parser.add_argument("--n-fmpy", type=int, default=20_000, help="steps through fmpy")
-    parser.add_argument("--model", metavar="MODEL.json",
-                        help="time this model file's FMUs instead of the FOPDT test plant")
+    parser.add_argument(
+        "--model",
+        metavar="MODEL.json",
+        help="time this model file's FMUs instead of the FOPDT test plant",
+    )
     args = parser.parse_args()
     plant = read_model_file(args.model).plant if args.model else test_plant()
     global STEP_S
@@ -137,35 +169,56 @@ def main() -> None:
         folder = Path(tmp)
         fmus = build(folder, plant)
         host = folder / "bench_host"
-        subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
-                        "-I", str(fmus["c"] / "sources"), "-o", str(host),
-                        str(HERE / "bench_host.c"), "-ldl"], check=True)
+        subprocess.run(
+            [
+                cc,
+                "-std=c99",
+                "-O2",
+                "-Wall",
+                "-Wextra",
+                "-Werror",
+                "-I",
+                str(fmus["c"] / "sources"),
+                "-o",
+                str(host),
+                str(HERE / "bench_host.c"),
+                "-ldl",
+            ],
+            check=True,
+        )
         what = args.model or "FOPDT test plant, 3 knots"
         print(f"{what}: Q = 47 m3/h, opening 18/23 mm alternating every 7 steps, step {STEP_S} s")
         print(f"\n1. C host (dlopen of the FMU binary, {sys.platform})")
         c_ns = run_host(host, host_args(fmus["c"], plant.gauge), args.n_c)
-        print(f"   C FMU       doStep                 {c_ns['doStep_ns']:10.1f} ns   "
-              f"(target <= 50 ns; N = {args.n_c:,})")
+        print(
+            f"   C FMU       doStep                 {c_ns['doStep_ns']:10.1f} ns   "
+            f"(target <= 50 ns; N = {args.n_c:,})"
+        )
         print(f"               setReal+doStep+getReal {c_ns['set_doStep_get_ns']:10.1f} ns")
         lib, why = libpython()
         if lib is None:
             print(f"   python FMU  not timed from C: {why}")
         else:
             env = dict(os.environ, PYTHONHOME=sys.base_prefix, PYTHONNOUSERSITE="1")
-            py_ns = run_host(host, host_args(fmus["python"], plant.gauge), args.n_python, lib,
-                             env)
-            print(f"   python FMU  doStep                 {py_ns['doStep_ns']:10.1f} ns   "
-                  f"(N = {args.n_python:,}; libpython {lib.name})")
+            py_ns = run_host(host, host_args(fmus["python"], plant.gauge), args.n_python, lib, env)
+            print(
+                f"   python FMU  doStep                 {py_ns['doStep_ns']:10.1f} ns   "
+                f"(N = {args.n_python:,}; libpython {lib.name})"
+            )
             print(f"               setReal+doStep+getReal {py_ns['set_doStep_get_ns']:10.1f} ns")
             ratio = py_ns["doStep_ns"] / c_ns["doStep_ns"]
             print(f"   ratio python/C per doStep          {ratio:10.0f} x   (target >= 100 x)")
         print(f"\n2. fmpy FMU2Slave loop, setReal + doStep + getReal (N = {args.n_fmpy:,})")
         for backend in ("c", "python"):
             r = fmpy_loop(fmus[backend], args.n_fmpy)
-            print(f"   {backend:6s} FMU  {r['steps_per_s']:12,.0f} steps/s  "
-                  f"({r['step_us']:.2f} us/step; one getReal alone {r['get_us']:.2f} us)")
-        print(f"   fmpy overhead: empty Python loop {empty_loop_ns(args.n_fmpy):.0f} ns/iter; a "
-              "step is 3 fmpy calls, so the C FMU's fmpy rate is fmpy's ctypes cost, not the model")
+            print(
+                f"   {backend:6s} FMU  {r['steps_per_s']:12,.0f} steps/s  "
+                f"({r['step_us']:.2f} us/step; one getReal alone {r['get_us']:.2f} us)"
+            )
+        print(
+            f"   fmpy overhead: empty Python loop {empty_loop_ns(args.n_fmpy):.0f} ns/iter; a "
+            "step is 3 fmpy calls, so the C FMU's fmpy rate is fmpy's ctypes cost, not the model"
+        )
 
 
 if __name__ == "__main__":

@@ -44,8 +44,15 @@ def export_all(folder: Path) -> list[Path]:
     for name in MODELS:
         plant = read_model_file(ROOT / "models" / f"{name}.json").plant
         for backend in ("c", "python"):
-            out.append(export_fmu(plant, folder / f"{name}_{backend}.fmu", backend=backend,
-                                  model_name=name, provenance={"purpose": "benchmark"}))
+            out.append(
+                export_fmu(
+                    plant,
+                    folder / f"{name}_{backend}.fmu",
+                    backend=backend,
+                    model_name=name,
+                    provenance={"purpose": "benchmark"},
+                )
+            )
     return out
 
 
@@ -91,8 +98,10 @@ def main() -> None:
         infos = [inspect_fmu(f) for f in fmus]
         first = seconds(lambda: run_isolated(infos[0], requests[:1]))
         later = seconds(lambda: run_isolated(infos[0], requests[:1]))
-        print(f"{len(records)} bundled records with gauge {GAUGE}, {n_steps} FMU steps per FMU;"
-              f" median of {args.repeat}")
+        print(
+            f"{len(records)} bundled records with gauge {GAUGE}, {n_steps} FMU steps per FMU;"
+            f" median of {args.repeat}"
+        )
         print(f"FMU host start (once per process): {first - later:.2f} s\n")
         header = f"{'FMU':<24}{'level':<14}{'in process s':>14}{'isolated s':>12}{'ratio':>8}"
         print(header)
@@ -109,16 +118,22 @@ def main() -> None:
                 t_local, t_isolated = paired(local, isolated, args.repeat)
                 totals[level][0] += t_local
                 totals[level][1] += t_isolated
-                print(f"{fmu.name:<24}{level:<14}{t_local:>14.3f}{t_isolated:>12.3f}"
-                      f"{t_isolated / t_local:>8.2f}")
+                print(
+                    f"{fmu.name:<24}{level:<14}{t_local:>14.3f}{t_isolated:>12.3f}"
+                    f"{t_isolated / t_local:>8.2f}"
+                )
         print("-" * len(header))
         for level, (t_local, t_isolated) in totals.items():
-            print(f"{'all ' + str(len(fmus)) + ' FMUs':<24}{level:<14}{t_local:>14.3f}"
-                  f"{t_isolated:>12.3f}{t_isolated / t_local:>8.2f}")
+            print(
+                f"{'all ' + str(len(fmus)) + ' FMUs':<24}{level:<14}{t_local:>14.3f}"
+                f"{t_isolated:>12.3f}{t_isolated / t_local:>8.2f}"
+            )
         t_local, t_isolated = totals["validate_fmu"]
         with_start = t_isolated + first - later
-        print(f"{'… with the host start':<38}{t_local:>14.3f}{with_start:>12.3f}"
-              f"{with_start / t_local:>8.2f}")
+        print(
+            f"{'… with the host start':<38}{t_local:>14.3f}{with_start:>12.3f}"
+            f"{with_start / t_local:>8.2f}"
+        )
 
 
 if __name__ == "__main__":

@@ -214,8 +214,10 @@ def envelope_against_single_point(minutes: float) -> None:
               f"{m['iae']:>9.0f} {m['violations']:>10}")  # fmt: skip
     (s0, _), (t0, t0_99), m0 = rows["schedule"]
     (s1, _), (t1, t1_99), m1 = rows["envelope"]
-    print(f"   envelope / single-point: solve median {s1 / s0:.2f}x, step median "
-          f"{t1 / t0:.2f}x, step p99 {t1_99 / t0_99:.2f}x, IAE {m1['iae'] / m0['iae']:.3f}")
+    print(
+        f"   envelope / single-point: solve median {s1 / s0:.2f}x, step median "
+        f"{t1 / t0:.2f}x, step p99 {t1_99 / t0_99:.2f}x, IAE {m1['iae'] / m0['iae']:.3f}"
+    )
 
 
 def warm_up(horizons: list[int]) -> None:

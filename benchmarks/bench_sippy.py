@@ -94,8 +94,7 @@ def demeaned(sig: PrbsSignals, segments: np.ndarray) -> Segment:
         raise SystemExit("bench_sippy: expected one segment per part (records C and D)")
     dev = deviations(sig.u, sig.y, segments)
     start, stop = segments[0]
-    return Segment(dev.u0[start:stop], dev.y0[start:stop], (dev.opening_mean_mm,
-                                                            dev.level_mean_mm))
+    return Segment(dev.u0[start:stop], dev.y0[start:stop], (dev.opening_mean_mm, dev.level_mean_mm))
 
 
 def sippy_theta(sippy: Any, method: str, seg: Segment) -> np.ndarray:
@@ -136,17 +135,28 @@ class Scores:
     seconds: float
 
 
-def score(method: str, sig: PrbsSignals, theta: np.ndarray, theta_est: np.ndarray,
-          seconds: float) -> Scores:
+def score(
+    method: str, sig: PrbsSignals, theta: np.ndarray, theta_est: np.ndarray, seconds: float
+) -> Scores:
     """One-step R² (whole record) and hold-out free-run fit % by gatetwin's metrics."""
     orders = ORDERS[method]
     full, est = demeaned(sig, sig.fit_segments), demeaned(sig, sig.estimation)
     dev = deviations(sig.u, sig.y, sig.fit_segments, full.point)
     pred = one_step_prediction(orders, theta, dev) + full.point[1]
     zeros = (0.0,) * NA, (0.0,) * NB
-    model = ArxFit(NA, NB, NK, tuple(theta_est[:NA]), tuple(theta_est[NA : NA + NB]),
-                   *zeros, covariance=((0.0,),), noise_variance_mm2=0.0, n_rows=0,
-                   opening_mean_mm=est.point[0], level_mean_mm=est.point[1])
+    model = ArxFit(
+        NA,
+        NB,
+        NK,
+        tuple(theta_est[:NA]),
+        tuple(theta_est[NA : NA + NB]),
+        *zeros,
+        covariance=((0.0,),),
+        noise_variance_mm2=0.0,
+        n_rows=0,
+        opening_mean_mm=est.point[0],
+        level_mean_mm=est.point[1],
+    )
     free = free_run_on_segments(model, sig.u, sig.y, sig.validation)[1]
     return Scores(theta, one_step_metrics(sig.y, pred).r2, free.fit_percent, seconds)
 
@@ -164,13 +174,11 @@ def median_seconds(func: Callable[[], Any], repeats: int) -> tuple[float, Any]:
 def compare(sippy: Any, method: str, sig: PrbsSignals, repeats: int) -> tuple[Scores, Scores]:
     """(gatetwin, SIPPY) scores of one method on one record."""
     full, est = demeaned(sig, sig.fit_segments), demeaned(sig, sig.estimation)
-    t_ours, ours = median_seconds(lambda: gatetwin_theta(method, sig, sig.fit_segments),
-                                  repeats)
+    t_ours, ours = median_seconds(lambda: gatetwin_theta(method, sig, sig.fit_segments), repeats)
     t_peer, peer = median_seconds(lambda: sippy_theta(sippy, method, full), repeats)
     ours_est = gatetwin_theta(method, sig, sig.estimation)
     peer_est = sippy_theta(sippy, method, est)
-    return (score(method, sig, ours, ours_est, t_ours),
-            score(method, sig, peer, peer_est, t_peer))
+    return (score(method, sig, ours, ours_est, t_ours), score(method, sig, peer, peer_est, t_peer))
 
 
 def _coefficients(theta: np.ndarray) -> str:
@@ -183,17 +191,22 @@ def _ratio(a: float, b: float) -> str:
 
 def report(name: str, method: str, ours: Scores, peer: Scores) -> None:
     """Print one method's rows: coefficients, R², free-run fit, time, and the ratios."""
-    label = {"ARX": "a1 a2 | b1 b2", "ARMAX": "a1 a2 | b1 b2 | c1 c2",
-             "OE": "f1 f2 | b1 b2"}[method]
+    label = {"ARX": "a1 a2 | b1 b2", "ARMAX": "a1 a2 | b1 b2 | c1 c2", "OE": "f1 f2 | b1 b2"}[
+        method
+    ]
     print(f"\n{name} {method} ({label}; gatetwin signs: y(k) = a1 y(k-1) + ...)")
     for who, s in (("gatetwin", ours), ("SIPPY", peer)):
         print(f"  {who:9s} {_coefficients(s.theta)}")
-        print(f"  {'':9s} one-step R2 {s.r2:.4f}   free-run fit {s.free_run_percent:6.1f} %"
-              f"   time {1e3 * s.seconds:9.2f} ms")
-    print(f"  ratio gatetwin/SIPPY: R2 {_ratio(ours.r2, peer.r2)}, free-run fit "
-          f"{_ratio(ours.free_run_percent, peer.free_run_percent)}, time "
-          f"{_ratio(ours.seconds, peer.seconds)}; max |coefficient difference| "
-          f"{np.max(np.abs(ours.theta - peer.theta)):.2e}")
+        print(
+            f"  {'':9s} one-step R2 {s.r2:.4f}   free-run fit {s.free_run_percent:6.1f} %"
+            f"   time {1e3 * s.seconds:9.2f} ms"
+        )
+    print(
+        f"  ratio gatetwin/SIPPY: R2 {_ratio(ours.r2, peer.r2)}, free-run fit "
+        f"{_ratio(ours.free_run_percent, peer.free_run_percent)}, time "
+        f"{_ratio(ours.seconds, peer.seconds)}; max |coefficient difference| "
+        f"{np.max(np.abs(ours.theta - peer.theta)):.2e}"
+    )
 
 
 def main() -> None:
@@ -207,8 +220,7 @@ def main() -> None:
     print(f"last 30 % by a model fitted on the first 70 %); time: median of {args.repeats}")
     for name in ("C", "D"):
         record = read_record(Path(bundled_records_dir()) / f"{name}.csv")
-        sig = prbs_signals(record, "3F", rows="auto", holdout_fraction=0.3,
-                           spike_floor_mm=0.0)
+        sig = prbs_signals(record, "3F", rows="auto", holdout_fraction=0.3, spike_floor_mm=0.0)
         for method in ORDERS:
             report(name, method, *compare(sippy, method, sig, args.repeats))
 

@@ -6,7 +6,9 @@ import gatetwin
 record = gatetwin.bundled_records_dir() / "Emoves35.csv"
 found = gatetwin.diagnose(record, plots_dir=".")  # baseline: an FOPDT fitted to the record
 print(f"{found.record}, gauge {found.gauge}: missing effect {found.named_effect!r}")
-print(f"RMSE {found.rmse_before_mm:.2f} -> {found.rmse_after_mm:.2f} mm "
-      f"(noise floor {found.noise_floor_mm:.2f} mm)")
+print(
+    f"RMSE {found.rmse_before_mm:.2f} -> {found.rmse_after_mm:.2f} mm "
+    f"(noise floor {found.noise_floor_mm:.2f} mm)"
+)
 for candidate in found.to_dict()["candidates"]:
     print(f"  {candidate['effect']:22s} score {candidate['score']}")

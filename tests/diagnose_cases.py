@@ -140,10 +140,15 @@ def draw_case(seed: int, effect: str) -> Case:
     opening_ref = float(rng.integers(min(openings), max(openings) + 1))
     middle = 0.5 * (min(openings) + max(openings))
     tau, delay, level = rng.uniform(40, 60), rng.uniform(1.0, 3.0), rng.uniform(400.0, 500.0)
-    values = {"gain_mm_per_mm": gain, "time_constant_s": tau, "dead_time_s": delay,
-              "level_ref_mm": level - gain * (middle - opening_ref)}
+    values = {
+        "gain_mm_per_mm": gain,
+        "time_constant_s": tau,
+        "dead_time_s": delay,
+        "level_ref_mm": level - gain * (middle - opening_ref),
+    }
     truth = FopdtPlant(
-        "3F", opening_ref,
+        "3F",
+        opening_ref,
         Schedule((30.0, 80.0), {k: (float(v), float(v)) for k, v in values.items()}),
         effects=(effect_dict(effect, **params),) if effect != "none" else (),
     )

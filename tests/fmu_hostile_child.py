@@ -40,8 +40,11 @@ def slave_refcounts() -> list[int]:
     modules = [m for name, m in sys.modules.items() if name.startswith("gatetwin_slave_")]
     cls = modules[0].GatetwinPlant
     instances = [o for o in gc.get_objects() if type(o) is cls]
-    return [sys.getrefcount(cls)] + [sys.getrefcount(o) for o in instances] + [
-        sys.getrefcount(o.log_queue) for o in instances]
+    return (
+        [sys.getrefcount(cls)]
+        + [sys.getrefcount(o) for o in instances]
+        + [sys.getrefcount(o.log_queue) for o in instances]
+    )
 
 
 def serialized(d: Driver) -> bytes:
@@ -98,9 +101,13 @@ def _bad_states(good: bytes) -> dict[str, bytes]:
         "infinite time": variant(lambda p: p["state"].update(time_s=math.inf)),
         "text for a number": variant(lambda p: p["state"]["dyn"].update(x="1.0")),
         "flag not boolean": variant(lambda p: p["state"].update(initialized=1)),
-        "list size": variant(lambda p: (
-            list(p["state"]["dyn"].values())[longer] if longer is not None
-            else p["state"]["real"]).extend([0.0] * 5000)),
+        "list size": variant(
+            lambda p: (
+                list(p["state"]["dyn"].values())[longer]
+                if longer is not None
+                else p["state"]["real"]
+            ).extend([0.0] * 5000)
+        ),
         "nested garbage": variant(lambda p: p["state"]["fx"].update(gate_mm=[1.0])),
         "truncated": good[: len(good) // 2],
     }

@@ -238,16 +238,35 @@ def compiler() -> str | None:
 def compile_host(sources: Path, out: Path, extra: tuple[str, ...] = ()) -> None:
     """Build tests/fmu_host.c against the FMI headers in an FMU's sources/ folder."""
     subprocess.run(
-        [compiler(), "-std=c99", "-O1", "-g", "-Wall", "-Wextra", "-Werror", *extra,
-         "-I", str(sources), "-o", str(out), str(TESTS / "fmu_host.c"), "-ldl", "-lm"],
-        check=True, capture_output=True, text=True,
+        [
+            compiler(),
+            "-std=c99",
+            "-O1",
+            "-g",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            *extra,
+            "-I",
+            str(sources),
+            "-o",
+            str(out),
+            str(TESTS / "fmu_host.c"),
+            "-ldl",
+            "-lm",
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
     )
 
 
 #: Flags of a sanitised build: any address or undefined-behaviour report aborts the process.
 SANITIZE = (
-    "-fsanitize=address,undefined,float-cast-overflow", "-fno-sanitize-recover=all",
-    "-fno-omit-frame-pointer", "-g",
+    "-fsanitize=address,undefined,float-cast-overflow",
+    "-fno-sanitize-recover=all",
+    "-fno-omit-frame-pointer",
+    "-g",
 )
 
 

@@ -119,7 +119,12 @@ def test_a_model_set_is_a_read_only_mapping_naming_what_it_lacks(fopdt):
 def test_the_family_follows_the_test_type_and_the_gauge_defaults_to_3f(fopdt, arx):
     assert (fopdt.family, fopdt.gauge, fopdt.name) == ("fopdt", "3F", "fopdt_3F")
     assert (arx.family, arx.name, arx.plant.na, arx.plant.nb, arx.plant.nk) == (
-        "arx", "arx_3F", 2, 2, 1)
+        "arx",
+        "arx_3F",
+        2,
+        2,
+        1,
+    )
 
 
 def test_a_single_record_fopdt_matches_the_step_tests_fit(fopdt):
@@ -273,7 +278,9 @@ def test_the_envelope_model_linearises_its_gate_law():
     local = local_fopdt(model.plant, 50.0, 30.0)
     assert point.source == "envelope"
     assert (point.gain_mm_per_mm, point.time_constant_s) == (
-        local["gain_mm_per_mm"], local["time_constant_s"])
+        local["gain_mm_per_mm"],
+        local["time_constant_s"],
+    )
 
 
 # --------------------------------------------------------------------------- FMU and validation
@@ -383,6 +390,11 @@ def test_importing_gatetwin_leaves_the_heavy_libraries_alone():
     heavy = ("scipy", "matplotlib", "fmpy", "control", "numba", "casadi", "pandas")
     code = ("import sys, gatetwin; print(' '.join(m for m in " + repr(heavy)
             + " if m in sys.modules))")  # fmt: skip
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          check=True, env={"PYTHONPATH": str(Path(gatetwin.__file__).parents[1])})
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={"PYTHONPATH": str(Path(gatetwin.__file__).parents[1])},
+    )
     assert done.stdout.strip() == ""

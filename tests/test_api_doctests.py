@@ -52,7 +52,11 @@ def test_example_runs(test: doctest.DocTest, tmp_path, monkeypatch) -> None:
 
 def test_every_public_name_of_the_api_has_examples() -> None:
     documented = {t.name.rsplit(".", 1)[-1] for t in _doctests()}
-    api = [n for n in gatetwin.__all__ if n != "__version__"
-           and getattr(gatetwin, n).__module__.startswith(("gatetwin.api", "gatetwin.bundled"))]
+    api = [
+        n
+        for n in gatetwin.__all__
+        if n != "__version__"
+        and getattr(gatetwin, n).__module__.startswith(("gatetwin.api", "gatetwin.bundled"))
+    ]
     assert len(api) >= 12
     assert sorted(set(api) - documented) == []

@@ -36,7 +36,8 @@ def _modules() -> dict[str, Path]:
 def _is_type_checking(node: ast.If) -> bool:
     test = node.test
     return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
-        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
 
 
 def _imports(tree: ast.AST) -> list[ast.Import | ast.ImportFrom]:
@@ -139,8 +140,10 @@ def _c_graph(units: dict[str, str]) -> dict[str, set[str]]:
 
 
 def test_the_c_walker_finds_definitions_and_calls():
-    units = {"a.c": "int f(int x)\n{\n    return g(x);\n}\n",
-             "b.c": "static int h(void);\nint g(int x)\n{\n    return f(x);\n}\n"}
+    units = {
+        "a.c": "int f(int x)\n{\n    return g(x);\n}\n",
+        "b.c": "static int h(void);\nint g(int x)\n{\n    return f(x);\n}\n",
+    }
     assert _c_graph(units) == {"a.c": {"b.c"}, "b.c": {"a.c"}}
     assert _cycles(_c_graph(units)) == [["a.c", "b.c"]]
 

@@ -36,8 +36,7 @@ def _run(plant, t, e, q):
 
 def _known(physical, a1=0.97, b=(0.07, -0.04)):
     b = np.array(b) * (1.0 - a1) / sum(b)  # unit gain
-    cond = dataclasses.replace(
-        _condition_template(), a1=a1, b=tuple(b), time_constant_ref_s=40.0)
+    cond = dataclasses.replace(_condition_template(), a1=a1, b=tuple(b), time_constant_ref_s=40.0)
     return envelope_arx([cond], physical, 1.2)
 
 
@@ -96,8 +95,12 @@ def test_model_checks_and_round_trip(physical):
     plant = _known(physical)
     assert plant_from_dict(plant_to_dict(plant)) == plant
     with pytest.raises(ModelFileError, match="needs 0 < a1 < 1"):
-        dataclasses.replace(plant, schedule=dataclasses.replace(
-            plant.schedule, values={**plant.schedule.values, "a1": (1.2,)}))
+        dataclasses.replace(
+            plant,
+            schedule=dataclasses.replace(
+                plant.schedule, values={**plant.schedule.values, "a1": (1.2,)}
+            ),
+        )
     with pytest.raises(ModelFileError, match="schedule lacks column"):
         values = {k: v for k, v in plant.schedule.values.items() if k != "time_constant_ref_s"}
         dataclasses.replace(plant, schedule=dataclasses.replace(plant.schedule, values=values))

@@ -32,7 +32,8 @@ def library(tmp_path_factory):
 def _c_call(lib, name, args, n_out):
     f = getattr(lib, f"gt_{name}")
     f.argtypes = [ctypes.c_double] * len(args) + [ctypes.POINTER(ctypes.c_double)] * (
-        n_out if n_out > 1 else 0)
+        n_out if n_out > 1 else 0
+    )
     if n_out == 1:
         f.restype = ctypes.c_double
         return (f(*args),)

@@ -70,7 +70,11 @@ def test_usage_error_exits_2() -> None:
 def test_python_dash_m_runs(good_record: Path) -> None:
     result = subprocess.run(
         [sys.executable, "-m", "gatetwin", "check", str(good_record)],
-        capture_output=True, text=True, encoding="utf-8", check=False, timeout=120,
+        capture_output=True,
+        text=True,
+        encoding="utf-8",
+        check=False,
+        timeout=120,
     )
     assert result.returncode == 0, result.stderr
     assert "record   " in result.stdout

@@ -125,12 +125,15 @@ def test_physically_immaterial_fits_count_as_none(tmp_path):
     by_kind = {c.kind: c for c in CANDIDATES}
     move = ctx.typical_move_mm
     assert "less than one sample" in by_kind["actuator_rate_limit"].immaterial(
-        _FakeFit(rate_mm_per_s=move / 0.5), ctx)
+        _FakeFit(rate_mm_per_s=move / 0.5), ctx
+    )
     assert "quarter sample" in by_kind["sensor_lag"].immaterial(_FakeFit(time_constant_s=0.2), ctx)
     assert "below the noise floor" in by_kind["seiche"].immaterial(
-        _FakeFit(period_s=10.0, decay_time_s=20.0, amplitude_mm_per_mm=0.4 / move), ctx)
+        _FakeFit(period_s=10.0, decay_time_s=20.0, amplitude_mm_per_mm=0.4 / move), ctx
+    )
     assert "below the noise floor" in by_kind["sensor_drift"].immaterial(
-        _FakeFit(rate_mm_per_s=1e-5), ctx)
+        _FakeFit(rate_mm_per_s=1e-5), ctx
+    )
     assert by_kind["sensor_lag"].immaterial(_FakeFit(time_constant_s=5.0), ctx) == ""
 
 
@@ -139,8 +142,9 @@ def test_the_winner_must_be_significant_and_material():
     fit = object()
     strong = CandidateResult("seiche", True, fit=fit, score=50.0, significant=True)  # type: ignore[arg-type]
     weak = CandidateResult("sensor_lag", True, fit=fit, score=20.0, significant=True)  # type: ignore[arg-type]
-    immaterial = CandidateResult("sensor_drift", True, fit=fit, score=90.0, significant=True,
-                                 immaterial="too small")  # type: ignore[arg-type]
+    immaterial = CandidateResult(
+        "sensor_drift", True, fit=fit, score=90.0, significant=True, immaterial="too small"
+    )  # type: ignore[arg-type]
     assert choose([weak, strong, immaterial]) is strong
 
 

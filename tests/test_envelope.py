@@ -84,6 +84,7 @@ def test_each_record_stays_inside_the_envelope(records, name):
     e = rec.opening_mm[rec.hold]
     assert ENVELOPE_OPENING_MM[0] <= np.min(e) and np.max(e) <= ENVELOPE_OPENING_MM[1]
 
+
 #: Shortest time constant of the flume's levels, s: inputs held for less than this move
 #: the level only part of the way to their steady state (the measured levels are checked
 #: over the whole record above).

@@ -18,8 +18,11 @@ TIMEOUT_S = 300
 
 
 def run_example(name: str, folder: Path) -> str:
-    env = {**os.environ, "MPLBACKEND": "Agg",
-           "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
+    env = {
+        **os.environ,
+        "MPLBACKEND": "Agg",
+        "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
+    }
     done = subprocess.run([sys.executable, "-W", "error", str(EXAMPLES / name)], cwd=folder,
                           env=env, capture_output=True, text=True, timeout=TIMEOUT_S)  # fmt: skip
     assert done.returncode == 0, done.stderr[-3000:]
@@ -37,7 +40,8 @@ def test_every_example_is_short():
 def test_identify_export_validate(tmp_path):
     out = run_example("identify_export_validate.py", tmp_path)
     assert {"fopdt_3F.json", "fopdt_3F.fmu", "validation.png"} <= {
-        p.name for p in tmp_path.iterdir()}
+        p.name for p in tmp_path.iterdir()
+    }
     assert re.search(r"\| fopdt_3F\.fmu \| A\.csv \| 3F \|.*\| pass \|", out)
 
 

@@ -112,9 +112,7 @@ def test_get_set_state_rollback_reproduces_a_run_bit_for_bit(fmus, drivers, back
 
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("family", FAMILIES)
-def test_serialized_state_continues_identically_in_a_fresh_instance(
-    fmus, drivers, backend, family
-):
+def test_serialized_state_continues_identically_in_a_fresh_instance(fmus, drivers, backend, family):
     times, opening, flow = driven_inputs(family, 100, seed=4)
     first = drivers(fmus[backend, family], "first")
     fmu_run(first, times[:50], opening[:50], flow[:50])
@@ -134,29 +132,71 @@ def test_serialized_state_continues_identically_in_a_fresh_instance(
 def test_dead_time_arrival_that_rounds_onto_a_step_start_is_handled(fmus, drivers):
     """31.3 + 1.1 rounds to 32.4 while 32.4 - 1.1 < 31.3: the reference used to stall here."""
     plant = PLANTS["fopdt"]()
-    delay = replace(plant, schedule=replace(plant.schedule, values={
-        **plant.schedule.values, "dead_time_s": (1.1, 1.1, 1.1)}))
+    delay = replace(
+        plant,
+        schedule=replace(
+            plant.schedule, values={**plant.schedule.values, "dead_time_s": (1.1, 1.1, 1.1)}
+        ),
+    )
     times = np.array([30.0, 31.3, 32.4, 33.4, 40.0])
     opening, flow = np.array([20.0, 25.0, 25.0, 25.0, 25.0]), np.full(5, 50.0)
     reference = reference_run(delay, times, opening, flow)
     for backend in BACKENDS:
         driver = drivers(fmus[backend, "fopdt"])
-        driver.slave.setReal([driver.vr[f"schedule.dead_time_s[{k}]"] for k in (1, 2, 3)],
-                             [1.1, 1.1, 1.1])
+        driver.slave.setReal(
+            [driver.vr[f"schedule.dead_time_s[{k}]"] for k in (1, 2, 3)], [1.1, 1.1, 1.1]
+        )
         assert np.array_equal(fmu_run(driver, times, opening, flow), reference), backend
 
 
 @pytest.mark.parametrize(
     "plant",
     [
-        FopdtPlant("G 1", 50.0, Schedule((40.0,), {"gain_mm_per_mm": (-8.0,),
-                   "time_constant_s": (30.0,), "dead_time_s": (0.0,), "level_ref_mm": (400.0,)})),
-        ArxPlant("G2", 20.0, 0.5, 8, 8, 8, Schedule((60.0,), {
-            **{f"a{i}": (0.1,) for i in range(1, 9)},
-            **{f"b{j}": (-0.3 + 0.05 * j,) for j in range(1, 9)}, "level_ref_mm": (250.0,)})),
-        ArxPlant("G3", 20.0, 2.0, 1, 1, 3, Schedule((10.0, 30.0, 60.0, 90.0), {
-            "a1": (0.9, 0.8, 0.7, 0.6), "b1": (-1.0, -1.5, -2.0, -2.5),
-            "level_ref_mm": (100.0, 150.0, 200.0, 250.0)})),
+        FopdtPlant(
+            "G 1",
+            50.0,
+            Schedule(
+                (40.0,),
+                {
+                    "gain_mm_per_mm": (-8.0,),
+                    "time_constant_s": (30.0,),
+                    "dead_time_s": (0.0,),
+                    "level_ref_mm": (400.0,),
+                },
+            ),
+        ),
+        ArxPlant(
+            "G2",
+            20.0,
+            0.5,
+            8,
+            8,
+            8,
+            Schedule(
+                (60.0,),
+                {
+                    **{f"a{i}": (0.1,) for i in range(1, 9)},
+                    **{f"b{j}": (-0.3 + 0.05 * j,) for j in range(1, 9)},
+                    "level_ref_mm": (250.0,),
+                },
+            ),
+        ),
+        ArxPlant(
+            "G3",
+            20.0,
+            2.0,
+            1,
+            1,
+            3,
+            Schedule(
+                (10.0, 30.0, 60.0, 90.0),
+                {
+                    "a1": (0.9, 0.8, 0.7, 0.6),
+                    "b1": (-1.0, -1.5, -2.0, -2.5),
+                    "level_ref_mm": (100.0, 150.0, 200.0, 250.0),
+                },
+            ),
+        ),
     ],
     ids=["fopdt-1-knot-no-delay", "arx-8-8-8", "arx-1-1-3-4-knots"],
 )
@@ -167,8 +207,13 @@ def test_edge_plants_follow_the_reference(tmp_path, drivers, plant):
         times = times / 1.2 * plant.sample_period_s
     reference = reference_run(plant, times, opening, flow)
     for backend in BACKENDS:
-        fmu = export_fmu(plant, tmp_path / f"{backend}.fmu", backend=backend,
-                         model_name=f"edge_{family}", provenance={})
+        fmu = export_fmu(
+            plant,
+            tmp_path / f"{backend}.fmu",
+            backend=backend,
+            model_name=f"edge_{family}",
+            provenance={},
+        )
         driver = drivers(extract(str(fmu), str(tmp_path / backend)))
         assert np.max(np.abs(fmu_run(driver, times, opening, flow) - reference)) <= TOL_MM
 
@@ -195,8 +240,9 @@ def test_nan_or_impossible_input_is_refused_and_the_host_survives(fmus, drivers,
     with pytest.raises(FMICallException) as failure:
         driver.step(1.0, *bad)
     assert failure.value.status == REFUSED[backend]
-    assert any(("is outside" in m or "not finite" in m) and status >= 3
-               for status, m in driver.messages)
+    assert any(
+        ("is outside" in m or "not finite" in m) and status >= 3 for status, m in driver.messages
+    )
     driver.slave.setFMUstate(state)  # the documented way back after fmi2Error
     driver.time_s = 0.0
     assert driver.level() == before
@@ -285,8 +331,10 @@ def test_tunable_parameters_are_honoured_and_checked(fmus, drivers, backend):
 @pytest.mark.parametrize("family", FAMILIES)
 def test_parameter_changes_mid_run_agree_between_backends(fmus, drivers, family):
     times, opening, flow = driven_inputs(family, 200, seed=9)
-    changes = {50: {"opening_ref_mm": 22.0, "schedule.flow_m3h[1]": 25.0},
-               120: {"schedule.level_ref_mm[2]": 333.0}}
+    changes = {
+        50: {"opening_ref_mm": 22.0, "schedule.flow_m3h[1]": 25.0},
+        120: {"schedule.level_ref_mm[2]": 333.0},
+    }
     first = "gain_mm_per_mm" if family == "fopdt" else "b1"
     changes[80] = {f"schedule.{first}[1]": -9.0}
     runs = []
@@ -316,7 +364,10 @@ def test_fmpy_simulate_fmu_with_an_input_table_matches_the_reference(fmus, backe
         rows.append((times[i], opening[i], flow[i]))
     signal = np.array(rows, dtype=[("time", float), ("opening_mm", float), ("flow_m3h", float)])
     result = simulate_fmu(
-        str(fmus[backend, "arx"]), stop_time=times[-1], output_interval=1.2, input=signal,
+        str(fmus[backend, "arx"]),
+        stop_time=times[-1],
+        output_interval=1.2,
+        input=signal,
         output=["level_3F_mm"],
     )
     reference = reference_run(PLANTS["arx"](), result["time"], opening, flow)
@@ -339,9 +390,20 @@ def test_thousand_instantiate_free_cycles_leak_nothing_under_valgrind(fmus, tmp_
     compile_host(extracted / "sources", host)
     binary = extracted / "binaries" / "linux64" / f"gate_3F_{family}.so"
     run = subprocess.run(
-        ["valgrind", "-q", "--leak-check=full", "--error-exitcode=1",
-         str(host), str(binary), *_guid_and_vrs(extracted), "1.2", "1000"],
-        capture_output=True, text=True, timeout=600,
+        [
+            "valgrind",
+            "-q",
+            "--leak-check=full",
+            "--error-exitcode=1",
+            str(host),
+            str(binary),
+            *_guid_and_vrs(extracted),
+            "1.2",
+            "1000",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
     )
     assert run.returncode == 0, run.stderr[-2000:]
     assert "1000 cycles ok" in run.stdout
@@ -351,8 +413,10 @@ def _asan_works(tmp_path: Path) -> bool:
     probe = tmp_path / "probe.c"
     probe.write_text("int main(void) { return 0; }\n")
     try:
-        built = subprocess.run([compiler(), "-fsanitize=address", "-o", str(tmp_path / "probe"),
-                                str(probe)], capture_output=True)
+        built = subprocess.run(
+            [compiler(), "-fsanitize=address", "-o", str(tmp_path / "probe"), str(probe)],
+            capture_output=True,
+        )
         return built.returncode == 0 and subprocess.run([str(tmp_path / "probe")]).returncode == 0
     except OSError:
         return False
@@ -366,13 +430,34 @@ def test_lifecycle_is_clean_under_address_sanitizer(fmus, tmp_path, family):
     flags = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all")
     fmu = tmp_path / "fmu_asan.so"
     subprocess.run(
-        [compiler(), "-std=c99", "-O1", "-g", "-fPIC", "-shared", "-fvisibility=hidden",
-         "-ffp-contract=off", "-Wall", "-Wextra", "-Werror", *flags, "-o", str(fmu),
-         *source_files(family), "-lm"],
-        cwd=sources, check=True, capture_output=True,
+        [
+            compiler(),
+            "-std=c99",
+            "-O1",
+            "-g",
+            "-fPIC",
+            "-shared",
+            "-fvisibility=hidden",
+            "-ffp-contract=off",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            *flags,
+            "-o",
+            str(fmu),
+            *source_files(family),
+            "-lm",
+        ],
+        cwd=sources,
+        check=True,
+        capture_output=True,
     )
     host = tmp_path / "host_asan"
     compile_host(sources, host, flags)
-    run = subprocess.run([str(host), str(fmu), *_guid_and_vrs(fmus["c", family]), "1.2", "1000"],
-                         capture_output=True, text=True, timeout=600)
+    run = subprocess.run(
+        [str(host), str(fmu), *_guid_and_vrs(fmus["c", family]), "1.2", "1000"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert run.returncode == 0, run.stderr[-2000:]

@@ -140,8 +140,10 @@ def test_out_of_range_block_parameter_is_refused(extracted, backend):
 def test_tuning_a_block_parameter_changes_the_run_as_in_the_reference(extracted):
     times, opening, flow = driven_inputs("fopdt", 300, seed=13)
     plant = plant_with("fopdt", "seiche")
-    tuned = replace(plant, effects=(effect_dict("seiche", **{**EXAMPLES["seiche"],
-                                                            "amplitude_mm_per_mm": 2.5}),))
+    tuned = replace(
+        plant,
+        effects=(effect_dict("seiche", **{**EXAMPLES["seiche"], "amplitude_mm_per_mm": 2.5}),),
+    )
     reference = reference_run(tuned, times, opening, flow)
     for backend in BACKENDS:
         driver = open_fmu(extracted[backend, "fopdt", "seiche"])

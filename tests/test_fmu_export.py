@@ -44,10 +44,7 @@ def test_fmpy_validation_finds_no_problem(fmus, backend, family):
 @pytest.mark.parametrize("family", FAMILIES)
 def test_both_backends_declare_the_same_variables(fmus, family):
     def variables(path):
-        return [
-            (sv.attrib, sv.find("Real").attrib)
-            for sv in _xml(path).find("ModelVariables")
-        ]
+        return [(sv.attrib, sv.find("Real").attrib) for sv in _xml(path).find("ModelVariables")]
 
     c_vars, py_vars = variables(fmus["c", family]), variables(fmus["python", family])
     assert c_vars == py_vars
@@ -90,8 +87,9 @@ def test_python_fmu_runs_where_gatetwin_cannot_be_imported(fmus):
         f"r = simulate_fmu({str(fmus['python', 'fopdt'])!r}, stop_time=10.0, output_interval=1.0)\n"
         "print(r['level_3F_mm'][-1])\n"
     )
-    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         timeout=120)
+    run = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
+    )
     assert run.returncode == 0, run.stderr[-1500:]
     # start values hold the plant at rest: level_ref at Q = 57.5 m3/h, 300 + 2.5 / 30 * 60
     assert float(run.stdout.split()[-1]) == pytest.approx(305.0, abs=1e-9)
@@ -157,8 +155,13 @@ def test_failing_compiler_leaves_the_previous_fmu_in_place(tmp_path, monkeypatch
     ],
 )
 def test_bad_requests_raise_export_error(tmp_path, change, message):
-    args = {"backend": "python", "model_name": "m", "provenance": {}, "out": "m.fmu",
-            "plant": PLANTS["fopdt"]()}
+    args = {
+        "backend": "python",
+        "model_name": "m",
+        "provenance": {},
+        "out": "m.fmu",
+        "plant": PLANTS["fopdt"](),
+    }
     args.update(change)
     if args["plant"] == "arx9":
         arx = PLANTS["arx"]()

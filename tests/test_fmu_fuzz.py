@@ -40,8 +40,9 @@ SLOW_FACTOR = 10
 
 def _plant_and_provenance(case: str):
     if case in ("fopdt_envelope", "physical"):
-        model = read_model_file(MODELS / ("fopdt_3F.json" if case != "physical"
-                                          else "physical_3F.json"))
+        model = read_model_file(
+            MODELS / ("fopdt_3F.json" if case != "physical" else "physical_3F.json")
+        )
         return model.plant, fmu_provenance(model)
     family = case.split("_")[0]
     kinds = [k for k in KINDS if family == "fopdt" or k != "flow_dependent_gain"]
@@ -73,7 +74,9 @@ def _fuzz(fuzzers, case: str, seed: int, sequences: int) -> str:
     other_binary, _, other_guid = fuzzers[CASES[(CASES.index(case) + 1) % len(CASES)]]
     run = subprocess.run(
         [str(fuzzer), str(binary), str(seed), str(sequences), str(other_binary), other_guid],
-        capture_output=True, text=True, timeout=1200,
+        capture_output=True,
+        text=True,
+        timeout=1200,
     )
     assert run.returncode == 0, run.stderr[-4000:]
     assert f"fuzz: {sequences} sequences" in run.stdout

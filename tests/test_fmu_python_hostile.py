@@ -42,7 +42,10 @@ def fmus(tmp_path_factory) -> dict[str, Path]:
         for family in ("fopdt", "arx")
     }  # fmt: skip
     made["physical"] = export_fmu(
-        physical.plant, folder / "physical.fmu", backend="python", model_name="hostile_physical",
+        physical.plant,
+        folder / "physical.fmu",
+        backend="python",
+        model_name="hostile_physical",
         provenance=json.loads(json.dumps(fmu_provenance(physical))),
     )
     return {k: Path(extract(str(p), str(folder / k))) for k, p in made.items()}

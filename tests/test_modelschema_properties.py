@@ -34,8 +34,12 @@ BASES = {name: json.loads((MODELS / f"{name}.json").read_text(encoding="utf-8"))
 MAX_LINE_CHARS = 400
 #: Stands for a raw JSON token (NaN, 1e400) that json.dumps cannot write.
 RAW = "\x00RAW\x00"
-BUDGET = settings(max_examples=40, deadline=None, database=None,
-                  suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+BUDGET = settings(
+    max_examples=40,
+    deadline=None,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 BAD_CHARS = [chr(c) for c in range(0x20)] + ["\x7f", "\x85", "\x9f", "\ud800", "\udbff",
                                               "\udc00", "\udfff", "\ufffe", "\uffff"]  # fmt: skip
 
@@ -71,6 +75,7 @@ DICT_PATHS = {name: [p for p in [(), *PATHS[name]] if isinstance(_get(BASES[name
               for name in BASES}  # fmt: skip
 NUMBER_PATHS = {name: [p for p in PATHS[name]
                        if isinstance(_get(BASES[name], p), float)] for name in BASES}  # fmt: skip
+
 
 def _copy(name: str) -> Any:
     return json.loads(json.dumps(BASES[name]))
@@ -137,25 +142,53 @@ TYPED: list[tuple[str, tuple[Any, ...], Any]] = [
     ("arx_3F", ("plant", "na"), _wrong_for_integer()),
     ("arx_3F", ("plant", "nb"), _wrong_for_integer()),
     ("arx_3F", ("plant", "nk"), _wrong_for_integer()),
-    ("arx_3F", ("plant", "sample_period_s"),
-     st.one_of(st.floats(max_value=0.0, allow_nan=False), st.floats(3600.5, 1e308), st.text())),
-    ("fopdt_3F", ("plant", "opening_ref_mm"),
-     st.one_of(st.floats(2000.5, 1e308), st.floats(-1e308, -0.5), st.booleans(), st.text())),
-    ("fopdt_3F", ("plant", "gauge"),
-     st.one_of(st.text(min_size=33, max_size=60, alphabet="ab1_"), st.just(""),
-               st.text(min_size=1, max_size=8).filter(lambda t: not t.isascii()),
-               st.integers(), st.none())),
-    ("fopdt_3F", ("plant", "schedule", "gain_mm_per_mm", 0),
-     st.one_of(st.floats(1000.5, 1e308), st.floats(-1e308, -1000.5), st.text(), st.none())),
-    ("fopdt_3F", ("plant", "schedule", "time_constant_s", 2),
-     st.one_of(st.floats(max_value=0.0, allow_nan=False), st.floats(86400.5, 1e308))),
-    ("physical_3F", ("plant", "parameters", "area_m2"),
-     st.one_of(st.floats(1e6 + 1, 1e308), st.floats(-1e308, -1e6 - 1), st.text(), st.none())),
-    ("fopdt_3F", ("provenance",),
-     st.one_of(st.integers(), st.text(max_size=5), st.lists(st.integers(), max_size=2))),
+    (
+        "arx_3F",
+        ("plant", "sample_period_s"),
+        st.one_of(st.floats(max_value=0.0, allow_nan=False), st.floats(3600.5, 1e308), st.text()),
+    ),
+    (
+        "fopdt_3F",
+        ("plant", "opening_ref_mm"),
+        st.one_of(st.floats(2000.5, 1e308), st.floats(-1e308, -0.5), st.booleans(), st.text()),
+    ),
+    (
+        "fopdt_3F",
+        ("plant", "gauge"),
+        st.one_of(
+            st.text(min_size=33, max_size=60, alphabet="ab1_"),
+            st.just(""),
+            st.text(min_size=1, max_size=8).filter(lambda t: not t.isascii()),
+            st.integers(),
+            st.none(),
+        ),
+    ),
+    (
+        "fopdt_3F",
+        ("plant", "schedule", "gain_mm_per_mm", 0),
+        st.one_of(st.floats(1000.5, 1e308), st.floats(-1e308, -1000.5), st.text(), st.none()),
+    ),
+    (
+        "fopdt_3F",
+        ("plant", "schedule", "time_constant_s", 2),
+        st.one_of(st.floats(max_value=0.0, allow_nan=False), st.floats(86400.5, 1e308)),
+    ),
+    (
+        "physical_3F",
+        ("plant", "parameters", "area_m2"),
+        st.one_of(st.floats(1e6 + 1, 1e308), st.floats(-1e308, -1e6 - 1), st.text(), st.none()),
+    ),
+    (
+        "fopdt_3F",
+        ("provenance",),
+        st.one_of(st.integers(), st.text(max_size=5), st.lists(st.integers(), max_size=2)),
+    ),
     ("fopdt_3F", ("validity",), st.one_of(st.floats(allow_nan=False), st.text(max_size=5))),
-    ("physical_3F", ("plant", "kind"), st.text(max_size=10).filter(
-        lambda t: t not in ("fopdt", "arx", "physical"))),
+    (
+        "physical_3F",
+        ("plant", "kind"),
+        st.text(max_size=10).filter(lambda t: t not in ("fopdt", "arx", "physical")),
+    ),
     ("arx_3F", ("provenance", "records"), st.dictionaries(st.text(max_size=3), st.integers())),
 ]
 

@@ -88,9 +88,16 @@ def test_numba_and_casadi_renderings_equal_python(plant):
 
 @pytest.mark.parametrize("seiche", [None, (12.0, 15.0, -0.7)], ids=["no seiche", "seiche"])
 def test_fast_simulator_equals_reference_on_a_bundled_record(plant, seiche):
-    plant = dataclasses.replace(plant, effects=() if seiche is None else (
-        effect_dict("seiche", period_s=seiche[0], decay_time_s=seiche[1],
-                    amplitude_mm_per_mm=seiche[2]),))
+    plant = dataclasses.replace(
+        plant,
+        effects=()
+        if seiche is None
+        else (
+            effect_dict(
+                "seiche", period_s=seiche[0], decay_time_s=seiche[1], amplitude_mm_per_mm=seiche[2]
+            ),
+        ),
+    )
     rec = read_record(bundled_records_dir() / "C.csv")
     e = reconstructed_opening(rec.time_s, rec.opening_mm, rec.hold)
     out = np.empty(rec.n_samples)
@@ -135,11 +142,24 @@ def test_a_large_move_lands_on_the_gate_law_level(plant):
 
 # -- identification recovers a known plant ------------------------------------------------------
 TRUTH = {
-    "cd_small": 0.90, "cd_small_per_q": 0.10, "cd_large": 0.52, "cd_large_per_q": -0.05,
-    "cd_mid_log_ratio": -1.7, "cd_mid_per_q": -0.3, "cd_log_width": -0.7,
-    "cd_log_width_per_q": 0.0, "cd_log_shape": 0.3, "width_m": 0.30, "offset_mm": 2.0,
-    "offset_per_flow2_mm": 20.0, "area_m2": 2.2, "area_per_depth_m": -1.0, "speed_mm_s": 1.5,
-    "stall_depth_m": 0.5, "resolution_mm": 1.0, "max_substep_s": 0.6,
+    "cd_small": 0.90,
+    "cd_small_per_q": 0.10,
+    "cd_large": 0.52,
+    "cd_large_per_q": -0.05,
+    "cd_mid_log_ratio": -1.7,
+    "cd_mid_per_q": -0.3,
+    "cd_log_width": -0.7,
+    "cd_log_width_per_q": 0.0,
+    "cd_log_shape": 0.3,
+    "width_m": 0.30,
+    "offset_mm": 2.0,
+    "offset_per_flow2_mm": 20.0,
+    "area_m2": 2.2,
+    "area_per_depth_m": -1.0,
+    "speed_mm_s": 1.5,
+    "stall_depth_m": 0.5,
+    "resolution_mm": 1.0,
+    "max_substep_s": 0.6,
 }
 NOISE_MM = 0.5
 
@@ -174,8 +194,11 @@ def test_identification_recovers_a_known_plant(tmp_path):
     q, e = q.ravel(), e.ravel()
     h = np.array([truth.steady_level_mm(ei, qi) for qi, ei in zip(q, e, strict=True)])
     keep = (h > 100) & (h < 380)
-    static = types.SimpleNamespace(flow_m3h=q[keep], opening_mm=e[keep],
-                                   levels_mm={"3F": h[keep] + rng.normal(0, 0.3, keep.sum())})
+    static = types.SimpleNamespace(
+        flow_m3h=q[keep],
+        opening_mm=e[keep],
+        levels_mm={"3F": h[keep] + rng.normal(0, 0.3, keep.sum())},
+    )
     plans = [(35.0, [15, 20, 25, 20, 15], 420.0), (60.0, [30, 40, 35, 45, 30], 400.0),
              (80.0, [40, 50, 60, 50], 400.0)]  # fmt: skip
     records = {f"S{i}": read_record(_synthetic_record(tmp_path / f"S{i}.csv", truth, qq,
@@ -188,8 +211,10 @@ def test_identification_recovers_a_known_plant(tmp_path):
     # actuator: travel times of 3-7 s timed on a 1.2 s sample grid (one sample is 17-40 %)
     assert abs(got.parameters["speed_mm_s"] / TRUTH["speed_mm_s"] - 1) < 0.25
     # the steady map: within the noise of the static points over the identified envelope
-    errs = [got.steady_level_mm(ei, qi) - truth.steady_level_mm(ei, qi)
-            for qi, ei in zip(static.flow_m3h, static.opening_mm, strict=True)]
+    errs = [
+        got.steady_level_mm(ei, qi) - truth.steady_level_mm(ei, qi)
+        for qi, ei in zip(static.flow_m3h, static.opening_mm, strict=True)
+    ]
     assert math.sqrt(np.mean(np.square(errs))) < 1.0
     # a record never fitted, with Q steps and moves together, is simulated at the noise floor
     held = read_record(_synthetic_record(tmp_path / "H.csv", truth, 50.0, [20.0, 30.0, 25.0],
@@ -236,8 +261,9 @@ def test_seiche_is_the_one_block_the_physical_and_envelope_families_carry(plant)
     lag = effect_dict("sensor_lag", time_constant_s=2.0)
     with_seiche = dataclasses.replace(plant, effects=(seiche,))
     assert plant_from_dict(plant_to_dict(with_seiche)).effects == (seiche,)
-    with pytest.raises(ModelFileError, match="sensor_lag applies to fopdt, arx plants, not "
-                                             "physical"):
+    with pytest.raises(
+        ModelFileError, match="sensor_lag applies to fopdt, arx plants, not physical"
+    ):
         dataclasses.replace(plant, effects=(lag,))
     fopdt = read_model_file(MODEL.with_name("fopdt_3F.json")).plant
     assert dataclasses.replace(fopdt, effects=(seiche,)).effects == (seiche,)

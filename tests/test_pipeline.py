@@ -48,9 +48,7 @@ def test_run_writes_summary_and_progress(records_dir: Path, tmp_path: Path) -> N
     assert _siblings(out) == ["out"]  # no temporary directories left
 
 
-def test_failed_run_leaves_nothing_and_keeps_old_output(
-    records_dir: Path, tmp_path: Path
-) -> None:
+def test_failed_run_leaves_nothing_and_keeps_old_output(records_dir: Path, tmp_path: Path) -> None:
     out = run_pipeline(tmp_path / "out", records_dir=records_dir, stages=CHECKING)
     before = (out / "records.json").read_text(encoding="utf-8")
     (records_dir / "bad.csv").write_text("time_s,opening_mm\n", encoding="utf-8")
@@ -97,8 +95,9 @@ def test_stages_are_extensible(records_dir: Path, tmp_path: Path) -> None:
     out = run_pipeline(tmp_path / "out", stages=stages, records_dir=records_dir)
     assert (out / "count.txt").read_text() == "2"
     with pytest.raises(GatetwinError, match="stage failed"):
-        run_pipeline(tmp_path / "new", stages=(*stages, PipelineStage("x", fail)),
-                     records_dir=records_dir)
+        run_pipeline(
+            tmp_path / "new", stages=(*stages, PipelineStage("x", fail)), records_dir=records_dir
+        )
     assert not (tmp_path / "new").exists()
 
 

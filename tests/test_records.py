@@ -33,8 +33,13 @@ def _rows(segments: list[tuple[str, float | None, int]], period: float = 1.2) ->
     return rows
 
 
-def _write(tmp_path: Path, rows: list[str], name: str = "rec.csv", header: str = HEADER,
-           sidecar: dict | None = None) -> Path:
+def _write(
+    tmp_path: Path,
+    rows: list[str],
+    name: str = "rec.csv",
+    header: str = HEADER,
+    sidecar: dict | None = None,
+) -> Path:
     path = tmp_path / name
     path.write_text("\n".join([header, *rows]) + "\n", encoding="utf-8")
     if sidecar is not None:
@@ -46,9 +51,7 @@ STEP = [("hold", 15.0, 60), ("open", None, 3), ("hold", 20.0, 60)]
 
 
 def _arrays(segments: list[tuple[str, float | None, int]], period: float = 1.2) -> dict:
-    opening = np.concatenate(
-        [np.full(n, np.nan if e is None else e) for _, e, n in segments]
-    )
+    opening = np.concatenate([np.full(n, np.nan if e is None else e) for _, e, n in segments])
     hold = np.concatenate([np.full(n, s == "hold") for s, _, n in segments])
     n = opening.size
     level = 1000.0 - 15.0 * np.nan_to_num(opening)
@@ -83,8 +86,13 @@ def test_step_record_segments_and_onset(tmp_path: Path) -> None:
 
 def test_record_arrays_are_read_only(tmp_path: Path) -> None:
     record = read_record(_write(tmp_path, _rows(STEP)))
-    for values in (record.time_s, record.opening_mm, record.hold, record.flow_m3h,
-                   *record.levels_mm.values()):
+    for values in (
+        record.time_s,
+        record.opening_mm,
+        record.hold,
+        record.flow_m3h,
+        *record.levels_mm.values(),
+    ):
         with pytest.raises(ValueError):
             values[0] = 1
 
@@ -201,7 +209,10 @@ def test_prbs_test_needs_steps_and_usable_samples() -> None:
     with pytest.raises(RecordError, match="found 1 step"):
         record_from_arrays(**_arrays(STEP), test="prbs")
     segments: list[tuple[str, float | None, int]] = [
-        ("hold", 35.0, 12), ("open", None, 1), ("hold", 45.0, 12), ("open", None, 1),
+        ("hold", 35.0, 12),
+        ("open", None, 1),
+        ("hold", 45.0, 12),
+        ("open", None, 1),
         ("hold", 35.0, 12),
     ]
     record = record_from_arrays(**_arrays(segments), test="prbs")  # 3 × (12 − 2) = 30
@@ -245,7 +256,9 @@ def test_record_from_arrays_names_samples() -> None:
 
 def test_record_from_arrays_metadata_and_options() -> None:
     record = record_from_arrays(
-        **_arrays(STEP), sample_period_s=1.2, gauges_m={"3F": 1.1},
+        **_arrays(STEP),
+        sample_period_s=1.2,
+        gauges_m={"3F": 1.1},
         metadata={"condition": "A", "test": "free"},
     )
     assert (record.test, record.test_source) == ("free", "sidecar")

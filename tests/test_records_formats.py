@@ -122,9 +122,16 @@ def test_broken_or_oversized_parquet_is_refused(tmp_path: Path) -> None:
         read_record(junk)
     # A million constant rows compress to a few kB but decode to 48 MB.
     n = 1_000_000
-    table = pa.table({"time_s": np.arange(n, dtype=float), "opening_mm": np.full(n, 15.0),
-                      "state": ["hold"] * n, "flow_m3h": np.full(n, 29.5),
-                      "level_3F_mm": np.full(n, 300.0), "level_5H_mm": np.full(n, 306.0)})
+    table = pa.table(
+        {
+            "time_s": np.arange(n, dtype=float),
+            "opening_mm": np.full(n, 15.0),
+            "state": ["hold"] * n,
+            "flow_m3h": np.full(n, 29.5),
+            "level_3F_mm": np.full(n, 300.0),
+            "level_5H_mm": np.full(n, 306.0),
+        }
+    )
     path = _parquet(tmp_path, table)
     limit = 10 * path.stat().st_size
     with pytest.raises(RecordError, match="rec.parquet: 48000000 bytes of data decoded"):

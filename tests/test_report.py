@@ -61,8 +61,11 @@ def sample_report(tmp_path: Path) -> tuple[Report, list[bytes]]:
     report.add_section(
         "Published vs ours",
         "Levels in mm; <script>alert('x')</script> must show as text.",
-        Table(("gauge", "K (mm/mm)", "ok"), [("3F", -15.27, True), ("5H", math.nan, False)],
-              "Condition A"),  # fmt: skip
+        Table(
+            ("gauge", "K (mm/mm)", "ok"),
+            [("3F", -15.27, True), ("5H", math.nan, False)],
+            "Condition A",
+        ),  # fmt: skip
     )
     report.add_section(
         "Figures",

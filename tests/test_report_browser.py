@@ -101,8 +101,11 @@ def build_report(folder: Path) -> Path:
         "The reference study's Table 2 against a least-squares FOPDT fit.",
         Table(
             ("gauge", "K published (mm/mm)", "K ours (mm/mm)", "T published (s)", "within 5 %"),
-            [("1D", -15.41, -15.36, 71.5, True), ("3F", -15.27, -15.36, 71.2, True),
-             ("5H", -15.39, -14.2, 70.8, False)],
+            [
+                ("1D", -15.41, -15.36, 71.5, True),
+                ("3F", -15.27, -15.36, 71.2, True),
+                ("5H", -15.39, -14.2, 70.8, False),
+            ],
             "Published vs ours",
         ),  # fmt: skip
         Figure(level_png, "Measured level at 3F and the FOPDT model"),

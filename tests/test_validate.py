@@ -149,9 +149,11 @@ def test_metrics_are_known_truths() -> None:
     mean = free_run_metrics(y, np.full(5, 3.0))
     assert mean.fit_percent == pytest.approx(0.0) and mean.r2 == pytest.approx(0.0)
     blown_up = free_run_metrics(y, np.full(5, np.inf))
-    assert blown_up.fit_percent == -np.inf and not Threshold("fit_percent", 0).check(
-        {"fit_percent": blown_up.fit_percent}
-    ).status == "passed"
+    assert (
+        blown_up.fit_percent == -np.inf
+        and not Threshold("fit_percent", 0).check({"fit_percent": blown_up.fit_percent}).status
+        == "passed"
+    )
 
 
 def test_grid_ignores_jitter_and_steps_across_gaps() -> None:

@@ -156,8 +156,11 @@ def _validate_cli(fmu: Path, records: list[Path], out: Path, *extra: str
     """``gatetwin validate`` in its own process, with a private, empty TMPDIR."""
     tmp = out / "tmp"
     tmp.mkdir(parents=True)
-    env = {**os.environ, "TMPDIR": str(tmp),
-           "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")])}
+    env = {
+        **os.environ,
+        "TMPDIR": str(tmp),
+        "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")]),
+    }
     command = [sys.executable, "-m", "gatetwin.cli", "validate", str(fmu), *map(str, records),
                "--fail-under", "fit_percent=70", "--json", str(out / "v.json"),
                "--junit", str(out / "v.xml"), *extra]  # fmt: skip
@@ -183,8 +186,11 @@ def test_hostile_fmu_fails_its_cell_and_the_report_is_written(
     assert on_a["failure_cause"] is None and on_a["passed"], on_a
     assert on_a["metrics"]["fit_percent"] > 90.0
     assert f"B.csv: FMU run failed: {on_b['failure_cause']}" in run.stderr
-    case = ET.parse(tmp_path / "v.xml").getroot().find(
-        f"testsuite/testcase[@classname='gatetwin.validate.hostile_{kind}.B']")
+    case = (
+        ET.parse(tmp_path / "v.xml")
+        .getroot()
+        .find(f"testsuite/testcase[@classname='gatetwin.validate.hostile_{kind}.B']")
+    )
     failure = case.find("failure")
     assert failure.get("type") == "FmuRunFailure"
     assert failure.get("message") == on_b["failure_cause"]

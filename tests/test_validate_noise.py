@@ -148,7 +148,8 @@ def test_cli_fit_vs_floor_and_json_noise_floor(
     expected = record_noise_floor(read_record(bundled / "Q55.csv"), "3F")
     assert doc["noise_floor"]["sigma_mm"] == pytest.approx(expected.sigma_mm)
     assert doc["fit_vs_floor"] == pytest.approx(
-        doc["metrics"]["fit_percent"] - doc["noise_floor"]["fit_percent"])
+        doc["metrics"]["fit_percent"] - doc["noise_floor"]["fit_percent"]
+    )
     assert main([*args, "--fail-under", f"fit_vs_floor={doc['fit_vs_floor'] + 1:.6f}"]) == 1
     assert "fit_vs_floor" in capsys.readouterr().out
 

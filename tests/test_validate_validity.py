@@ -234,7 +234,8 @@ def test_cli_warns_once_per_record_outside_and_still_passes(
     doc = json.loads(json_path.read_text(encoding="utf-8"))
     for rec in doc["records"]:
         assert {"inside_validity", "validity", "outside_by", "noise_floor", "fit_vs_floor"} <= (
-            rec.keys())
+            rec.keys()
+        )
     assert [r["inside_validity"] for r in doc["records"]] == [True, False]
     props = {p.get("name"): p.get("value") for p in ET.parse(junit).getroot().iter("property")}
     assert props["A.csv: inside_validity"] == "true"

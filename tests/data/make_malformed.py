@@ -131,9 +131,7 @@ CSV_FILES: dict[str, Callable[[], str | bytes]] = {
     "header_only.csv": lambda: ",".join(HEADER) + "\n",
     "missing_state_column.csv": lambda: drop_columns(base_rows(), ["state"]),
     "missing_level_column.csv": lambda: drop_columns(base_rows(), ["level_3F_mm", "level_5H_mm"]),
-    "duplicate_column.csv": lambda: to_text(
-        base_rows(), [*HEADER[:5], "level_3F_mm"]
-    ),
+    "duplicate_column.csv": lambda: to_text(base_rows(), [*HEADER[:5], "level_3F_mm"]),
     "text_in_level.csv": lambda: to_text(set_cell(base_rows(), 7, "level_3F_mm", "231.6mm")),
     "text_in_time.csv": lambda: to_text(set_cell(base_rows(), 9, "time_s", "00:00:09")),
     "time_backwards.csv": lambda: to_text(_time_backwards()),

@@ -85,8 +85,12 @@ def _fopdt(record: Record, gauge: str, name: str) -> dict[str, Any]:
     step = identify_step(record, gauge)
     onset = step.gauges[gauge]
     opening = reconstructed_opening(record.time_s, record.opening_mm, record.hold)
-    fit = fit_fopdt_driven(record.time_s, opening, record.levels_mm[gauge],
-                           initial=(onset.fit.gain_mm_per_mm, onset.fit.time_constant_s, 0.5))
+    fit = fit_fopdt_driven(
+        record.time_s,
+        opening,
+        record.levels_mm[gauge],
+        initial=(onset.fit.gain_mm_per_mm, onset.fit.time_constant_s, 0.5),
+    )
     cond = StepCondition(
         _stem(record), step.flow_m3h, step.opening_before_mm, step.delta_e_mm,
         onset.paper.pre_mean_mm, fit.gain_mm_per_mm, fit.time_constant_s, fit.dead_time_s,

@@ -103,8 +103,7 @@ def _arx_point(plant: ArxPlant, flow_m3h: float, opening_mm: float) -> Operating
     a, b = plant.coefficients(flow_m3h)
     gain = dc_gain(a, b)
     tau = dominant_pole(a, plant.sample_period_s).time_constant_s
-    level = plant.schedule.at("level_ref_mm", flow_m3h) + gain * (opening_mm
-                                                                  - plant.opening_ref_mm)
+    level = plant.schedule.at("level_ref_mm", flow_m3h) + gain * (opening_mm - plant.opening_ref_mm)
     return OperatingPoint(flow_m3h, opening_mm, gain, np.nan if tau is None else tau,
                           (plant.nk - 1) * plant.sample_period_s, level, "arx")  # fmt: skip
 
@@ -301,9 +300,15 @@ class Model:
         level = local["level_mm"]
         if isinstance(plant, PhysicalPlant):
             level += plant.schedule.at("level_ref_mm", q)
-        return OperatingPoint(q, e, local["gain_mm_per_mm"], local["time_constant_s"],
-                              local["dead_time_s"], level,
-                              "physical" if isinstance(plant, PhysicalPlant) else "envelope")
+        return OperatingPoint(
+            q,
+            e,
+            local["gain_mm_per_mm"],
+            local["time_constant_s"],
+            local["dead_time_s"],
+            level,
+            "physical" if isinstance(plant, PhysicalPlant) else "envelope",
+        )
 
     def operating_point(self) -> tuple[float, float]:
         """The default (discharge m³/h, opening mm) of :meth:`to_control`.
@@ -400,8 +405,10 @@ class Model:
         from gatetwin.fmu.provenance import fmu_provenance
 
         if fmi_version not in FMI_VERSIONS:
-            raise ExportError(f"FMI {fmi_version} export is not implemented; this gatetwin "
-                              f"writes FMI {', '.join(FMI_VERSIONS)} co-simulation FMUs")
+            raise ExportError(
+                f"FMI {fmi_version} export is not implemented; this gatetwin "
+                f"writes FMI {', '.join(FMI_VERSIONS)} co-simulation FMUs"
+            )
         return export_fmu(self.plant, os.fspath(path), backend=backend, model_name=self.name,
                           provenance=fmu_provenance(self.file))  # fmt: skip
 

@@ -88,8 +88,9 @@ def _run_check(args: argparse.Namespace) -> int:
     )  # fmt: skip
     if detect_table_kind(args.path, limits=limits) == "static":
         if args.test is not None:
-            raise RecordError(f"{args.path}: --test applies to time-series records, not to "
-                              "a static rating table")
+            raise RecordError(
+                f"{args.path}: --test applies to time-series records, not to a static rating table"
+            )
         summary = read_static_table(args.path, limits=limits).summary()
         text = format_static_summary(summary)
     else:
@@ -113,7 +114,9 @@ def _write_json(path: str, data: object) -> None:
 
 def _add_run_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--out", metavar="DIR", default="gatetwin-out",
+        "--out",
+        metavar="DIR",
+        default="gatetwin-out",
         help="output directory, replaced only after success (default: gatetwin-out)",
     )
 

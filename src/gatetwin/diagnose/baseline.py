@@ -123,8 +123,10 @@ def identify_baseline(record: Record, data: DiagnosisData) -> Baseline:
         )
     if record.test == "prbs":
         plant: Plant = _arx_plant(record, data)
-        source = ("ARX(2,2,1) identified from the record (identify_prbs), coefficients and level "
-                  "refitted for the free run (output error)")
+        source = (
+            "ARX(2,2,1) identified from the record (identify_prbs), coefficients and level "
+            "refitted for the free run (output error)"
+        )
         fit = refit(plant, data)
         return Baseline(plant, fit, source)
     fit = refit(_grid_start(data), data)

@@ -174,8 +174,9 @@ def fit_candidate(candidate: Candidate, ctx: Context, suggested: bool) -> Candid
         max_time_constant_s=record_span_s(ctx.data),
     )  # fmt: skip
     try:
-        fit = fit_plant(param, _starts(candidate, ctx, param), ctx.data,
-                        max_starts=candidate.max_starts)
+        fit = fit_plant(
+            param, _starts(candidate, ctx, param), ctx.data, max_starts=candidate.max_starts
+        )
     except GatetwinError as exc:
         return CandidateResult(candidate.kind, suggested, not_applicable=f"fit failed: {exc}")
     parts = rmse_parts(ctx, fit.simulated_mm)

@@ -238,7 +238,8 @@ def _write_outputs(summary: dict[str, Any], record: Record, data: DiagnosisData,
         provenance = {"model_name": name, "diagnosis_of": summary["record"],
                       "named_effect": named, "record_sha256": record.sha256}  # fmt: skip
         summary["fmus"] = artifacts.export_and_validate(
-            winner.fit.plant, data, name, Path(fmu_dir), provenance, settings.backends)
+            winner.fit.plant, data, name, Path(fmu_dir), provenance, settings.backends
+        )
         summary["control"] = control_check(winner.fit.plant, data)
 
 

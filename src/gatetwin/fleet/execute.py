@@ -59,8 +59,14 @@ def default_workers() -> int:
 def _crashed(job: GateJob, exc: BaseException) -> dict[str, Any]:
     """The result of a task whose process died or could not run it."""
     reason = f"task failed ({type(exc).__name__}: {exc})"
-    return {"gate": job.gate, "status": "failed", "models": {}, "fmus": {},
-            "summary": failed_summary(job.gate, reason, len(job.paths)), "seconds": 0.0}
+    return {
+        "gate": job.gate,
+        "status": "failed",
+        "models": {},
+        "fmus": {},
+        "summary": failed_summary(job.gate, reason, len(job.paths)),
+        "seconds": 0.0,
+    }
 
 
 def _serial(jobs: list[GateJob]) -> Iterator[dict[str, Any]]:
@@ -113,8 +119,12 @@ def _dask(jobs: list[GateJob], address: str, timeout_s: float) -> Iterator[dict[
     try:
         futures = {}
         for job in jobs:
-            future = client.submit(identify_gate, job, pure=False,
-                                   key=f"gatetwin-gate-{job.gate}-{os.getpid()}-{id(job)}")
+            future = client.submit(
+                identify_gate,
+                job,
+                pure=False,
+                key=f"gatetwin-gate-{job.gate}-{os.getpid()}-{id(job)}",
+            )
             futures[future.key] = (future, job)
         for future in dask_completed([f for f, _ in futures.values()], loop=client.loop):
             job = futures[future.key][1]

@@ -135,7 +135,12 @@ def _export_fmus(models: dict[str, dict[str, Any]], backend: str) -> dict[str, b
         write_models(models, folder)
         for name in sorted(models):
             model = read_model_file(folder / f"{name}.json")
-            path = export_fmu(model.plant, folder / f"{name}.fmu", backend=backend,
-                              model_name=model.name, provenance=fmu_provenance(model))
+            path = export_fmu(
+                model.plant,
+                folder / f"{name}.fmu",
+                backend=backend,
+                model_name=model.name,
+                provenance=fmu_provenance(model),
+            )
             out[name] = path.read_bytes()
     return out

@@ -90,13 +90,13 @@ def fleet_html(doc: dict[str, Any], png: bytes) -> str:
     title = (f"Fleet: {doc['n_gates']} gates, {doc['n_ok']} identified, "
              f"{doc['n_failed']} failed")  # fmt: skip
     return (
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
         f"<title>{html.escape(title)}</title><style>body{{font-family:sans-serif}}"
         "table{border-collapse:collapse}td,th{border:1px solid #bbb;padding:2px 6px}"
         "tr.failed{background:#fdd}</style></head><body>"
         f"<h1>{html.escape(title)}</h1><p>Run: {html.escape(doc['mode'])}. Fit: free-run "
         "fit on the gate's held-out records, %.</p>"
-        f"<img alt=\"held-out free-run fit per gate\" src=\"data:image/png;base64,{image}\">"
+        f'<img alt="held-out free-run fit per gate" src="data:image/png;base64,{image}">'
         f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(rows)}</tbody></table>"
         "</body></html>\n"
     )

@@ -30,8 +30,18 @@ from gatetwin.flume.scenario import Breakpoints, Scenario
 from gatetwin.flume.simulate import run_flume, spin_up, steady_gate_depth_m
 from gatetwin.flume.solver import leaf_speed
 
-__all__ = ["Breakpoints", "Scenario", "reference_scenarios", "run_scenario", "static_table",
-           "load_scenario", "prbs_scenario", "step_scenario", "write_reference_records"]
+__all__ = [
+    "Breakpoints",
+    "Scenario",
+    "reference_scenarios",
+    "run_scenario",
+    "static_table",
+    "load_scenario",
+    "prbs_scenario",
+    "step_scenario",
+    "write_reference_records",
+]
+
 
 def run_scenario(
     scn: Scenario, cfg: FlumeConfig | None = None, logger: LoggerConfig | None = None

@@ -52,8 +52,7 @@ class Scenario:
             times = [t for t, _ in bps]
             if not bps or times[0] != 0 or np.any(np.diff(times) <= 0):
                 raise FlumeError(
-                    f"scenario {self.name}: {label} breakpoints must start at t = 0 "
-                    "and increase"
+                    f"scenario {self.name}: {label} breakpoints must start at t = 0 and increase"
                 )
             if not all(math.isfinite(v) and v > 0 for _, v in bps):
                 raise FlumeError(f"scenario {self.name}: {label} values must be finite and > 0")

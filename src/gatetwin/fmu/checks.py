@@ -43,8 +43,7 @@ def gauge_name_ok(gauge: object) -> bool:
     """A gauge name an FMU can carry: 1 to 32 characters, none a control character."""
     from gatetwin.modelschema import text_problem
 
-    return isinstance(gauge, str) and 0 < len(gauge) <= MAX_GAUGE_CHARS and not text_problem(
-        gauge)
+    return isinstance(gauge, str) and 0 < len(gauge) <= MAX_GAUGE_CHARS and not text_problem(gauge)
 
 
 def xml_text(text: str) -> str:

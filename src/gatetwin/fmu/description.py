@@ -75,7 +75,7 @@ COMMUNICATION_POINT_RTOL = 1e-9
 #: Log categories both backends declare.
 LOG_CATEGORIES = {
     "logStatusWarning": "Warnings (an input or the level outside the model's validity, or the "
-                        "discharge outside the schedule's knots)",
+    "discharge outside the schedule's knots)",
     "logStatusError": "Errors: refused inputs, parameters and communication steps",
     "logAll": "Everything, including informational messages",
 }
@@ -228,39 +228,97 @@ def output_name(gauge: str) -> str:
 def _variables(plant: Plant) -> list[VariableSpec]:
     knots = plant.schedule.flow_m3h
     rows: list[tuple[str, str, str, str | None, str, str, float | None]] = [
-        ("opening_mm", "input", "continuous", None, "mm",
-         "Gate opening, held over each communication step", plant.opening_ref_mm),
-        ("flow_m3h", "input", "continuous", None, "m3/h",
-         "Discharge Q, held over each communication step; schedules the parameters",
-         0.5 * (knots[0] + knots[-1])),
-        (output_name(plant.gauge), "output", "continuous", "calculated", "mm",
-         f"Level at gauge {plant.gauge}: level_ref_mm(Q) + dynamic deviation", None),
-        ("opening_ref_mm", "parameter", "tunable", "exact", "mm",
-         "Reference opening of the operating point; the dynamics see opening - opening_ref",
-         plant.opening_ref_mm),
+        (
+            "opening_mm",
+            "input",
+            "continuous",
+            None,
+            "mm",
+            "Gate opening, held over each communication step",
+            plant.opening_ref_mm,
+        ),
+        (
+            "flow_m3h",
+            "input",
+            "continuous",
+            None,
+            "m3/h",
+            "Discharge Q, held over each communication step; schedules the parameters",
+            0.5 * (knots[0] + knots[-1]),
+        ),
+        (
+            output_name(plant.gauge),
+            "output",
+            "continuous",
+            "calculated",
+            "mm",
+            f"Level at gauge {plant.gauge}: level_ref_mm(Q) + dynamic deviation",
+            None,
+        ),
+        (
+            "opening_ref_mm",
+            "parameter",
+            "tunable",
+            "exact",
+            "mm",
+            "Reference opening of the operating point; the dynamics see opening - opening_ref",
+            plant.opening_ref_mm,
+        ),
     ]
     if isinstance(plant, PhysicalPlant):
-        rows[2] = (output_name(plant.gauge), "output", "continuous", "calculated", "mm",
-                   f"Level at gauge {plant.gauge}: storage and gate law, plus level_ref_mm(Q)",
-                   None)
-        rows[3] = ("opening_ref_mm", "parameter", "fixed", "exact", "mm",
-                   "Always 0: the physical family takes the opening as it is", 0.0)
+        rows[2] = (
+            output_name(plant.gauge),
+            "output",
+            "continuous",
+            "calculated",
+            "mm",
+            f"Level at gauge {plant.gauge}: storage and gate law, plus level_ref_mm(Q)",
+            None,
+        )
+        rows[3] = (
+            "opening_ref_mm",
+            "parameter",
+            "fixed",
+            "exact",
+            "mm",
+            "Always 0: the physical family takes the opening as it is",
+            0.0,
+        )
     if isinstance(plant, ArxPlant):
-        rows.append(("sample_period_s", "parameter", "fixed", "exact", "s",
-                     "ARX sample period; communication steps must be whole multiples",
-                     plant.sample_period_s))
+        rows.append(
+            (
+                "sample_period_s",
+                "parameter",
+                "fixed",
+                "exact",
+                "s",
+                "ARX sample period; communication steps must be whole multiples",
+                plant.sample_period_s,
+            )
+        )
     columns = [("flow_m3h", ("m3/h", "Discharge knot of the schedule (strictly increasing)"))]
     columns += [(name, _column_meta(name, plant.kind)) for name in plant.columns]
     for name, (unit, text) in columns:
         values = knots if name == "flow_m3h" else plant.schedule.values[name]
         for k, value in enumerate(values, start=1):
-            rows.append((f"schedule.{name}[{k}]", "parameter", "tunable", "exact", unit,
-                         f"{text}, knot {k}", float(value)))
+            rows.append(
+                (
+                    f"schedule.{name}[{k}]",
+                    "parameter",
+                    "tunable",
+                    "exact",
+                    unit,
+                    f"{text}, knot {k}",
+                    float(value),
+                )
+            )
     kernel = kernel_parameters(plant)
     if kernel is not None:
         prefix, values = kernel
-        rows += [(f"{prefix}.{name}", "parameter", "tunable", "exact", unit, text,
-                  values[name]) for name, unit, text in physical_kernel.PARAMETERS]
+        rows += [
+            (f"{prefix}.{name}", "parameter", "tunable", "exact", unit, text, values[name])
+            for name, unit, text in physical_kernel.PARAMETERS
+        ]
     specs = [VariableSpec(r[0], vr, *r[1:]) for vr, r in enumerate(rows)]
     for effect in plant.effects:
         for p in parameter_specs(effect["kind"]):
@@ -305,8 +363,10 @@ def _column_meta(name: str, kind: str) -> tuple[str, str]:
 def _guid(plant: Plant, model_name: str, provenance: dict[str, Any], build_id: str) -> str:
     try:
         text = json.dumps(
-            [plant_to_dict(plant), model_name, provenance, build_id], sort_keys=True,
-            allow_nan=False, default=str,
+            [plant_to_dict(plant), model_name, provenance, build_id],
+            sort_keys=True,
+            allow_nan=False,
+            default=str,
         )
     except ValueError as exc:
         raise ExportError(f"provenance must be JSON without NaN ({exc})") from None
@@ -321,8 +381,10 @@ def _summary(plant: Plant, provenance: dict[str, Any]) -> str:
         f"{len(plant.schedule.flow_m3h)} knot(s), valid for Q in [{lo:g}, {hi:g}] m3/h"
     )
     if isinstance(plant, PhysicalPlant):
-        head = (f"gatetwin PHYSICAL plant of gauge {plant.gauge} (pool storage drained by the "
-                f"gate law, loaded actuator), valid for Q in [{lo:g}, {hi:g}] m3/h")
+        head = (
+            f"gatetwin PHYSICAL plant of gauge {plant.gauge} (pool storage drained by the "
+            f"gate law, loaded actuator), valid for Q in [{lo:g}, {hi:g}] m3/h"
+        )
     facts = [f"{k}={_short(v)}" for k, v in _flatten(provenance) if v is not None]
     return head + ("; " + "; ".join(facts) if facts else "")
 
@@ -359,8 +421,12 @@ def _macro(name: str) -> str:
 
 def model_config_header(desc: FmuDescription) -> str:
     """``model_config.h`` of the C FMU: identity, sizes, value references, variable table."""
-    kinds = {"input": "GT_KIND_INPUT", "output": "GT_KIND_OUTPUT",
-             "tunable": "GT_KIND_TUNABLE", "fixed": "GT_KIND_FIXED"}
+    kinds = {
+        "input": "GT_KIND_INPUT",
+        "output": "GT_KIND_OUTPUT",
+        "tunable": "GT_KIND_TUNABLE",
+        "fixed": "GT_KIND_FIXED",
+    }
     for v in desc.variables:  # names become C string literals: nothing that could end one
         if not _C_NAME.fullmatch(v.name):
             raise ExportError(f"variable name {v.name!r} has characters a C FMU cannot carry")
@@ -388,14 +454,21 @@ def model_config_header(desc: FmuDescription) -> str:
         lines.append(f"#define GT_HISTORY_CAPACITY {DELAY_HISTORY_CAPACITY}")
     else:
         na, nb, nk = desc.arx_orders
-        lines += [f"#define GT_NA {na}", f"#define GT_NB {nb}", f"#define GT_NK {nk}",
-                  f"#define GT_ARX_STEP_RTOL {_c_double(ARX_STEP_RTOL)}",
-                  f"#define GT_ARX_MAX_SUBSTEPS {_c_double(ARX_MAX_SUBSTEPS)}"]
-    lines += ["", "/* value references (indices into ModelData.real) */",
-              f"#define VR_OPENING_MM {desc.vr('opening_mm')}",
-              f"#define VR_FLOW_M3H {desc.vr('flow_m3h')}",
-              f"#define VR_OPENING_REF_MM {desc.vr('opening_ref_mm')}",
-              f"#define VR_OUTPUT {desc.output.vr}"]
+        lines += [
+            f"#define GT_NA {na}",
+            f"#define GT_NB {nb}",
+            f"#define GT_NK {nk}",
+            f"#define GT_ARX_STEP_RTOL {_c_double(ARX_STEP_RTOL)}",
+            f"#define GT_ARX_MAX_SUBSTEPS {_c_double(ARX_MAX_SUBSTEPS)}",
+        ]
+    lines += [
+        "",
+        "/* value references (indices into ModelData.real) */",
+        f"#define VR_OPENING_MM {desc.vr('opening_mm')}",
+        f"#define VR_FLOW_M3H {desc.vr('flow_m3h')}",
+        f"#define VR_OPENING_REF_MM {desc.vr('opening_ref_mm')}",
+        f"#define VR_OUTPUT {desc.output.vr}",
+    ]
     if desc.arx_orders is not None:
         lines.append(f"#define VR_SAMPLE_PERIOD_S {desc.vr('sample_period_s')}")
     lines += _kernel_config_lines(desc)
@@ -403,8 +476,11 @@ def model_config_header(desc: FmuDescription) -> str:
     lines.append("/* schedule column c at knot k (from 0): VR_COL_c + k */")
     lines += [f"#define {_macro(name)} {vr}" for name, vr in desc.columns.items()]
     lines += _effect_config_lines(desc)
-    lines += ["", "/* every Real variable in value-reference order: name, kind, start */",
-              "#define GT_VARIABLES(X) \\"]
+    lines += [
+        "",
+        "/* every Real variable in value-reference order: name, kind, start */",
+        "#define GT_VARIABLES(X) \\",
+    ]
     lines += [
         f"    X({c_string_literal(v.name)}, {kinds[v.kind]}, {_c_double(v.start or 0.0)}) \\"
         for v in desc.variables
@@ -420,9 +496,11 @@ def _validity_config_lines(desc: FmuDescription) -> list[str]:
     for name, unit, stem in VALIDITY_QUANTITIES:
         lines.append(f"#define GT_VALIDITY_{stem} {int(name in ranges)}")
         lo, hi = ranges.get(name, (0.0, 0.0))
-        lines += [f"#define GT_VALIDITY_{stem}_MIN {_c_double(lo)}",
-                  f"#define GT_VALIDITY_{stem}_MAX {_c_double(hi)}",
-                  f'#define GT_VALIDITY_{stem}_UNIT "{unit}"']
+        lines += [
+            f"#define GT_VALIDITY_{stem}_MIN {_c_double(lo)}",
+            f"#define GT_VALIDITY_{stem}_MAX {_c_double(hi)}",
+            f'#define GT_VALIDITY_{stem}_UNIT "{unit}"',
+        ]
     return lines
 
 
@@ -493,9 +571,16 @@ def slave_config(desc: FmuDescription) -> dict[str, Any]:
         "physical_max_substeps": MAX_SUBSTEPS,
         "effect_limits": [list(row) for row in _effect_limits(desc)],
         "variables": [
-            {"name": v.name, "vr": v.vr, "causality": v.causality,
-             "variability": v.variability, "initial": v.initial, "kind": v.kind,
-             "description": v.description, "start": v.start}
+            {
+                "name": v.name,
+                "vr": v.vr,
+                "causality": v.causality,
+                "variability": v.variability,
+                "initial": v.initial,
+                "kind": v.kind,
+                "description": v.description,
+                "start": v.start,
+            }
             for v in desc.variables
         ],
     }
@@ -526,29 +611,37 @@ def model_description_xml(desc: FmuDescription, flags: CoSimulationFlags, tool: 
     Every attribute passes through :func:`~gatetwin.fmu.checks.xml_text` and the result is
     parsed back, so the file is well-formed XML whatever text the model carried.
     """
-    root = ET.Element("fmiModelDescription", {
-        "fmiVersion": "2.0",
-        "modelName": desc.model_identifier,
-        "guid": desc.guid,
-        "description": desc.summary,
-        "generationTool": tool,
-        "variableNamingConvention": "structured",
-        "numberOfEventIndicators": "0",
-    })
-    cs = ET.SubElement(root, "CoSimulation", {
-        "modelIdentifier": desc.model_identifier,
-        "needsExecutionTool": _xml_bool(flags.needs_execution_tool),
-        "canHandleVariableCommunicationStepSize": "true",
-        "canInterpolateInputs": "false",
-        "maxOutputDerivativeOrder": "0",
-        "canRunAsynchronuously": "false",
-        "canBeInstantiatedOnlyOncePerProcess": "false",
-        "canNotUseMemoryManagementFunctions": _xml_bool(
-            flags.can_not_use_memory_management_functions),
-        "canGetAndSetFMUstate": "true",
-        "canSerializeFMUstate": _xml_bool(flags.can_serialize_fmu_state),
-        "providesDirectionalDerivative": "false",
-    })
+    root = ET.Element(
+        "fmiModelDescription",
+        {
+            "fmiVersion": "2.0",
+            "modelName": desc.model_identifier,
+            "guid": desc.guid,
+            "description": desc.summary,
+            "generationTool": tool,
+            "variableNamingConvention": "structured",
+            "numberOfEventIndicators": "0",
+        },
+    )
+    cs = ET.SubElement(
+        root,
+        "CoSimulation",
+        {
+            "modelIdentifier": desc.model_identifier,
+            "needsExecutionTool": _xml_bool(flags.needs_execution_tool),
+            "canHandleVariableCommunicationStepSize": "true",
+            "canInterpolateInputs": "false",
+            "maxOutputDerivativeOrder": "0",
+            "canRunAsynchronuously": "false",
+            "canBeInstantiatedOnlyOncePerProcess": "false",
+            "canNotUseMemoryManagementFunctions": _xml_bool(
+                flags.can_not_use_memory_management_functions
+            ),
+            "canGetAndSetFMUstate": "true",
+            "canSerializeFMUstate": _xml_bool(flags.can_serialize_fmu_state),
+            "providesDirectionalDerivative": "false",
+        },
+    )
     if flags.source_files:
         files = ET.SubElement(cs, "SourceFiles")
         for name in flags.source_files:
@@ -557,8 +650,9 @@ def model_description_xml(desc: FmuDescription, flags: CoSimulationFlags, tool: 
     categories = ET.SubElement(root, "LogCategories")
     for name, text in LOG_CATEGORIES.items():
         ET.SubElement(categories, "Category", {"name": name, "description": text})
-    ET.SubElement(root, "DefaultExperiment", {"startTime": "0.0",
-                                              "stepSize": repr(desc.step_size_s)})
+    ET.SubElement(
+        root, "DefaultExperiment", {"startTime": "0.0", "stepSize": repr(desc.step_size_s)}
+    )
     _model_variables(root, desc)
     _model_structure(root, desc)
     for element in root.iter():
@@ -587,8 +681,13 @@ def _unit_definitions(root: ET.Element) -> None:
 def _model_variables(root: ET.Element, desc: FmuDescription) -> None:
     variables = ET.SubElement(root, "ModelVariables")
     for v in desc.variables:
-        attrs = {"name": v.name, "valueReference": str(v.vr), "description": v.description,
-                 "causality": v.causality, "variability": v.variability}
+        attrs = {
+            "name": v.name,
+            "valueReference": str(v.vr),
+            "description": v.description,
+            "causality": v.causality,
+            "variability": v.variability,
+        }
         if v.initial is not None:
             attrs["initial"] = v.initial
         sv = ET.SubElement(variables, "ScalarVariable", attrs)
@@ -603,8 +702,10 @@ def _model_structure(root: ET.Element, desc: FmuDescription) -> None:
     index = {v.name: i for i, v in enumerate(desc.variables, start=1)}
     dynamic_only = {"time_constant_s", "dead_time_s", "sample_period_s"}
     initial_deps = [
-        index[v.name] for v in desc.variables
-        if v.causality in ("input", "parameter") and v.initial_dependency
+        index[v.name]
+        for v in desc.variables
+        if v.causality in ("input", "parameter")
+        and v.initial_dependency
         and not any(v.name.startswith(f"schedule.{c}[") or v.name == c for c in dynamic_only)
     ]
     structure = ET.SubElement(root, "ModelStructure")
@@ -612,6 +713,11 @@ def _model_structure(root: ET.Element, desc: FmuDescription) -> None:
     outputs = ET.SubElement(structure, "Outputs")
     ET.SubElement(outputs, "Unknown", {"index": str(out), "dependencies": ""})
     initial = ET.SubElement(structure, "InitialUnknowns")
-    ET.SubElement(initial, "Unknown", {
-        "index": str(out), "dependencies": " ".join(map(str, initial_deps)),
-    })
+    ET.SubElement(
+        initial,
+        "Unknown",
+        {
+            "index": str(out),
+            "dependencies": " ".join(map(str, initial_deps)),
+        },
+    )

@@ -122,7 +122,9 @@ def build_python_fmu(
     saved_path = list(sys.path)
     try:
         FmuBuilder.build_FMU(
-            script, dest=built, project_files=resources,
+            script,
+            dest=built,
+            project_files=resources,
             needsExecutionTool=FLAGS.needs_execution_tool,
             canGetAndSetFMUstate=True,
             canSerializeFMUstate=FLAGS.can_serialize_fmu_state,

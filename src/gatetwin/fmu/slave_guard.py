@@ -131,8 +131,11 @@ class GuardedSlave(Fmi2Slave):
             self._step(current_time, step_size)
         except Exception as exc:
             self._restore(snapshot)
-            message = str(exc) if isinstance(exc, RefusedError) else (
-                f"fmi2DoStep: internal error {type(exc).__name__}: {exc}")
+            message = (
+                str(exc)
+                if isinstance(exc, RefusedError)
+                else (f"fmi2DoStep: internal error {type(exc).__name__}: {exc}")
+            )
             self.log(message, Fmi2Status.error, "logStatusError")  # the plant's words only
             return False
         return True
@@ -156,8 +159,10 @@ class GuardedSlave(Fmi2Slave):
 
     def _no_variables(self, function: str, kind: str, vrs: list[int]) -> None:
         if vrs:
-            raise self._refuse(function, RefusedError(
-                f"the model has no {kind} variables (value reference {vrs[0]})"))
+            raise self._refuse(
+                function,
+                RefusedError(f"the model has no {kind} variables (value reference {vrs[0]})"),
+            )
 
     def get_integer(self, vrs: list[int]) -> list[int]:
         self._no_variables("fmi2GetInteger", "Integer", vrs)

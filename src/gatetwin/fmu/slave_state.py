@@ -77,8 +77,11 @@ def check_state(state: Any, n_real: int, config: dict[str, Any]) -> dict[str, An
     """A complete, validated copy of a restored state; StateError naming the first fault."""
     _keys(state, "state", STATE_KEYS)
     warned = state["warned_validity"]
-    if type(warned) is not list or len(set(warned)) != len(warned) or any(
-            q not in config["validity"] for q in warned):
+    if (
+        type(warned) is not list
+        or len(set(warned)) != len(warned)
+        or any(q not in config["validity"] for q in warned)
+    ):
         raise StateError(f"FMU state: warned_validity = {warned!r} is not a list of quantities")
     out = {
         "time_s": _number(state["time_s"], "time_s"),

@@ -226,8 +226,10 @@ class GatetwinPlant(GuardedSlave):
             if lo <= value <= hi:
                 continue
             self.warned_validity.append(quantity)
-            message = (f"{word} {value:g} outside the model's validity {lo:g}..{hi:g} {unit}; "
-                       "results are extrapolated")
+            message = (
+                f"{word} {value:g} outside the model's validity {lo:g}..{hi:g} {unit}; "
+                "results are extrapolated"
+            )
             self.log(message, Fmi2Status.warning, "logStatusWarning")
             return
 
@@ -389,7 +391,7 @@ class GatetwinPlant(GuardedSlave):
     # -- physical (model_physical.c around physical_kernel) -------------------------------------
     def _physical(self) -> list[float]:
         first = CONFIG["kernel_first"]
-        return self.real[first:first + len(physical_kernel.PARAMETERS)]
+        return self.real[first : first + len(physical_kernel.PARAMETERS)]
 
     def _physical_check_parameters(self) -> None:
         first = CONFIG["kernel_first"]
@@ -408,8 +410,10 @@ class GatetwinPlant(GuardedSlave):
         p = self._physical()
         e = u + self.real[self.vr_opening_ref]
         depth = self._physical_depth(e, q)
-        return (physical_kernel.level_mm(depth, e, q, p),
-                physical_kernel.time_constant_s(depth, e, q, p))
+        return (
+            physical_kernel.level_mm(depth, e, q, p),
+            physical_kernel.time_constant_s(depth, e, q, p),
+        )
 
     def _level_offset(self, q: float) -> float:
         return 0.0 if self._envelope() else self._at("level_ref_mm", q)
@@ -443,8 +447,11 @@ class GatetwinPlant(GuardedSlave):
             start = gate  # drives the seiche over the sub-step (model_physical.c)
             depth, gate = physical_kernel.substep(depth, gate, target, q, dt, p)
             self._seiche_piece(dt, start)
-        self.dyn = {"x": physical_kernel.level_mm(depth, gate, q, p), "depth_m": depth,
-                    "gate_mm": gate}
+        self.dyn = {
+            "x": physical_kernel.level_mm(depth, gate, q, p),
+            "depth_m": depth,
+            "gate_mm": gate,
+        }
 
     # -- FOPDT (model_fopdt.c) ------------------------------------------------------------------
     def _fopdt_check_parameters(self) -> None:
@@ -478,8 +485,9 @@ class GatetwinPlant(GuardedSlave):
         if self._has("flow_dependent_gain"):
             ref = self._p("flow_dependent_gain", "flow_ref_m3h")
             k = flow_scaled(k, self._p("flow_dependent_gain", "gain_slope_per_m3h"), q, ref)
-            tau = flow_scaled(tau, self._p("flow_dependent_gain", "time_constant_slope_per_m3h"),
-                              q, ref)
+            tau = flow_scaled(
+                tau, self._p("flow_dependent_gain", "time_constant_slope_per_m3h"), q, ref
+            )
         return k, tau
 
     def _fopdt_check_step(self, h: float, command: float) -> None:
@@ -546,7 +554,12 @@ class GatetwinPlant(GuardedSlave):
         self._actuate(fx, command, t1 - t_act)
 
     def _fopdt_piece(
-        self, t0: float, t1: float, u: float, params: tuple[float, float, float], level_ref: float,
+        self,
+        t0: float,
+        t1: float,
+        u: float,
+        params: tuple[float, float, float],
+        level_ref: float,
         q: float,
     ) -> None:
         d = self.dyn
@@ -570,7 +583,11 @@ class GatetwinPlant(GuardedSlave):
                 target = k * inputs[j]
             if lag:
                 self.fx["sensed_mm"] = lag_interval(
-                    self.fx["sensed_mm"], level_ref + target, d["x"] - target, t_next - t, tau,
+                    self.fx["sensed_mm"],
+                    level_ref + target,
+                    d["x"] - target,
+                    t_next - t,
+                    tau,
                     self._p("sensor_lag", "time_constant_s"),
                 )
             d["x"] = first_order(d["x"], target, t_next - t, tau)
@@ -707,7 +724,8 @@ class GatetwinPlant(GuardedSlave):
                   grid_origin_s=self.time_s, sensed_mm=level_mm)  # fmt: skip
         if self._has("seiche"):
             fx["seiche_x1"] = seiche_equilibrium(
-                opening_mm - self.real[self.vr_opening_ref], self._p("seiche", "period_s"),
+                opening_mm - self.real[self.vr_opening_ref],
+                self._p("seiche", "period_s"),
                 self._p("seiche", "decay_time_s"),
             )
         if self._has("inflow_disturbance"):
@@ -720,8 +738,12 @@ class GatetwinPlant(GuardedSlave):
         if self._has("seiche"):
             fx = self.fx
             fx["seiche_x1"], fx["seiche_x2"] = seiche_advance(
-                fx["seiche_x1"], fx["seiche_x2"], gate_mm - self.real[self.vr_opening_ref],
-                duration, self._p("seiche", "period_s"), self._p("seiche", "decay_time_s"),
+                fx["seiche_x1"],
+                fx["seiche_x2"],
+                gate_mm - self.real[self.vr_opening_ref],
+                duration,
+                self._p("seiche", "period_s"),
+                self._p("seiche", "decay_time_s"),
             )
 
     def _effects_step_end(self, h: float, q: float) -> None:

@@ -55,8 +55,12 @@ class EnvelopeArxCondition:
 def _plant(physical: PhysicalPlant, sample_period_s: float, nb: int, nk: int, flow: float,
            opening_ref: float, a1: float, b: np.ndarray, tau_ref: float, level: float
            ) -> ArxPlant:  # fmt: skip
-    values = {"a1": (a1,), **{f"b{j + 1}": (float(b[j]),) for j in range(nb)},
-              "level_ref_mm": (level,), "time_constant_ref_s": (tau_ref,)}
+    values = {
+        "a1": (a1,),
+        **{f"b{j + 1}": (float(b[j]),) for j in range(nb)},
+        "level_ref_mm": (level,),
+        "time_constant_ref_s": (tau_ref,),
+    }
     return ArxPlant(physical.gauge, opening_ref, sample_period_s, 1, nb, nk,
                     Schedule((flow,), values), effects=physical.effects,
                     envelope=dict(physical.parameters))  # fmt: skip

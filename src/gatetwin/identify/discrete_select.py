@@ -368,7 +368,10 @@ def select_discrete(
     nc, nd = noise_orders if noise_orders is not None else (na, na)
     try:
         sig = prbs_signals(
-            record, gauge, rows=rows, holdout_fraction=holdout_fraction,
+            record,
+            gauge,
+            rows=rows,
+            holdout_fraction=holdout_fraction,
             spike_floor_mm=spike_floor_mm,
         )
         shared = StructureOrders(na, nb, nk, nc, nd)

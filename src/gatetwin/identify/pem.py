@@ -272,4 +272,3 @@ def is_admissible(orders: PemOrders, theta: np.ndarray) -> bool:
     a, _, c, d = orders.split(theta)
     minimum_phase = c.size == 0 or bool(np.all(np.abs(np.roots(np.concatenate(([1.0], c)))) < 1))
     return is_stable(a) and minimum_phase and (d.size == 0 or is_stable(d))
-

@@ -68,11 +68,22 @@ SEICHE_BOUNDS = ((2.0, 1.0, -5.0), (60.0, 600.0, 5.0))
 SEICHE_SIGNIFICANCE = 1e-3
 ACTUATOR = ["speed_mm_s", "stall_depth_m"]
 START = {
-    "cd_small": 0.86, "cd_small_per_q": 0.0, "cd_large": 0.45, "cd_large_per_q": 0.0,
-    "cd_mid_log_ratio": -1.9, "cd_mid_per_q": 0.0, "cd_log_width": -0.7,
-    "cd_log_width_per_q": 0.0, "cd_log_shape": 0.0, "offset_mm": 0.0,
-    "offset_per_flow2_mm": 30.0, "area_m2": 1.8, "area_per_depth_m": 0.0,
-    "speed_mm_s": 1.5, "stall_depth_m": 0.5, **FIXED,
+    "cd_small": 0.86,
+    "cd_small_per_q": 0.0,
+    "cd_large": 0.45,
+    "cd_large_per_q": 0.0,
+    "cd_mid_log_ratio": -1.9,
+    "cd_mid_per_q": 0.0,
+    "cd_log_width": -0.7,
+    "cd_log_width_per_q": 0.0,
+    "cd_log_shape": 0.0,
+    "offset_mm": 0.0,
+    "offset_per_flow2_mm": 30.0,
+    "area_m2": 1.8,
+    "area_per_depth_m": 0.0,
+    "speed_mm_s": 1.5,
+    "stall_depth_m": 0.5,
+    **FIXED,
 }
 
 
@@ -324,8 +335,12 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
 
     def joint(p: np.ndarray) -> np.ndarray:
         dyn = _dynamic_residuals(drives, p)
-        return np.concatenate([_steady_residuals(points, p) / rms_static,
-                               *(r / s for r, s in zip(dyn, rms_dyn, strict=True))])
+        return np.concatenate(
+            [
+                _steady_residuals(points, p) / rms_static,
+                *(r / s for r, s in zip(dyn, rms_dyn, strict=True)),
+            ]
+        )
 
     values, result = _fit(LAW + STORAGE, values, joint)
     p = _vector(values)
@@ -341,8 +356,9 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
         standard_errors=_standard_errors(result, LAW + STORAGE),
         steady_rmse_mm=_rms(_steady_residuals(points, p)),
         n_steady=int(points.flow_m3h.size),
-        dynamic_rmse_mm={d.name: _rms(r) for d, r in
-                         zip(drives, _dynamic_residuals(drives, p, s), strict=True)},
+        dynamic_rmse_mm={
+            d.name: _rms(r) for d, r in zip(drives, _dynamic_residuals(drives, p, s), strict=True)
+        },
         actuator_moves=int(speeds.size),
         seiche=seiche_report,
     )

@@ -301,9 +301,7 @@ def prbs_signals(
     spikes = hampel_filter(raw, segs, floor=spike_floor_mm)
     y = spikes.values
     fit_segments = split_segments(segs, u, y)
-    est, val = holdout_split(
-        fit_segments, y.size, fraction=holdout_fraction, time_s=record.time_s
-    )
+    est, val = holdout_split(fit_segments, y.size, fraction=holdout_fraction, time_s=record.time_s)
     return PrbsSignals(
         u=u,
         y=y,

@@ -33,8 +33,7 @@ from gatetwin.plant.model import ArxPlant, FopdtPlant, Schedule
 FOPDT_PARAMETERS = ("gain_mm_per_mm", "time_constant_s", "dead_time_s")
 #: Decimals kept in a schedule: far below each parameter's standard error (K ±0.05 mm/mm,
 #: T ±0.5 s, L ±0.5 s, levels ±0.1 mm), so model files do not carry optimiser round-off.
-DIGITS = {"gain_mm_per_mm": 4, "time_constant_s": 3, "dead_time_s": 3, "level_ref_mm": 3,
-          "arx": 6}
+DIGITS = {"gain_mm_per_mm": 4, "time_constant_s": 3, "dead_time_s": 3, "level_ref_mm": 3, "arx": 6}
 
 
 @dataclass(frozen=True)

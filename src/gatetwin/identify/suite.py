@@ -111,8 +111,12 @@ def _step_conditions(ident: Identified, gauge: str, role: str) -> list[StepCondi
             continue
         paper, onset = step.gauges[gauge].paper, step.gauges[gauge].fit
         opening = reconstructed_opening(rec.time_s, rec.opening_mm, rec.hold)
-        fit = fit_fopdt_driven(rec.time_s, opening, rec.levels_mm[gauge],
-                               initial=(onset.gain_mm_per_mm, onset.time_constant_s, 0.5))
+        fit = fit_fopdt_driven(
+            rec.time_s,
+            opening,
+            rec.levels_mm[gauge],
+            initial=(onset.gain_mm_per_mm, onset.time_constant_s, 0.5),
+        )
         conds.append(StepCondition(
             name, step.flow_m3h, step.opening_before_mm, step.delta_e_mm, paper.pre_mean_mm,
             fit.gain_mm_per_mm, fit.time_constant_s, fit.dead_time_s,
@@ -164,8 +168,11 @@ def fopdt_model(ident: Identified, gauge: str,
     validity: dict[str, Any] = {}
     if physical is not None:
         # the pool's seiche, where the physical model found one, is the same water's
-        plant = replace(plant, envelope=dict(physical["plant"]["parameters"]),
-                        effects=tuple(physical["plant"]["effects"]))
+        plant = replace(
+            plant,
+            envelope=dict(physical["plant"]["parameters"]),
+            effects=tuple(physical["plant"]["effects"]),
+        )
         validity = {k: physical["validity"][k] for k in ("opening_range_mm", "level_range_mm")}
         validity["flow_m3h"] = physical["validity"]["flow_m3h"]
         for c in conds:
@@ -268,8 +275,13 @@ def arx_model(ident: Identified, gauge: str = ARX_GAUGE,
     return doc
 
 
-def _envelope_arx_model(ident: Identified, gauge: str, physical: dict[str, Any],
-                        metrics: dict[str, Any], scores: dict[str, Any]) -> dict[str, Any]:
+def _envelope_arx_model(
+    ident: Identified,
+    gauge: str,
+    physical: dict[str, Any],
+    metrics: dict[str, Any],
+    scores: dict[str, Any],
+) -> dict[str, Any]:
     """The discrete model across the envelope (:mod:`gatetwin.identify.arx_envelope`), with
     the local structures' comparison kept in its provenance."""
     phys_plant = plant_from_dict(physical["plant"])
@@ -299,11 +311,13 @@ def _envelope_arx_model(ident: Identified, gauge: str, physical: dict[str, Any],
                                 "envelope_conditions": [c.to_dict() for c in conds],
                                 "validation_records": fits}},
     )  # fmt: skip
-    doc["validity"].update({k: physical["validity"][k]
-                            for k in ("flow_m3h", "opening_range_mm", "level_range_mm")})
+    doc["validity"].update(
+        {k: physical["validity"][k] for k in ("flow_m3h", "opening_range_mm", "level_range_mm")}
+    )
     doc["validity"]["outside"] = (
         "the gate law and storage are extrapolated; a warning is logged once when an input "
-        "or the level leaves the range")
+        "or the level leaves the range"
+    )
     doc["structure"] = "oe"
     doc["form"] = "envelope"
     return doc
@@ -333,7 +347,9 @@ def physical_model(ident: Identified, gauge: str) -> dict[str, Any]:
             if role_of(r) != "fit" and gauge in r.levels_mm}  # fmt: skip
     fits = {n: free_run_fit(plant, r, gauge) for n, r in fit_records.items()}
     return physical_document(
-        f"physical_{gauge}", plant, ranges,
+        f"physical_{gauge}",
+        plant,
+        ranges,
         description=f"Physical model of the level at gauge {gauge}: pool storage fed by the "
         "measured inflow and drained by the gate law, behind an actuator slowing under load",
         provenance={

@@ -289,9 +289,7 @@ class MpcController:
             opening_range_mm=self.shaper.model_range_mm(self.settings.opening_range_mm),
         )
 
-    def step(
-        self, level_mm: float, flow_m3h: float, setpoint_mm: float | None = None
-    ) -> float:
+    def step(self, level_mm: float, flow_m3h: float, setpoint_mm: float | None = None) -> float:
         """Opening (mm) to command over the next sample, given the level measured now.
 
         ``flow_m3h`` is the discharge measured now (held over the horizon) and
@@ -332,8 +330,7 @@ class MpcController:
 def _resolve_linearisation(plant: Plant, linearisation: str) -> str:
     if linearisation not in LINEARISATIONS:
         raise ControlError(
-            f"mpc linearisation must be one of {', '.join(LINEARISATIONS)} "
-            f"(got {linearisation!r})"
+            f"mpc linearisation must be one of {', '.join(LINEARISATIONS)} (got {linearisation!r})"
         )
     if linearisation == "auto":
         return "envelope" if has_envelope(plant) else "schedule"

@@ -107,9 +107,7 @@ def discretise(
     if not math.isfinite(flow_m3h):
         raise ControlError(f"discharge {flow_m3h} m³/h is not finite")
     if not isinstance(plant, (FopdtPlant, ArxPlant)):
-        raise ControlError(
-            f"cannot render {type(plant).__name__}: expected FopdtPlant or ArxPlant"
-        )
+        raise ControlError(f"cannot render {type(plant).__name__}: expected FopdtPlant or ArxPlant")
     fx = plant.effect_set
     if isinstance(plant, FopdtPlant):
         core = _fopdt_model(plant, fx, flow_m3h, sample_period_s)

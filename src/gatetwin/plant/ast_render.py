@@ -80,8 +80,7 @@ class _Function:
         return out
 
     def statement(self, s: ast.stmt, pad: str, depth: int) -> list[str]:
-        if isinstance(s, ast.Assign) and len(s.targets) == 1 and isinstance(s.targets[0],
-                                                                             ast.Name):
+        if isinstance(s, ast.Assign) and len(s.targets) == 1 and isinstance(s.targets[0], ast.Name):
             return [f"{pad}{s.targets[0].id} = {self.expr(s.value)};"]
         if isinstance(s, ast.AugAssign) and isinstance(s.target, ast.Name):
             op = _BINARY[type(s.op)]

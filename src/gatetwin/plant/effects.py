@@ -208,9 +208,7 @@ class ActuatorBacklash(EffectBlock):
     def compensate_mm(self, wanted_gate_mm: float, direction: float) -> float:
         """Commanded opening that puts the gate at ``wanted_gate_mm`` after a move in
         ``direction`` (> 0 opening, < 0 closing; 0: centred, no compensation)."""
-        return wanted_gate_mm + math.copysign(0.5 * self.deadband_mm, direction) * (
-            direction != 0
-        )
+        return wanted_gate_mm + math.copysign(0.5 * self.deadband_mm, direction) * (direction != 0)
 
 
 @dataclass(frozen=True)
@@ -393,8 +391,16 @@ class SensorLag(EffectBlock):
 
 BLOCKS: dict[str, type[EffectBlock]] = {
     cls.kind: cls
-    for cls in (ActuatorRateLimit, ActuatorBacklash, OpeningNonlinearity, FlowDependentGain,
-                Seiche, InflowDisturbance, SensorDrift, SensorLag)  # fmt: skip
+    for cls in (
+        ActuatorRateLimit,
+        ActuatorBacklash,
+        OpeningNonlinearity,
+        FlowDependentGain,
+        Seiche,
+        InflowDisturbance,
+        SensorDrift,
+        SensorLag,
+    )  # fmt: skip
 }
 
 

@@ -22,8 +22,11 @@ from typing import Any
 HELPERS = ("fmin", "fmax", "less", "select", "sqrt", "exp", "log", "floor")
 
 
-def _rebind(module: types.ModuleType, helpers: dict[str, Any],
-            wrap: Callable[[Callable[..., Any]], Any] | None = None) -> types.SimpleNamespace:
+def _rebind(
+    module: types.ModuleType,
+    helpers: dict[str, Any],
+    wrap: Callable[[Callable[..., Any]], Any] | None = None,
+) -> types.SimpleNamespace:
     """Copies of the module's functions whose global names resolve to ``helpers`` first."""
     namespace = dict(vars(module))
     namespace.update(helpers)
@@ -58,7 +61,10 @@ def numba_kernel(module_name: str) -> types.SimpleNamespace:
         "fmax": njit(lambda a, b: a if a > b else b),
         "less": njit(lambda a, b: a < b),
         "select": njit(select),
-        "sqrt": math.sqrt, "exp": math.exp, "log": math.log, "floor": math.floor,
+        "sqrt": math.sqrt,
+        "exp": math.exp,
+        "log": math.log,
+        "floor": math.floor,
     }
     return _rebind(module, helpers, wrap=lambda f: njit(cache=False)(f))
 
@@ -68,9 +74,14 @@ def casadi_kernel(module: types.ModuleType) -> types.SimpleNamespace:
     import casadi as ca
 
     helpers = {
-        "fmin": ca.fmin, "fmax": ca.fmax, "less": lambda a, b: a < b,
-        "select": lambda c, a, b: ca.if_else(c, a, b), "sqrt": ca.sqrt, "exp": ca.exp,
-        "log": ca.log, "floor": ca.floor,
+        "fmin": ca.fmin,
+        "fmax": ca.fmax,
+        "less": lambda a, b: a < b,
+        "select": lambda c, a, b: ca.if_else(c, a, b),
+        "sqrt": ca.sqrt,
+        "exp": ca.exp,
+        "log": ca.log,
+        "floor": ca.floor,
     }
     return _rebind(module, helpers)
 
@@ -158,8 +169,11 @@ def _trace_of(*args: Any) -> _Trace:
 
 
 _C_HELPERS: dict[str, Any] = {
-    "fmin": _call("fmin", min), "fmax": _call("fmax", max), "sqrt": _call("sqrt", math.sqrt),
-    "exp": _call("exp", math.exp), "log": _call("log", math.log),
+    "fmin": _call("fmin", min),
+    "fmax": _call("fmax", max),
+    "sqrt": _call("sqrt", math.sqrt),
+    "exp": _call("exp", math.exp),
+    "log": _call("log", math.log),
     "floor": _call("floor", math.floor),
     "less": lambda a, b: _trace_of(a, b).emit(f"({_c(a)} < {_c(b)}) ? 1.0 : 0.0"),
     "select": lambda c, a, b: _trace_of(c, a, b).emit(f"{_c(c)} != 0.0 ? {_c(a)} : {_c(b)}"),
@@ -195,10 +209,12 @@ def c_source(module: types.ModuleType, prefix: str) -> tuple[str, str]:
         defs.append(d)
         protos.append(proto)
     guard = f"GATETWIN_{stem.upper()}_H"
-    header = (head + f"#ifndef {guard}\n#define {guard}\n\n#define {prefix.upper()}N_PARAMETERS "
-              f"{module.N_PARAMETERS}\n#define {prefix.upper()}BISECTION_STEPS "
-              f"{module.BISECTION_STEPS}\n#define {prefix.upper()}DEPTH_LOW_M "
-              f"{_c(module.DEPTH_BRACKET_M[0])}\n#define {prefix.upper()}DEPTH_HIGH_M "
-              f"{_c(module.DEPTH_BRACKET_M[1])}\n\n" + "\n".join(protos) + "\n\n#endif\n")
+    header = (
+        head + f"#ifndef {guard}\n#define {guard}\n\n#define {prefix.upper()}N_PARAMETERS "
+        f"{module.N_PARAMETERS}\n#define {prefix.upper()}BISECTION_STEPS "
+        f"{module.BISECTION_STEPS}\n#define {prefix.upper()}DEPTH_LOW_M "
+        f"{_c(module.DEPTH_BRACKET_M[0])}\n#define {prefix.upper()}DEPTH_HIGH_M "
+        f"{_c(module.DEPTH_BRACKET_M[1])}\n\n" + "\n".join(protos) + "\n\n#endif\n"
+    )
     source = head + f'#include <math.h>\n\n#include "{stem}.h"\n\n' + "\n".join(defs)
     return source, header

@@ -291,14 +291,17 @@ class PhysicalPlant:
         p = self.vector
         depth = steady_depth_m(opening_mm, flow_m3h, p)
         return kernel.level_mm(depth, opening_mm, flow_m3h, p) + self.schedule.at(
-            "level_ref_mm", flow_m3h)
+            "level_ref_mm", flow_m3h
+        )
 
 
 def envelope_point(opening_mm: float, flow_m3h: float, p: list[float]) -> tuple[float, float]:
     """Steady level at the gauge (mm) and small-signal time constant (s) at (Q, e)."""
     depth = steady_depth_m(opening_mm, flow_m3h, p)
-    return (kernel.level_mm(depth, opening_mm, flow_m3h, p),
-            kernel.time_constant_s(depth, opening_mm, flow_m3h, p))
+    return (
+        kernel.level_mm(depth, opening_mm, flow_m3h, p),
+        kernel.time_constant_s(depth, opening_mm, flow_m3h, p),
+    )
 
 
 def local_fopdt(plant: FopdtPlant | ArxPlant | PhysicalPlant, flow_m3h: float,
@@ -319,13 +322,15 @@ def local_fopdt(plant: FopdtPlant | ArxPlant | PhysicalPlant, flow_m3h: float,
         raise ModelFileError("local_fopdt needs an envelope FOPDT or ARX or a physical plant")
     level, tau = envelope_point(opening_mm, flow_m3h, p)
     if isinstance(plant, ArxPlant):
-        a1 = blocks.arx_pole_scaled(plant.schedule.at("a1", flow_m3h),
-                                    plant.schedule.at("time_constant_ref_s", flow_m3h), tau)
+        a1 = blocks.arx_pole_scaled(
+            plant.schedule.at("a1", flow_m3h),
+            plant.schedule.at("time_constant_ref_s", flow_m3h),
+            tau,
+        )
         tau = -plant.sample_period_s / math.log(a1)
     gain = (envelope_point(opening_mm + 0.5, flow_m3h, p)[0]
             - envelope_point(opening_mm - 0.5, flow_m3h, p)[0])  # fmt: skip
-    return {"gain_mm_per_mm": gain, "time_constant_s": tau, "dead_time_s": delay,
-            "level_mm": level}
+    return {"gain_mm_per_mm": gain, "time_constant_s": tau, "dead_time_s": delay, "level_mm": level}
 
 
 def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
@@ -334,7 +339,6 @@ def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     for _ in range(kernel.BISECTION_STEPS):
         low, high = kernel.bisection_step(low, high, opening_mm, flow_m3h, p)
     return 0.5 * (low + high)
-
 
 
 Plant = FopdtPlant | ArxPlant | PhysicalPlant
@@ -380,8 +384,10 @@ def plant_to_dict(plant: Plant) -> dict[str, Any]:
         "effects": [dict(e) for e in plant.effects],
     }
     if isinstance(plant, FopdtPlant | ArxPlant) and plant.envelope is not None:
-        out["envelope"] = {"parameters": dict(plant.envelope),
-                           "equations": "gatetwin.plant.physical_kernel"}
+        out["envelope"] = {
+            "parameters": dict(plant.envelope),
+            "equations": "gatetwin.plant.physical_kernel",
+        }
     if isinstance(plant, PhysicalPlant):
         out.update(parameters=dict(plant.parameters), equations="gatetwin.plant.physical_kernel")
     if isinstance(plant, ArxPlant):
@@ -419,8 +425,12 @@ def plant_from_dict(data: dict[str, Any]) -> Plant:
         if data["kind"] == "physical":
             if not isinstance(data.get("parameters"), dict):
                 raise ModelFileError("physical: parameters must be an object of name: number")
-            return PhysicalPlant(gauge=common["gauge"], parameters=data["parameters"],
-                                 schedule=schedule, effects=common["effects"])
+            return PhysicalPlant(
+                gauge=common["gauge"],
+                parameters=data["parameters"],
+                schedule=schedule,
+                effects=common["effects"],
+            )
         if data["kind"] == "arx":
             return ArxPlant(
                 sample_period_s=float(data["sample_period_s"]),

@@ -35,6 +35,8 @@ from gatetwin.plant.model import PhysicalPlant, steady_depth_m
 
 #: Most sub-steps one communication step may take.
 MAX_SUBSTEPS = 100_000
+
+
 @dataclass
 class PhysicalSimulator:
     """Stepwise simulation of a :class:`PhysicalPlant` (same verbs as ``PlantSimulator``)."""
@@ -60,7 +62,8 @@ class PhysicalSimulator:
         self.seiche_x1 = self.seiche_x2 = 0.0
         if seiche:
             self.seiche_x1 = blocks.seiche_equilibrium(
-                opening_mm - self.plant.opening_ref_mm, seiche.period_s, seiche.decay_time_s)
+                opening_mm - self.plant.opening_ref_mm, seiche.period_s, seiche.decay_time_s
+            )
         self._check_range(flow_m3h)
 
     @property
@@ -92,11 +95,17 @@ class PhysicalSimulator:
         for _ in range(int(n)):
             gate = self.gate_mm
             self.depth_m, self.gate_mm = kernel.substep(
-                self.depth_m, self.gate_mm, target, flow_m3h, dt, self.p)
+                self.depth_m, self.gate_mm, target, flow_m3h, dt, self.p
+            )
             if seiche:
                 self.seiche_x1, self.seiche_x2 = blocks.seiche_advance(
-                    self.seiche_x1, self.seiche_x2, gate - self.plant.opening_ref_mm, dt,
-                    seiche.period_s, seiche.decay_time_s)
+                    self.seiche_x1,
+                    self.seiche_x2,
+                    gate - self.plant.opening_ref_mm,
+                    dt,
+                    seiche.period_s,
+                    seiche.decay_time_s,
+                )
         self._check_range(flow_m3h)
         self.flow_m3h = flow_m3h
         self.time_s += h
@@ -108,5 +117,6 @@ class PhysicalSimulator:
             self.warned_range = True
             warnings.warn(
                 f"flow_m3h = {flow_m3h} outside the model's validity range [{lo}, {hi}]",
-                RuntimeWarning, stacklevel=3,
+                RuntimeWarning,
+                stacklevel=3,
             )

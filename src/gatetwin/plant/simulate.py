@@ -276,8 +276,12 @@ class PlantSimulator:
         fx, es = self.fx, self.es
         if fx.seiche:
             es.seiche_x1, es.seiche_x2 = blocks.seiche_advance(
-                es.seiche_x1, es.seiche_x2, gate_mm - self.plant.opening_ref_mm, duration_s,
-                fx.seiche.period_s, fx.seiche.decay_time_s,
+                es.seiche_x1,
+                es.seiche_x2,
+                gate_mm - self.plant.opening_ref_mm,
+                duration_s,
+                fx.seiche.period_s,
+                fx.seiche.decay_time_s,
             )
 
     def _output_blocks_step(self, h: float, q: float) -> None:
@@ -339,7 +343,11 @@ class PlantSimulator:
                 target = k * self.history_u[i]
             if lag:
                 self.es.sensed_mm = blocks.lag_interval(
-                    self.es.sensed_mm, level_ref + target, self.x - target, t_next - t, tau,
+                    self.es.sensed_mm,
+                    level_ref + target,
+                    self.x - target,
+                    t_next - t,
+                    tau,
                     lag.time_constant_s,
                 )
             self.x = blocks.first_order(self.x, target, t_next - t, tau)
@@ -471,6 +479,10 @@ def simulate(
 
 
 __all__ = [
-    "PlantSimulator", "SimulationError", "check_inputs", "interp_clamped", "simulate",
+    "PlantSimulator",
+    "SimulationError",
+    "check_inputs",
+    "interp_clamped",
+    "simulate",
     "simulator_for",
 ]

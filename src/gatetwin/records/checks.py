@@ -77,8 +77,10 @@ def check_finite_or_missing(origin: Origin, name: str, values: np.ndarray) -> No
     if bad.size:
         i = bad[0]
         raise origin.error(
-            origin.row(i), column(name), f"{values[i]} is not a finite number; expected mm, s "
-            "or m³/h as a plain number (empty cells are the only missing values)"
+            origin.row(i),
+            column(name),
+            f"{values[i]} is not a finite number; expected mm, s "
+            "or m³/h as a plain number (empty cells are the only missing values)",
         )
 
 
@@ -100,8 +102,7 @@ def check_time(origin: Origin, time_s: np.ndarray) -> None:
     raise origin.error(
         origin.row(i),
         column("time_s"),
-        f"{word} ({time_s[i]:g} s after {time_s[i - 1]:g} s); expected strictly increasing "
-        "times",
+        f"{word} ({time_s[i]:g} s after {time_s[i - 1]:g} s); expected strictly increasing times",
     )
 
 
@@ -157,9 +158,7 @@ def hold_from_state(origin: Origin, words: np.ndarray) -> np.ndarray:
     return hold_from_codes(origin, tuple(str(w) for w in vocabulary), codes.ravel())
 
 
-def hold_from_codes(
-    origin: Origin, vocabulary: tuple[str, ...], codes: np.ndarray
-) -> np.ndarray:
+def hold_from_codes(origin: Origin, vocabulary: tuple[str, ...], codes: np.ndarray) -> np.ndarray:
     """The ``hold`` flag of dictionary-coded ``state`` words (``vocabulary[codes]``).
 
     Words are compared stripped and in any letter case; empty or unknown words are

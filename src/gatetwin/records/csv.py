@@ -220,9 +220,7 @@ def _plain_text(block: bytes, decoder: codecs.IncrementalDecoder) -> bool:
     return True
 
 
-def _check_line_lengths(
-    name: str, scan: _Scan, block: bytes, ends: np.ndarray, limit: int
-) -> None:
+def _check_line_lengths(name: str, scan: _Scan, block: bytes, ends: np.ndarray, limit: int) -> None:
     """Refuse a line longer than ``limit`` bytes (``ends`` marks line ends in ``block``)."""
     raw = ends
     if not scan.header_done:
@@ -252,9 +250,7 @@ def _line_before(scan: _Scan, ends: np.ndarray) -> int:
     return scan.offset + int(np.argmax(ends)) - scan.line_start
 
 
-def _scan_breaks(
-    scan: _Scan, tail: bytes, block: bytes, newline: np.ndarray, has_cr: bool
-) -> None:
+def _scan_breaks(scan: _Scan, tail: bytes, block: bytes, newline: np.ndarray, has_cr: bool) -> None:
     """Blank lines (inside is not clean) and lone carriage returns (not clean)."""
     blank = newline[1:] & newline[:-1]
     if has_cr:

@@ -38,7 +38,11 @@ _CELLS = re.compile(rf"(?:{_CELL.pattern}\n)*{_CELL.pattern}")
 
 
 def parse_table(
-    name: str, data: bytes, sha256: str, *, keep: Callable[[str], bool],
+    name: str,
+    data: bytes,
+    sha256: str,
+    *,
+    keep: Callable[[str], bool],
     text_columns: Sequence[str],
 ) -> TableColumns:
     """Read the columns ``keep`` accepts from the bytes of a comma-separated UTF-8 file.
@@ -144,8 +148,9 @@ def _column_chunks(
             yield first_line, _quoted_columns(name, chunk, width, first_line)
             continue
         if not _all_widths_are(blob, width):
-            _refuse_width(name, [line.split(",") if line else [] for line in chunk], width,
-                          first_line)
+            _refuse_width(
+                name, [line.split(",") if line else [] for line in chunk], width, first_line
+            )
         cells = blob.replace("\n", ",").split(",")
         yield first_line, [cells[j::width] for j in range(width)]
 

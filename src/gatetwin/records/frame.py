@@ -41,8 +41,10 @@ def frame_columns(frame: Any, path: str) -> TableColumns:
         table = pa.Table.from_pandas(frame.iloc[:, kept], preserve_index=False)
     except (pa.ArrowException, TypeError, ValueError) as exc:
         text = " ".join(str(exc).split())[:120]
-        raise RecordError(f"{path}: a column cannot be read as numbers or text ({text}); "
-                          "expected the columns of the data format") from None
+        raise RecordError(
+            f"{path}: a column cannot be read as numbers or text ({text}); "
+            "expected the columns of the data format"
+        ) from None
     table = table.rename_columns([names[k] for k in kept])
     columns = arrow_columns(path, table, keep=is_record_column, text_columns=("state",))
     return TableColumns(path, tuple(n.strip() for n in names), columns.columns, "", 1)

@@ -50,8 +50,9 @@ class ReadLimits:
         for name in ("max_bytes", "max_line_bytes"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
-                raise RecordError(f"read limit '{name}': {value!r}; expected a positive "
-                                  "whole number of bytes")
+                raise RecordError(
+                    f"read limit '{name}': {value!r}; expected a positive whole number of bytes"
+                )
 
     @classmethod
     def from_env(cls, environ: dict[str, str] | None = None) -> ReadLimits:
@@ -68,8 +69,9 @@ def _env_bytes(env: os._Environ[str] | dict[str, str], name: str, default: int) 
     if not text:
         return default
     if not (text.isascii() and text.isdigit()) or int(text) <= 0:
-        raise RecordError(f"environment variable {name}: {text[:60]!r}; expected a positive "
-                          "whole number of bytes")
+        raise RecordError(
+            f"environment variable {name}: {text[:60]!r}; expected a positive whole number of bytes"
+        )
     return int(text)
 
 

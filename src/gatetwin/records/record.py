@@ -379,9 +379,7 @@ def _build_record(
     )
     pairs, unobserved = segments.find_steps(seg, cols.time_s, period)
     steps = tuple(
-        StepOnset(
-            holds[k].stop, float(cols.time_s[holds[k].stop]), holds[k], holds[k + 1]
-        )
+        StepOnset(holds[k].stop, float(cols.time_s[holds[k].stop]), holds[k], holds[k + 1])
         for k in pairs
     )
     chosen, source = segments.choose_test(origin, test, sidecar.test, steps)

@@ -156,7 +156,10 @@ def is_gap(time_s: np.ndarray, period_s: float) -> np.ndarray:
 
 
 def segment_holds(
-    origin: Origin, time_s: np.ndarray, opening_mm: np.ndarray, hold: np.ndarray,
+    origin: Origin,
+    time_s: np.ndarray,
+    opening_mm: np.ndarray,
+    hold: np.ndarray,
     period_s: float,
 ) -> Segmentation:
     """Find the hold segments and fill empty hold openings.
@@ -202,9 +205,7 @@ def _split_on_opening_change(
     moving = np.flatnonzero(high - low >= RESOLUTION_MM - _TOL)
     if not moving.size:
         return starts, stops
-    cuts = np.concatenate(
-        [_cuts(opening_mm, starts[k], stops[k]) for k in moving], dtype=np.int64
-    )
+    cuts = np.concatenate([_cuts(opening_mm, starts[k], stops[k]) for k in moving], dtype=np.int64)
     return np.sort(np.concatenate((starts, cuts))), np.sort(np.concatenate((stops, cuts)))
 
 
@@ -247,9 +248,7 @@ def _segment_medians(values: np.ndarray, segment: np.ndarray, n_segments: int) -
     return medians
 
 
-def find_steps(
-    seg: Segmentation, time_s: np.ndarray, period_s: float
-) -> tuple[np.ndarray, int]:
+def find_steps(seg: Segmentation, time_s: np.ndarray, period_s: float) -> tuple[np.ndarray, int]:
     """Steps between consecutive hold segments.
 
     Returns
@@ -313,7 +312,8 @@ def _check_step_test(origin: Origin, record: Segmented) -> None:
         shown = ", ".join(f"{e:g}" for e in openings[:5])
         hidden = (
             f" ({record.unobserved_steps} opening change(s) fall inside logging gaps)"
-            if record.unobserved_steps else ""
+            if record.unobserved_steps
+            else ""
         )
         raise origin.error(
             column("opening_mm"),

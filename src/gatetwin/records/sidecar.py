@@ -120,8 +120,7 @@ def _period(name: str, value: Any) -> float | None:
     if _is_number(value) and math.isfinite(value) and value > 0:
         return float(value)
     raise RecordError(
-        f"{name}: sidecar field 'sample_period_s': {value!r}; expected a positive number "
-        "of seconds"
+        f"{name}: sidecar field 'sample_period_s': {value!r}; expected a positive number of seconds"
     )
 
 

@@ -49,8 +49,11 @@ def format_record_summary(summary: dict[str, Any]) -> str:
         f"{holds['samples_max']} samples (median {holds['samples_median']:g}), "
         f"{holds['samples_total']} hold samples in total",
         f"steps    {len(summary['steps'])}"
-        + (f" ({summary['unobserved_steps']} more inside logging gaps)"
-           if summary["unobserved_steps"] else ""),
+        + (
+            f" ({summary['unobserved_steps']} more inside logging gaps)"
+            if summary["unobserved_steps"]
+            else ""
+        ),
     ]
     for k, step in enumerate(summary["steps"], 1):
         lines.append(
@@ -64,9 +67,7 @@ def format_record_summary(summary: dict[str, Any]) -> str:
 def format_static_summary(summary: dict[str, Any]) -> str:
     """Human-readable lines for the output of ``StaticTable.summary()``."""
     flow, opening = summary["flow_m3h"], summary["opening_mm"]
-    gauges = ", ".join(
-        g["name"] + (" (with SD)" if g["has_sd"] else "") for g in summary["gauges"]
-    )
+    gauges = ", ".join(g["name"] + (" (with SD)" if g["has_sd"] else "") for g in summary["gauges"])
     return "\n".join(
         [
             f"static   {summary['path']}",

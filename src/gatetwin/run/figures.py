@@ -42,8 +42,11 @@ def step_all_gauges(ident: Identified, cond: str, path: Path) -> Path:
     for g in ident.steps[cond].gauges:
         t, dh = _delta(ident, cond, g)
         ax.plot(t, dh, lw=0.8, label=g)
-    ax.set(xlabel="time since step onset (s)", ylabel="ΔH (mm)",
-           title=f"Step response, condition {cond} (Q ≈ {ident.steps[cond].flow_m3h:.1f} m³/h)")
+    ax.set(
+        xlabel="time since step onset (s)",
+        ylabel="ΔH (mm)",
+        title=f"Step response, condition {cond} (Q ≈ {ident.steps[cond].flow_m3h:.1f} m³/h)",
+    )
     ax.legend(ncol=5, fontsize=8)
     ax.grid(alpha=0.3)
     return _save(fig, path)
@@ -59,8 +62,14 @@ def step_fit(ident: Identified, path: Path) -> Path:
         t_abs = ident.records[cond].time_s
         curve = res.fit.curve(t_abs) - res.paper.pre_mean_mm
         ax.plot(t, dh, ".", ms=2, label="measured")
-        ax.plot(t, curve, "r-", lw=1.2, label=f"FOPDT K {res.fit.gain_mm_per_mm:.2f}, "
-                f"T {res.fit.time_constant_s:.0f} s, L {res.fit.dead_time_s:.1f} s")
+        ax.plot(
+            t,
+            curve,
+            "r-",
+            lw=1.2,
+            label=f"FOPDT K {res.fit.gain_mm_per_mm:.2f}, "
+            f"T {res.fit.time_constant_s:.0f} s, L {res.fit.dead_time_s:.1f} s",
+        )
         ax.set(xlabel="time since onset (s)", ylabel="ΔH (mm)", title=f"{cond}, gauge {GAUGE}")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)

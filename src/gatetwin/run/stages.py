@@ -47,8 +47,11 @@ def validate_all(ctx: Any) -> None:
     ctx.results.setdefault("summary_sections", []).append(
         "## Validation matrix (C FMUs; the python FMUs give the same numbers)\n\n"
         f"Criterion: {', '.join(MATRIX_FAIL_UNDER)}; {n_pass} of {len(cells)} cells pass "
-        f"over both backends. {FLOOR_NOTE}\n\n" + matrix_markdown(c_cells)
-        + "\nOutside a model's validity (not validated):\n\n" + skipped + "\n"
+        f"over both backends. {FLOOR_NOTE}\n\n"
+        + matrix_markdown(c_cells)
+        + "\nOutside a model's validity (not validated):\n\n"
+        + skipped
+        + "\n"
     )
 
 
@@ -291,8 +294,11 @@ def not_diagnosed(ctx: Any) -> list[dict[str, str]]:
     for name, rec in sorted(ident.records.items() if ident is not None else ()):
         if name in listed:
             continue
-        why = ("validation record: only validated against, in the validation matrix"
-               if role_of(rec) == VALIDATION_ROLE else "not in the run's diagnosis list")
+        why = (
+            "validation record: only validated against, in the validation matrix"
+            if role_of(rec) == VALIDATION_ROLE
+            else "not in the run's diagnosis list"
+        )
         out.append({"record": name, "reason": why})
     return out
 
@@ -383,8 +389,17 @@ def write_report(ctx: Any) -> None:
     _families_section(ctx, report)
     doc = ctx.results.get("mpc")
     if doc:
-        header = ("scenario", "controller", "IAE (mm·s)", "max dev (mm)", "settling (s)",
-                  "travel (mm)", "violations", "solve median (ms)", "solve p99 (ms)")
+        header = (
+            "scenario",
+            "controller",
+            "IAE (mm·s)",
+            "max dev (mm)",
+            "settling (s)",
+            "travel (mm)",
+            "violations",
+            "solve median (ms)",
+            "solve p99 (ms)",
+        )
         plots = sorted((ctx.out_dir / "figures").glob("mpc_*/*.png"))
         report.add_section(
             "MPC demo",

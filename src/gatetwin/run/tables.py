@@ -175,9 +175,11 @@ def worst_deviation(ident: Identified) -> dict[str, float]:
             p = res.paper
             worst["level_mm"] = max(worst["level_mm"], abs(p.pre_mean_mm - tab.pre_mean_mm[g]),
                                     abs(p.post_mean_mm - tab.post_mean_mm[g]))  # fmt: skip
-            worst["K_percent"] = max(worst["K_percent"],
-                                     100 * abs(p.gain_mm_per_mm / tab.gain_mm_per_mm[g] - 1))
+            worst["K_percent"] = max(
+                worst["K_percent"], 100 * abs(p.gain_mm_per_mm / tab.gain_mm_per_mm[g] - 1)
+            )
             worst["L_s"] = max(worst["L_s"], abs(p.dead_time_s - tab.dead_time_s[g]))
-            worst["T_percent"] = max(worst["T_percent"],
-                                     100 * abs(p.time_constant_s / tab.time_constant_s[g] - 1))
+            worst["T_percent"] = max(
+                worst["T_percent"], 100 * abs(p.time_constant_s / tab.time_constant_s[g] - 1)
+            )
     return {k: float(np.round(v, 2)) for k, v in worst.items()}

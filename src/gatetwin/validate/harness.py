@@ -324,8 +324,10 @@ class FmuValidation:
     def to_dict(self) -> dict[str, Any]:
         env = self.validity
         return {
-            "fmu": {**self.fmu.to_dict(),
-                    "validity": None if env is None else {q: list(env[q]) for q in env}},
+            "fmu": {
+                **self.fmu.to_dict(),
+                "validity": None if env is None else {q: list(env[q]) for q in env},
+            },
             "static_validation": {
                 "tool": "fmpy.validation.validate_fmu",
                 "findings": list(self.static_findings),
