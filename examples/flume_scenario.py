@@ -6,14 +6,8 @@ import gatetwin
 from gatetwin.flume.experiments import Scenario, run_scenario
 
 # a step test at Q = 40 m3/h: the gate 20 -> 25 mm at t = 300 s, logged for 20 minutes
-scenario = Scenario(
-    "my_step",
-    flow_m3h=((0.0, 40.0),),
-    opening_mm=((0.0, 20.0), (300.0, 25.0)),
-    duration_s=1200.0,
-    seed=7,
-    test="step",
-)
+gate = ((0.0, 20.0), (300.0, 25.0))
+scenario = Scenario("my_step", ((0.0, 40.0),), gate, 1200.0, seed=7, test="step")
 path = run_scenario(scenario).write("my_step.csv")  # CSV and sidecar, the record format
 record = gatetwin.read_record(path)
 model = gatetwin.identify(record)

@@ -62,3 +62,13 @@ def test_flume_scenario(tmp_path):
     # the flume's gauge noise at 3F is ~1-2.5 mm SD (README, The virtual flume): a twin of
     # the same record cannot sit much below it, nor, if it is any good, far above it
     assert rmse < 5.0
+
+
+def test_mpc_on_fmu(tmp_path):
+    out = run_example("mpc_on_fmu.py", tmp_path)
+    found = re.search(r"set-point ([\d.]+) mm, level ([\d.]+) mm, opening ([\d.]+) mm", out)
+    setpoint, level, opening = (float(v) for v in found.groups())
+    # 250 samples (300 s, > 4 time constants of B's ~43 s) after the change, on a noise-free
+    # twin: the offset-free MPC sits on its set-point within the gauge's 0.1 mm resolution
+    assert abs(level - setpoint) < 0.1
+    assert 30.0 < opening < 40.0  # a lower level needs a wider gate than B's 30 mm start
