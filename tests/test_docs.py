@@ -8,8 +8,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 #: A cited document: a Markdown file name, optionally with a folder.
 CITATION = re.compile(r"(?<![\w/.-])((?:[\w-]+/)*[\w-]+\.md)\b")
-#: Markdown files ``gatetwin run`` writes into its output folder (outputs, not documents).
-RUN_OUTPUTS = {"summary.md", "tables.md"}
+#: Markdown files ``gatetwin run`` and ``gatetwin models`` write (outputs, not documents).
+RUN_OUTPUTS = {"summary.md", "tables.md", "fleet.md"}
 
 
 def _sources() -> list[Path]:
