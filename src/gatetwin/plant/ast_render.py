@@ -39,6 +39,17 @@ def _literal(value: object) -> str:
     return text if "e" in text or "." in text else text + ".0"
 
 
+def _condition(text: str) -> str:
+    """``text`` in the one pair of parentheses an ``if``/``while`` takes (clang warns on a
+    comparison in two)."""
+    depth = 0
+    for i, ch in enumerate(text):
+        depth += (ch == "(") - (ch == ")")
+        if depth == 0 and i < len(text) - 1:
+            return f"({text})"  # not one parenthesised whole
+    return text if text.startswith("(") else f"({text})"
+
+
 class _Function:
     """Translation of one function definition."""
 
@@ -88,13 +99,13 @@ class _Function:
         if isinstance(s, ast.Return):
             return self.ret(s, pad)
         if isinstance(s, ast.If):
-            lines = [f"{pad}if ({self.expr(s.test)}) {{", *self.block(s.body, depth + 1)]
+            lines = [f"{pad}if {_condition(self.expr(s.test))} {{", *self.block(s.body, depth + 1)]
             if s.orelse:
                 lines += [f"{pad}}} else {{", *self.block(s.orelse, depth + 1)]
             return [*lines, f"{pad}}}"]
         if isinstance(s, ast.While) and not s.orelse:
-            return [f"{pad}while ({self.expr(s.test)}) {{", *self.block(s.body, depth + 1),
-                    f"{pad}}}"]  # fmt: skip
+            head = f"{pad}while {_condition(self.expr(s.test))} {{"
+            return [head, *self.block(s.body, depth + 1), f"{pad}}}"]
         raise ValueError(f"{self.node.name}: statement {ast.dump(s)[:60]} has no C rendering")
 
     def ret(self, s: ast.Return, pad: str) -> list[str]:
