@@ -151,6 +151,13 @@ def add_export_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("model", metavar="MODEL.json")
     parser.add_argument("--backend", choices=("c", "python"), required=True)
     parser.add_argument("--out", metavar="NAME.fmu", required=True)
+    parser.add_argument(
+        "--platforms",
+        metavar="WHICH",
+        default="host",
+        help="C backend: host (default), all, or a comma-separated list of linux64, win64, "
+        "darwin64, aarch64-linux, aarch64-darwin; other than the host's need gatetwin[cross]",
+    )
 
 
 def run_export(args: argparse.Namespace) -> int:
@@ -161,6 +168,6 @@ def run_export(args: argparse.Namespace) -> int:
     model = read_model_file(args.model)
     check_writable(args.out)
     path = export_fmu(model.plant, args.out, backend=args.backend, model_name=model.name,
-                      provenance=fmu_provenance(model))  # fmt: skip
+                      provenance=fmu_provenance(model), platforms=args.platforms)  # fmt: skip
     print(f"wrote {path}")
     return 0

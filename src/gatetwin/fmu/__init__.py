@@ -32,6 +32,7 @@ def export_fmu(
     backend: str,
     model_name: str,
     provenance: dict[str, Any],
+    platforms: str | tuple[str, ...] = "host",
 ) -> Path:
     """Build an FMU of ``plant`` at ``out_path``; return its path.
 
@@ -52,6 +53,10 @@ def export_fmu(
     provenance : dict
         JSON data stored as ``resources/provenance.json``; its scalar entries are also quoted
         in the modelDescription ``description`` attribute.
+    platforms : str or tuple of str
+        C backend: ``"host"`` (the default), ``"all"``, or folder names of
+        :data:`gatetwin.fmu.platforms.PLATFORMS` (comma-separated, or a tuple); platforms
+        other than the host's are cross-compiled with Zig (``gatetwin[cross]``).
 
     Raises
     ------
@@ -70,22 +75,44 @@ def export_fmu(
     target = Path(out_path)
     if target.suffix.lower() != ".fmu":
         raise ExportError(f"output {target} must end in .fmu")
+    folders = _platform_folders(backend, platforms)
     desc = describe(plant, model_name, provenance, f"{backend}:{_code_digest(backend)}")
     check_finite_response(plant, model_name, provenance)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
-            _build(plant, desc, backend, Path(tmp), target)
+            _build(plant, desc, backend, Path(tmp), target, folders)
     except OSError as exc:
         raise OutputError(f"{target}: cannot write the FMU ({exc.strerror or exc})") from None
     return target
 
 
-def _build(plant: Plant, desc: FmuDescription, backend: str, work: Path, target: Path) -> None:
+def _platform_folders(backend: str, platforms: str | tuple[str, ...]) -> tuple[str, ...]:
+    """The binaries' folders to build (checked before anything is built)."""
+    from fmpy import platform
+
+    from gatetwin.fmu.platforms import resolve, zig_cc
+
+    folders = resolve(platforms, platform)
+    if backend != "c" and folders != (platform,):
+        raise ExportError("platforms: the python backend runs on the exporting platform only")
+    if any(f != platform for f in folders):
+        zig_cc("x86_64-linux-gnu")  # one line when the cross compiler is missing
+    return folders
+
+
+def _build(
+    plant: Plant,
+    desc: FmuDescription,
+    backend: str,
+    work: Path,
+    target: Path,
+    folders: tuple[str, ...] = (),
+) -> None:
     resources = _write_resources(plant, desc, backend, work / "resources")
     built = work / target.name
     if backend == "c":
-        _build_c(desc, work / "fmu", resources, built)
+        _build_c(desc, work / "fmu", resources, built, folders)
     else:
         from gatetwin.fmu.python_build import build_python_fmu
 
@@ -128,12 +155,18 @@ def _write_resources(plant: Plant, desc: FmuDescription, backend: str, folder: P
     return [folder / "provenance.json", folder / "plant.json"]
 
 
-def _build_c(desc: FmuDescription, fmu_dir: Path, resources: list[Path], out: Path) -> None:
+def _build_c(
+    desc: FmuDescription,
+    fmu_dir: Path,
+    resources: list[Path],
+    out: Path,
+    folders: tuple[str, ...] = (),
+) -> None:
     from fmpy import platform, sharedLibraryExtension
 
     from gatetwin.fmu.c_build import build_c_fmu
 
-    build_c_fmu(desc, fmu_dir, platform, sharedLibraryExtension)
+    build_c_fmu(desc, fmu_dir, platform, sharedLibraryExtension, folders)
     (fmu_dir / "resources").mkdir()
     for path in resources:
         (fmu_dir / "resources" / path.name).write_bytes(path.read_bytes())

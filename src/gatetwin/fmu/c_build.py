@@ -137,12 +137,17 @@ def write_sources(desc: FmuDescription, sources_dir: Path) -> tuple[str, ...]:
 
 
 def compile_shared(
-    sources_dir: Path, c_files: tuple[str, ...], out: Path, extra_flags: tuple[str, ...] = ()
+    sources_dir: Path,
+    c_files: tuple[str, ...],
+    out: Path,
+    extra_flags: tuple[str, ...] = (),
+    compiler: list[str] | None = None,
 ) -> None:
-    """Compile ``c_files`` in ``sources_dir`` into the shared library ``out``."""
+    """Compile ``c_files`` in ``sources_dir`` into the shared library ``out`` (with
+    ``compiler``, default the system's)."""
     # absolute: the compiler runs in sources_dir, so a relative output path would miss
-    cmd = [*find_compiler(), *CFLAGS, *extra_flags, "-o", str(Path(out).resolve()), *c_files,
-           "-lm"]  # fmt: skip
+    cmd = [*(compiler or find_compiler()), *CFLAGS, *extra_flags, "-o", str(Path(out).resolve()),
+           *c_files, "-lm"]  # fmt: skip
     try:
         done = subprocess.run(
             cmd, cwd=sources_dir, capture_output=True, text=True, timeout=300, check=False
@@ -158,13 +163,33 @@ def compile_shared(
         raise ExportError(f"C compiler {cmd[0]} failed: {first.strip()}")
 
 
-def build_c_fmu(desc: FmuDescription, fmu_dir: Path, platform: str, extension: str) -> None:
-    """Lay out the C FMU in ``fmu_dir`` (sources, binary, modelDescription.xml)."""
+def build_c_fmu(
+    desc: FmuDescription,
+    fmu_dir: Path,
+    platform: str,
+    extension: str,
+    platforms: tuple[str, ...] = (),
+) -> None:
+    """Lay out the C FMU in ``fmu_dir`` (sources, binaries, modelDescription.xml): the host's
+    binary in ``binaries/<platform>``, and one per other folder of ``platforms``
+    (:data:`gatetwin.fmu.platforms.PLATFORMS`), cross-compiled."""
+    from gatetwin.fmu.platforms import PLATFORMS, zig_cc
+
     sources_dir = fmu_dir / "sources"
     c_files = write_sources(desc, sources_dir)
     binary_dir = fmu_dir / "binaries" / platform
     binary_dir.mkdir(parents=True, exist_ok=True)
     compile_shared(sources_dir, c_files, binary_dir / f"{desc.model_identifier}{extension}")
+    for folder in platforms:
+        if folder == platform:
+            continue
+        target = PLATFORMS[folder]
+        out = fmu_dir / "binaries" / folder / f"{desc.model_identifier}{target.extension}"
+        out.parent.mkdir(parents=True, exist_ok=True)
+        compile_shared(sources_dir, c_files, out, compiler=zig_cc(target.zig_target))
+        for extra in out.parent.iterdir():  # the linker's import library and debug database
+            if extra != out:
+                extra.unlink()
     flags = dataclasses.replace(FLAGS, source_files=c_files)
     (fmu_dir / "modelDescription.xml").write_bytes(
         model_description_xml(desc, flags, tool="gatetwin (C backend)")
