@@ -13,6 +13,7 @@ import os
 import shlex
 import shutil
 import subprocess
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from gatetwin.errors import ExportError
@@ -173,23 +174,26 @@ def build_c_fmu(
     """Lay out the C FMU in ``fmu_dir`` (sources, binaries, modelDescription.xml): the host's
     binary in ``binaries/<platform>``, and one per other folder of ``platforms``
     (:data:`gatetwin.fmu.platforms.PLATFORMS`), cross-compiled."""
-    from gatetwin.fmu.platforms import PLATFORMS, zig_cc
+    from gatetwin.fmu.platforms import PLATFORMS, Platform, zig_cc
 
     sources_dir = fmu_dir / "sources"
     c_files = write_sources(desc, sources_dir)
     binary_dir = fmu_dir / "binaries" / platform
     binary_dir.mkdir(parents=True, exist_ok=True)
     compile_shared(sources_dir, c_files, binary_dir / f"{desc.model_identifier}{extension}")
-    for folder in platforms:
-        if folder == platform:
-            continue
-        target = PLATFORMS[folder]
-        out = fmu_dir / "binaries" / folder / f"{desc.model_identifier}{target.extension}"
+    foreign = [PLATFORMS[f] for f in platforms if f != platform]
+
+    def cross(target: Platform) -> None:
+        out = fmu_dir / "binaries" / target.folder / f"{desc.model_identifier}{target.extension}"
         out.parent.mkdir(parents=True, exist_ok=True)
         compile_shared(sources_dir, c_files, out, compiler=zig_cc(target.zig_target))
         for extra in out.parent.iterdir():  # the linker's import library and debug database
             if extra != out:
                 extra.unlink()
+
+    # each compiler is its own process: as many at once as there are CPUs
+    with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
+        list(pool.map(cross, foreign))
     flags = dataclasses.replace(FLAGS, source_files=c_files)
     (fmu_dir / "modelDescription.xml").write_bytes(
         model_description_xml(desc, flags, tool="gatetwin (C backend)")

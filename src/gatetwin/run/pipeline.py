@@ -143,11 +143,20 @@ def identify_models(ctx: PipelineContext) -> None:
 
 
 def export_fmus(ctx: PipelineContext) -> None:
-    """Export every model with both backends: ``fmus/c/NAME.fmu``, ``fmus/python/NAME.fmu``."""
+    """Export every model with both backends: ``fmus/c/NAME.fmu``, ``fmus/python/NAME.fmu``;
+    the C FMUs for every platform when Zig's C compiler is installed (else the host's)."""
     from gatetwin.fmu import export_fmu
+    from gatetwin.fmu.platforms import PLATFORMS, zig_available
     from gatetwin.fmu.provenance import fmu_provenance
     from gatetwin.modelfile import read_model_file
 
+    if zig_available():
+        platforms = "all"
+        ctx.progress(f"      C FMUs carry binaries for {', '.join(PLATFORMS)} (Zig's C compiler)")
+    else:
+        platforms = "host"
+        ctx.progress("      C FMUs carry the host's binary only: pip install 'gatetwin[cross]' "
+                     "adds Windows, macOS and 64-bit ARM")  # fmt: skip
     fmus: dict[str, list[Path]] = {"c": [], "python": []}
     for path in ctx.results["model_paths"]:
         model = read_model_file(path)
@@ -155,7 +164,8 @@ def export_fmus(ctx: PipelineContext) -> None:
             out = ctx.out_dir / "fmus" / backend / f"{model.name}.fmu"
             ctx.progress(f"      exporting {model.name} ({backend})")
             paths.append(export_fmu(model.plant, out, backend=backend, model_name=model.name,
-                                    provenance=fmu_provenance(model)))  # fmt: skip
+                                    provenance=fmu_provenance(model),
+                                    platforms=platforms if backend == "c" else "host"))  # fmt: skip
     ctx.results["fmus"] = fmus
 
 
