@@ -183,3 +183,40 @@ def test_unknown_platforms_and_a_missing_cross_compiler_are_one_line(tmp_path, m
     with pytest.raises(Exception, match=r"cross-compiling needs Zig's C compiler"):
         export_fmu(model.plant, tmp_path / "b.fmu", platforms="all", **args)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(shutil.which("cmake") is None, reason="cmake absent (FMPy's build uses it)")
+def test_a_c_fmu_rebuilt_from_its_sources_by_fmpy_gives_the_same_bits(tmp_path):
+    """An importer rebuilds the binary from sources/ with FMPy's build helper and runs it in
+    FMPy: the shipped binary's outputs, to the bit. (FMPy's CMake build does not link libm;
+    a Python host has it loaded already, a bare C host would not: BUILD.txt and the build
+    description name it.)"""
+    if compiler() is None:
+        pytest.skip("no C compiler on this machine")
+    from fmpy.build import build_platform_binary
+    from fmpy.model_description import read_build_description
+
+    from fmu_support import fmu_run, open_fmu
+
+    model = read_model_file(MODEL)
+    path = export_fmu(model.plant, tmp_path / "m.fmu", backend="c", model_name=model.name,
+                      provenance={"model": model.name})  # fmt: skip
+    assert read_build_description(str(path))[0].modelIdentifier == model.name  # schema-valid
+    shipped, rebuilt = tmp_path / "shipped", tmp_path / "rebuilt"
+    for folder in (shipped, rebuilt):
+        with zipfile.ZipFile(path) as zf:
+            zf.extractall(folder)
+    shutil.rmtree(rebuilt / "binaries")
+    (tmp_path / "build").mkdir()
+    build_platform_binary(str(rebuilt.resolve()), build_dir=str(tmp_path / "build"))
+    rec = read_record(bundled_records_dir() / "Eboth.csv")
+    times = np.arange(rec.n_samples) * rec.sample_period_s
+    opening = reconstructed_opening(rec.time_s, rec.opening_mm, rec.hold)
+    outputs = []
+    for root in (shipped, rebuilt):
+        driver = open_fmu(root, root.name, logging_on=False)
+        try:
+            outputs.append(fmu_run(driver, times, opening, rec.flow_m3h))
+        finally:
+            driver.close()
+    assert outputs[0].size > 1000 and np.array_equal(outputs[0], outputs[1])
