@@ -158,6 +158,18 @@ def add_export_arguments(parser: argparse.ArgumentParser) -> None:
         help="C backend: host (default), all, or a comma-separated list of linux64, win64, "
         "darwin64, aarch64-linux, aarch64-darwin; other than the host's need gatetwin[cross]",
     )
+    parser.add_argument(
+        "--cross-check",
+        metavar="DIR",
+        help="also write the FMI cross-check package into DIR/<model>/: the FMU, the inputs of "
+        "a record, the reference result and the settings to compare them in another tool",
+    )
+    parser.add_argument(
+        "--cross-check-record",
+        metavar="RECORD.csv",
+        help="the record whose inputs drive the cross-check (default: the bundled Eboth, gate "
+        "moves and inflow steps together)",
+    )
 
 
 def run_export(args: argparse.Namespace) -> int:
@@ -170,4 +182,13 @@ def run_export(args: argparse.Namespace) -> int:
     path = export_fmu(model.plant, args.out, backend=args.backend, model_name=model.name,
                       provenance=fmu_provenance(model), platforms=args.platforms)  # fmt: skip
     print(f"wrote {path}")
+    if args.cross_check:
+        from gatetwin.bundled import bundled_records_dir
+        from gatetwin.fmu.crosscheck import write_cross_check
+        from gatetwin.records import read_record
+
+        record = read_record(args.cross_check_record or bundled_records_dir() / "Eboth.csv")
+        folder = Path(args.cross_check) / model.name
+        write_cross_check(model, Path(path), record, folder)
+        print(f"wrote the cross-check package {folder}")
     return 0

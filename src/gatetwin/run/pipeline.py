@@ -167,6 +167,29 @@ def export_fmus(ctx: PipelineContext) -> None:
                                     provenance=fmu_provenance(model),
                                     platforms=platforms if backend == "c" else "host"))  # fmt: skip
     ctx.results["fmus"] = fmus
+    _cross_checks(ctx, fmus["c"])
+
+
+#: The record whose inputs drive the run's cross-check packages (gate moves and inflow steps).
+CROSS_CHECK_RECORD = "Eboth.csv"
+
+
+def _cross_checks(ctx: PipelineContext, c_fmus: list[Path]) -> None:
+    """``crosscheck/<model>/``: each C FMU's FMI cross-check package, on the records folder's
+    Eboth record when it has one."""
+    from gatetwin.fmu.crosscheck import write_cross_check
+    from gatetwin.modelfile import read_model_file
+
+    source = ctx.records_dir / CROSS_CHECK_RECORD
+    if not source.is_file():
+        ctx.progress(f"      no {CROSS_CHECK_RECORD} among the records: no cross-check packages")
+        return
+    record = read_record(source)
+    for path, fmu in zip(ctx.results["model_paths"], c_fmus, strict=True):
+        model = read_model_file(path)
+        if model.plant.gauge in record.levels_mm:
+            write_cross_check(model, fmu, record, ctx.out_dir / "crosscheck" / model.name)
+    ctx.progress(f"      cross-check packages in crosscheck/ ({CROSS_CHECK_RECORD}'s inputs)")
 
 
 def tables_and_figures(ctx: PipelineContext) -> None:
