@@ -34,7 +34,9 @@ def _rows() -> list[list[str]]:
 
 
 def _not_a_number(text: str) -> bool:
-    return any(ch not in NUMBER_CHARS for ch in text)
+    # white space alone ("\r" before the newline, say) leaves an empty cell, a missing value
+    # the format allows: not malformed
+    return bool(text.strip()) and any(ch not in NUMBER_CHARS for ch in text)
 
 
 def _not_a_state(text: str) -> bool:
