@@ -36,13 +36,14 @@ def main() -> None:
         write_district(args.gates, district, seed=1, workers=args.workers)
         generate_s = time.perf_counter() - t0
         samples = _samples(district)
-        times = {}
+        times, failed = {}, {}
         for workers in (1, args.workers):
             t0 = time.perf_counter()
             doc = run_fleet([str(district)], Path(tmp) / f"out{workers}",
                             FleetSettings(workers=workers))  # fmt: skip
             times[workers] = time.perf_counter() - t0
-            assert doc["n_ok"] == args.gates, doc["n_failed"]
+            failed[workers] = [(g["gate"], g.get("error", "")) for g in doc["gates"]
+                               if g["status"] != "ok"]  # fmt: skip
     print(f"district: {args.gates} gates, {samples} logged samples, generated in "
           f"{generate_s:.1f} s")  # fmt: skip
     print("| processes | wall time (s) | gates/s | samples/s |")
@@ -51,6 +52,8 @@ def main() -> None:
         print(f"| {workers} | {seconds:.1f} | {args.gates / seconds:.2f} | "
               f"{samples / seconds:,.0f} |")  # fmt: skip
     print(f"speed-up with {args.workers} processes: {times[1] / times[args.workers]:.2f}x")
+    for gate, why in failed[1]:
+        print(f"failed (in both runs: {failed[1] == failed[args.workers]}): {gate}: {why}")
 
 
 if __name__ == "__main__":
