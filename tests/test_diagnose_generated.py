@@ -1,7 +1,6 @@
 """The diagnosis on generated records with a hidden effect (tests/diagnose_cases.py).
 
-63 cases (7 of each effect and 7 ``none``, fixed seeds), about a minute: in the default run
-(the brief allowed a slow-marked full run with a 20-case default only beyond ~2 minutes).
+63 cases (7 of each effect and 7 ``none``, fixed seeds), about a minute: in the default run.
 Thresholds:
 
 * the right name (effect or ``none``) in at least 90 % of the cases;
