@@ -93,7 +93,10 @@ class GuardedSlave(Fmi2Slave):
         else:  # a defect, not a refusal: still an answer, never a crash
             message = f"{function}: internal error {type(exc).__name__}: {exc}"
         self.log(message, Fmi2Status.error, "logStatusError")
-        for owned_by_wrapper in (type(self), self, self.log_queue):
+        # the wrapper's exception path also releases the queued log messages it forwards: pin
+        # them too, or a message is freed while the queue still holds it (heap corruption that
+        # showed in some runs only, depending on the hash seed)
+        for owned_by_wrapper in (type(self), self, self.log_queue, *self.log_queue):
             ctypes.pythonapi.Py_IncRef(ctypes.py_object(owned_by_wrapper))
         return FmiRefusedError(message)
 
