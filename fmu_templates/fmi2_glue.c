@@ -1,7 +1,7 @@
 /* Generic FMI 2.0 co-simulation glue of every gatetwin plant FMU. Never changes per model.
  *
  * What differs per model lives in model_config.h (generated: GUID, value references, start
- * values) and in the family's dynamics file; this file talks to them only through plant.h.
+ * values) and in the family's dynamics file; this file talks to them only through component.h.
  *
  * Policy, stricter than the Reference-FMUs: a call the FMU cannot honour (wrong state, bad
  * pointer, unknown value reference, bad input, a step size it cannot take) returns fmi2Error
@@ -21,7 +21,7 @@
 #include <string.h>
 
 #include "fmi2Functions.h"
-#include "plant.h"
+#include "component.h"
 
 #define INSTANCE_MAGIC 0x67617465u /* "gate" */
 #define STATE_MAGIC 0x73746174u    /* "stat" */
@@ -376,7 +376,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         }
         if (plant_variables[vr[i]].kind == GT_KIND_OUTPUT) {
             PlantMessage msg;
-            if (plant_output(&inst->data, &value[i], &msg) != PLANT_OK) {
+            if (plant_output(&inst->data, vr[i], &value[i], &msg) != PLANT_OK) {
                 return fail(inst, "fmi2GetReal: %s", msg.text);
             }
         } else {
@@ -473,7 +473,7 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 /* --- FMU state ------------------------------------------------------------------------------- */
 
-/* Whether a stored state can be restored into this FMU: its mode and ModelData (plant.h). */
+/* Whether a stored state can be restored into this FMU: its mode and ModelData (component.h). */
 static fmi2Status check_payload(Instance *inst, const char *function, const StatePayload *p)
 {
     PlantMessage msg;

@@ -13,6 +13,8 @@
 #include "effects.h"
 #include "plant.h"
 
+static PlantStatus level_output(const ModelData *m, double *level_mm, PlantMessage *msg);
+
 static PlantStatus check_inputs(double opening_mm, double flow_m3h, PlantMessage *msg)
 {
     if (!(GT_OPENING_MIN_MM <= opening_mm && opening_mm <= GT_OPENING_MAX_MM)) {
@@ -119,7 +121,7 @@ static PlantStatus check_validity(ModelData *m, double opening_mm, double flow_m
 static PlantStatus finite_output(const ModelData *m, const char *when, double *level_mm,
                                  PlantMessage *msg)
 {
-    if (plant_output(m, level_mm, msg) != PLANT_OK) {
+    if (level_output(m, level_mm, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     if (!isfinite(*level_mm)) {
@@ -227,7 +229,7 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     return check_validity(m, opening_mm, flow_m3h, level_mm, msg);
 }
 
-PlantStatus plant_output(const ModelData *m, double *level_mm, PlantMessage *msg)
+static PlantStatus level_output(const ModelData *m, double *level_mm, PlantMessage *msg)
 {
     KnotPosition at;
     double u, x;
@@ -242,6 +244,15 @@ PlantStatus plant_output(const ModelData *m, double *level_mm, PlantMessage *msg
     }
     *level_mm = effects_output_at_rest(m, level_offset(m, &at) + x, m->real[VR_FLOW_M3H]);
     return PLANT_OK;
+}
+
+PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMessage *msg)
+{
+    if (vr != VR_OUTPUT) {
+        plant_message(msg, "%s is not an output", plant_variables[vr].name);
+        return PLANT_ERROR;
+    }
+    return level_output(m, value, msg);
 }
 
 /* --- restored states --------------------------------------------------------------------- */

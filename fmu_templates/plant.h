@@ -1,6 +1,6 @@
 /* The plant seen by the FMI glue: one scheduled FOPDT or ARX gauge model.
  *
- * The glue (fmi2_glue.c) knows only this interface. Everything that differs per model comes
+ * The glue (fmi2_glue.c) knows only its component.h part. Everything that differs per model comes
  * from the generated model_config.h (value references, sizes, start values, the family's
  * dynamics header) and from the family file (model_fopdt.c or model_arx.c).
  *
@@ -9,41 +9,7 @@
 #ifndef GATETWIN_PLANT_H
 #define GATETWIN_PLANT_H
 
-#include <stddef.h>
-
-#include "model_config.h"
-#include GT_DYNAMICS_HEADER /* DynamicsState of the family: model_fopdt.h or model_arx.h */
-#include "effects.h"        /* EffectState */
-
-typedef enum { PLANT_OK = 0, PLANT_WARNING = 1, PLANT_ERROR = 2 } PlantStatus;
-
-/* Why a call returned PLANT_WARNING or PLANT_ERROR; the glue logs it. */
-typedef struct {
-    char text[512];
-} PlantMessage;
-
-typedef enum { GT_KIND_INPUT, GT_KIND_OUTPUT, GT_KIND_TUNABLE, GT_KIND_FIXED } VariableKind;
-
-/* One Real variable of the model description (the table is generated, see plant.c). */
-typedef struct {
-    const char *name;
-    VariableKind kind;
-    double start;
-} PlantVariable;
-
-extern const PlantVariable plant_variables[GT_N_REAL];
-
-/* Everything an FMU state holds. Fixed size and pointer-free: copied and serialised as bytes. */
-typedef struct {
-    double time_s;            /* time of the state, s */
-    double real[GT_N_REAL];   /* every Real variable, indexed by value reference */
-    double flow_in_force_m3h; /* discharge of the last step: selects level_ref for the output */
-    int initialized;          /* plant_initialize succeeded */
-    int warned_validity;      /* the validity warning (envelope or schedule range) was given */
-    int parameters_changed;   /* parameters were set since they were last checked */
-    DynamicsState dyn;        /* the family's state; dyn.x is the deviation from level_ref, mm */
-    EffectState fx;           /* the effect blocks' state */
-} ModelData;
+#include "component.h" /* the glue-facing part, and ModelData (plant_data.h) */
 
 /* Where a discharge falls among the schedule knots (shared by every column). */
 typedef struct {
@@ -54,20 +20,6 @@ typedef struct {
 
 KnotPosition plant_locate(const ModelData *m, double flow_m3h);
 double plant_interp(const KnotPosition *at, const double *column);
-void plant_message(PlantMessage *msg, const char *format, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
-#endif
-    ;
-
-/* Called by the glue. */
-void plant_set_defaults(ModelData *m);
-PlantStatus plant_initialize(ModelData *m, PlantMessage *msg);
-PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg);
-PlantStatus plant_output(const ModelData *m, double *level_mm, PlantMessage *msg);
-/* Whether m can be restored: every double finite, every index and count in range, flags 0 or
- * 1, initialised exactly when `initialized` says, checked parameters still valid. */
-PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage *msg);
 
 /* Implemented once per family (model_fopdt.c, model_arx.c); called by plant.c only.
  * dynamics_check_step and dynamics_step get the commanded opening: the family runs the input

@@ -43,6 +43,8 @@ COMMON_HEADERS = (
     "fmi2Functions.h",
     "fmi2FunctionTypes.h",
     "fmi2TypesPlatform.h",
+    "component.h",
+    "plant_data.h",
     "plant.h",
     "effects.h",
     "blocks.h",

@@ -437,6 +437,7 @@ def model_config_header(desc: FmuDescription) -> str:
         "",
         f"#define GT_MODEL_IDENTIFIER {c_string_literal(desc.model_identifier)}",
         f"#define GT_GUID {c_string_literal(desc.guid)}",
+        '#define GT_COMPONENT_HEADER "plant_data.h"',
         f'#define GT_DYNAMICS_HEADER "model_{desc.family}.h"',
         f"#define GT_N_KNOTS {desc.n_knots}",
         f"#define GT_N_REAL {len(desc.variables)}",
