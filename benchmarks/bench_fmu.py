@@ -5,7 +5,10 @@ Two measurements, printed with their ratios (never asserted):
 1. A tiny C host (bench_host.c, dlopen of the FMU binary) times N doStep calls: ns per
    doStep for the C FMU (target <= 50 ns, schedule interpolation included) and the pythonfmu
    FMU (the host loads libpython first; found through sysconfig), and their ratio
-   (target >= 100x).
+   (target >= 100x). Next to them, the bare reference (bench_bare.c, compiled in the same
+   run with the FMU's flags): the same exact FOPDT step, its parameters fixed at the held
+   discharge, nothing around it; the C FMU's setReal + doStep + getReal over it is the price
+   of the FMI interface, the schedule and the checks (target <= 3x).
 2. The same FMUs through fmpy's FMU2Slave (setReal + doStep + getReal per step): steps per
    second, next to fmpy's own overhead (an empty loop and a getReal-only loop).
 
@@ -34,6 +37,8 @@ from gatetwin.plant.model import FopdtPlant, Schedule
 
 HERE = Path(__file__).parent
 STEP_S = 1.0
+#: The discharge every timing holds (between two knots of the test plant), m3/h.
+FLOW_M3H = 47.0
 
 
 def test_plant() -> FopdtPlant:
@@ -142,6 +147,23 @@ def fmpy_loop(extracted: Path, n: int) -> dict[str, float]:
     return {"steps_per_s": n / loop_s, "step_us": loop_s / n * 1e6, "get_us": get_s / n * 1e6}
 
 
+def bare_reference(cc: str, folder: Path, plant: FopdtPlant, n: int, repeat: int) -> float:
+    """ns per set + step + get of bench_bare.c (the fastest of ``repeat`` runs), compiled with
+    the FMU's flags, on the plant's K, T, L and level at the held discharge."""
+    from gatetwin.fmu.c_build import CFLAGS, HOST_FLAGS
+
+    exe = folder / "bench_bare"
+    flags = [f for f in (*CFLAGS, *HOST_FLAGS) if f not in ("-shared", "-fPIC",
+                                                             "-fvisibility=hidden")]  # fmt: skip
+    subprocess.run([cc, *flags, "-o", str(exe), str(HERE / "bench_bare.c"), "-lm"], check=True)
+    params = {c: plant.schedule.at(c, FLOW_M3H) for c in
+              ("gain_mm_per_mm", "time_constant_s", "dead_time_s", "level_ref_mm")}  # fmt: skip
+    command = [str(exe), *(repr(v) for v in params.values()), str(STEP_S), str(n)]
+    runs = [subprocess.run(command, capture_output=True, text=True, timeout=1800, check=True)
+            for _ in range(repeat)]  # fmt: skip
+    return min(float(done.stdout.split()[1]) for done in runs)
+
+
 def empty_loop_ns(n: int) -> float:
     t, start = 0.0, time.perf_counter()
     for k in range(n):
@@ -154,6 +176,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n-c", type=int, default=5_000_000, help="doSteps timed, C FMU")
     parser.add_argument("--n-python", type=int, default=20_000, help="doSteps, python FMU")
+    parser.add_argument("--repeat", type=int, default=5,
+                        help="C timings: runs of each, the fastest kept (a shared machine "
+                        "only ever slows a run down)")  # fmt: skip
     parser.add_argument("--n-fmpy", type=int, default=20_000, help="steps through fmpy")
     parser.add_argument(
         "--model",
@@ -189,12 +214,20 @@ def main() -> None:
         what = args.model or "FOPDT test plant, 3 knots"
         print(f"{what}: Q = 47 m3/h, opening 18/23 mm alternating every 7 steps, step {STEP_S} s")
         print(f"\n1. C host (dlopen of the FMU binary, {sys.platform})")
-        c_ns = run_host(host, host_args(fmus["c"], plant.gauge), args.n_c)
+        runs = [run_host(host, host_args(fmus["c"], plant.gauge), args.n_c)
+                for _ in range(args.repeat)]  # fmt: skip
+        c_ns = {key: min(r[key] for r in runs) for key in runs[0]}
         print(
             f"   C FMU       doStep                 {c_ns['doStep_ns']:10.1f} ns   "
             f"(target <= 50 ns; N = {args.n_c:,})"
         )
         print(f"               setReal+doStep+getReal {c_ns['set_doStep_get_ns']:10.1f} ns")
+        if not args.model:
+            bare = bare_reference(cc, folder, plant, args.n_c, args.repeat)
+            ratio = c_ns["set_doStep_get_ns"] / bare
+            print(f"   bare FOPDT  set+step+get           {bare:10.1f} ns   (bench_bare.c; "
+                  f"fastest of {args.repeat} runs, as the C FMU's)")  # fmt: skip
+            print(f"   ratio C FMU/bare                   {ratio:10.2f} x   (target <= 3 x)")
         lib, why = libpython()
         if lib is None:
             print(f"   python FMU  not timed from C: {why}")

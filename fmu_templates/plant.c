@@ -117,13 +117,15 @@ static PlantStatus check_validity(ModelData *m, double opening_mm, double flow_m
     return PLANT_OK;
 }
 
-/* The output after initialisation or a step: finite, or an error saying when. */
-static PlantStatus finite_output(const ModelData *m, const char *when, double *level_mm,
+/* The output after initialisation or a step, kept in m->output_mm: finite, or an error
+ * saying when. */
+static PlantStatus finite_output(ModelData *m, const char *when, double *level_mm,
                                  PlantMessage *msg)
 {
     if (level_output(m, level_mm, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
+    m->output_mm = *level_mm;
     if (!isfinite(*level_mm)) {
         plant_message(msg,
                       "%s = %g %s is not finite: the parameters (or an unstable model) drive "
@@ -252,7 +254,29 @@ PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMe
         plant_message(msg, "%s is not an output", plant_variables[vr].name);
         return PLANT_ERROR;
     }
+    if (m->initialized && !m->parameters_changed) {
+        *value = m->output_mm; /* what the last step computed; nothing it depends on changed */
+        return PLANT_OK;
+    }
     return level_output(m, value, msg);
+}
+
+/* A restored state's kept output must be the one its state gives (bit for bit). */
+static PlantStatus check_kept_output(const ModelData *m, PlantMessage *msg)
+{
+    double level_mm;
+    if (!m->initialized || m->parameters_changed) {
+        return PLANT_OK;
+    }
+    if (level_output(m, &level_mm, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    if (memcmp(&level_mm, &m->output_mm, sizeof level_mm) != 0) {
+        plant_message(msg, "state's output %.17g mm is not the %.17g mm its state gives",
+                      m->output_mm, level_mm);
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
 }
 
 /* --- restored states --------------------------------------------------------------------- */
@@ -297,8 +321,8 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
     if (!m->parameters_changed && check_parameters(m, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
-    if (dynamics_check_state(m, msg) != PLANT_OK) {
+    if (dynamics_check_state(m, msg) != PLANT_OK || effects_check_state(m, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
-    return effects_check_state(m, msg);
+    return check_kept_output(m, msg);
 }

@@ -13,6 +13,8 @@ typedef struct {
     double time_s;            /* time of the state, s */
     double real[GT_N_REAL];   /* every Real variable, indexed by value reference */
     double flow_in_force_m3h; /* discharge of the last step: selects level_ref for the output */
+    double output_mm;         /* the output after initialisation or the last step, served
+                                 by getReal until a parameter changes */
     int initialized;          /* plant_initialize succeeded */
     int warned_validity;      /* the validity warning (envelope or schedule range) was given */
     int parameters_changed;   /* parameters were set since they were last checked */

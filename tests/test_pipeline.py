@@ -107,12 +107,15 @@ def test_run_writes_models_fmus_figures_and_summary(tmp_path):
     out = run_pipeline(tmp_path / "out")
     models = sorted(p.stem for p in (out / "models").glob("*.json") if p.stem != "schema")
     assert "fopdt_3F" in models and "arx_3F" in models
-    for backend in ("c", "python"):
-        assert sorted(p.stem for p in (out / "fmus" / backend).glob("*.fmu")) == models
+    for kind in ("c", "python", "fmi3"):
+        assert sorted(p.stem for p in (out / "fmus" / kind).glob("*.fmu")) == models
     assert len(list((out / "figures").glob("*.png"))) >= 11
     summary = (out / "summary.md").read_text(encoding="utf-8")
     assert "Paper's Table 2" in summary and "Published vs ours" in summary
     validation = json.loads((out / "validation.json").read_text(encoding="utf-8"))
+    by_kind = {kind: {(c["fmu"], c["record"]): c["metrics"] for c in validation["matrix"]
+                      if c["backend"] == kind} for kind in ("c", "fmi3")}  # fmt: skip
+    assert by_kind["fmi3"] and by_kind["fmi3"] == by_kind["c"]  # same bits, same scores
     listed = {(Path(c["fmu"]).stem, Path(c["record"]).stem) for c in validation["matrix"]}
     listed |= {(o["model"], o["record"]) for o in validation["outside_validity"]}
     for record in ("Q55", "Emoves35", "EflowLow", "Eboth", "Erandom60"):
