@@ -18,6 +18,7 @@ from pathlib import Path
 
 from gatetwin.errors import ExportError
 from gatetwin.fmu.description import (
+    ComponentInterface,
     CoSimulationFlags,
     FmuDescription,
     model_config_header,
@@ -38,7 +39,8 @@ CFLAGS = (
     "-Werror",
 )
 #: blocks.c/.h are generated from gatetwin.plant.blocks (:func:`generated_blocks`).
-COMMON_SOURCES = ("fmi2_glue.c", "plant.c", "support.c", "effects.c", "blocks.c")
+#: component.c (the variable table and the message formatter) serves every component.
+COMMON_SOURCES = ("fmi2_glue.c", "component.c", "plant.c", "support.c", "effects.c", "blocks.c")
 COMMON_HEADERS = (
     "fmi2Functions.h",
     "fmi2FunctionTypes.h",
@@ -140,7 +142,7 @@ def write_sources(desc: FmuDescription, sources_dir: Path) -> tuple[str, ...]:
     return c_files
 
 
-def build_description_xml(desc: FmuDescription, c_files: tuple[str, ...]) -> bytes:
+def build_description_xml(desc: ComponentInterface, c_files: tuple[str, ...]) -> bytes:
     """``sources/buildDescription.xml`` (the FMI build description, the format FMI 3.0
     defines and FMI 2.0.4 adopts): one build configuration, the C99 sources, the compiler
     options the shipped binaries are built with."""
@@ -155,6 +157,16 @@ def build_description_xml(desc: FmuDescription, c_files: tuple[str, ...]) -> byt
     ET.SubElement(config, "Library", name="m", description="the C math library (libm)")
     ET.indent(root)
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
+
+
+def zip_folder(folder: Path, out: Path) -> None:
+    """Zip every file under ``folder`` into ``out`` (an FMU or an SSP), paths relative to it."""
+    import zipfile
+
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
+        for path in sorted(folder.rglob("*")):
+            if path.is_file():
+                zf.write(path, path.relative_to(folder).as_posix())
 
 
 def compile_shared(
