@@ -347,6 +347,12 @@ _COMMANDS: tuple[Command, ...] = (
         _model_cmds.run_export,
     ),
     Command(
+        "export-controller",
+        "export the level controller of a model file as an FMI 2.0 co-simulation FMU (C)",
+        _model_cmds.add_export_controller_arguments,
+        _model_cmds.run_export_controller,
+    ),
+    Command(
         "validate",
         "simulate an FMU on measured records with fmpy and score it (JSON, JUnit, plots)",
         _add_validate_arguments,
