@@ -121,8 +121,8 @@ class ControllerDescription:
 def check_controller_kind(kind: str) -> None:
     """Raise :class:`ExportError` unless ``kind`` is a controller this package builds."""
     if kind == "mpc":
-        raise ExportError("the MPC controller FMU is not built by this command yet; "
-                          "use --kind pi")  # fmt: skip
+        raise ExportError("the MPC controller FMU is not built by this command yet; only the "
+                          "PI controller (pi) is")  # fmt: skip
     if kind not in CONTROLLER_KINDS:
         raise ExportError(f"controller kind must be one of {', '.join(CONTROLLER_KINDS)} "
                           f"(got {kind!r})")  # fmt: skip
