@@ -19,7 +19,7 @@ from scipy.sparse.csgraph import connected_components
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "gatetwin"
 #: Subpackages that are libraries: they may not import the orchestrator or the CLI.
 LIBRARIES = ("identify", "fmu", "validate", "mpc", "diagnose", "plant", "records", "flume",
-             "fleet")  # fmt: skip
+             "fleet", "ssp")  # fmt: skip
 #: The orchestration of ``gatetwin run`` and the command line.
 TOP_LAYERS = ("gatetwin.run", "gatetwin.pipeline", "gatetwin.cli")
 
