@@ -300,9 +300,16 @@ def test_export_carries_the_provenance_gatetwin_export_writes(fopdt, tmp_path):
     assert _provenance(api_fmu)["model_file_sha256"] == fopdt.sha256
 
 
-def test_fmi_3_is_refused_with_one_line_and_no_file(fopdt, tmp_path):
-    with pytest.raises(ExportError, match="FMI 3.0 export is not implemented") as info:
-        fopdt.export_fmu(tmp_path / "m.fmu", fmi_version="3.0")
+@pytest.mark.parametrize(
+    ("backend", "fmi_version", "message"),
+    [("c", "4.0", "fmi_version must be one of 2.0, 3.0"),
+     ("python", "3.0", "FMI 3.0 FMUs are built by the C backend")],
+)  # fmt: skip
+def test_an_fmi_version_not_built_is_refused_with_one_line_and_no_file(
+    fopdt, tmp_path, backend, fmi_version, message
+):
+    with pytest.raises(ExportError, match=message) as info:
+        fopdt.export_fmu(tmp_path / "m.fmu", backend=backend, fmi_version=fmi_version)
     assert "\n" not in str(info.value)
     assert list(tmp_path.iterdir()) == []
 

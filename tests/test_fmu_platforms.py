@@ -1,6 +1,7 @@
 """C FMUs for other platforms, cross-compiled with Zig: the binaries are what they say, and
 the foreign ones compute what the host's computes (Windows under wine, 64-bit ARM Linux under
-qemu-user; macOS checked statically)."""
+qemu-user; macOS checked statically). FMI 3.0 FMUs carry the same binaries in FMI 3.0's
+folders, exporting the fmi3 functions."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from fmpy import read_model_description
 
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.fmu import export_fmu
-from gatetwin.fmu.platforms import PLATFORMS, zig_available
+from gatetwin.fmu.platforms import platforms_of, zig_available
 from gatetwin.identify.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
 from gatetwin.records import read_record
@@ -40,6 +41,15 @@ FMI2_FUNCTIONS = {
     "fmi2DeSerializeFMUstate", "fmi2GetDirectionalDerivative", "fmi2SetRealInputDerivatives",
     "fmi2GetRealOutputDerivatives", "fmi2DoStep", "fmi2CancelStep", "fmi2GetStatus",
     "fmi2GetRealStatus", "fmi2GetIntegerStatus", "fmi2GetBooleanStatus", "fmi2GetStringStatus",
+}  # fmt: skip
+#: The FMI 3.0 co-simulation functions an importer calls first or most (every one of the
+#: standard's is defined by fmi3_glue.c; these are the ones this test names).
+FMI3_FUNCTIONS = {
+    "fmi3GetVersion", "fmi3SetDebugLogging", "fmi3InstantiateCoSimulation", "fmi3FreeInstance",
+    "fmi3EnterInitializationMode", "fmi3ExitInitializationMode", "fmi3Terminate", "fmi3Reset",
+    "fmi3GetFloat64", "fmi3SetFloat64", "fmi3GetFMUState", "fmi3SetFMUState",
+    "fmi3FreeFMUState", "fmi3SerializedFMUStateSize", "fmi3SerializeFMUState",
+    "fmi3DeserializeFMUState", "fmi3DoStep", "fmi3EnterStepMode",
 }  # fmt: skip
 #: What a macOS binary may take from libSystem: the C library and libm calls of the sources.
 LIBSYSTEM = {
@@ -64,29 +74,54 @@ def fmu_all(tmp_path_factory):
     return path, folder / "x"
 
 
-def test_every_platform_gets_one_binary_of_its_format(fmu_all):
-    _, root = fmu_all
+@pytest.fixture(scope="module")
+def fmu3_all(fmu_all, tmp_path_factory):
+    model = read_model_file(MODEL)
+    folder = tmp_path_factory.mktemp("platforms3")
+    path = export_fmu(model.plant, folder / "fopdt_3F.fmu", backend="c", model_name=model.name,
+                      provenance={"model": model.name}, platforms="all",
+                      fmi_version="3.0")  # fmt: skip
+    with zipfile.ZipFile(path) as zf:
+        zf.extractall(folder / "x")
+    return path, folder / "x"
+
+
+#: (FMI 2.0 folder, FMI 3.0 folder) of each format checked below.
+FOLDERS = {"x86_64 ELF": ("linux64", "x86_64-linux"), "AArch64 ELF": ("aarch64-linux",) * 2,
+           "AMD64 PE": ("win64", "x86_64-windows")}  # fmt: skip
+
+
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+def test_every_platform_gets_one_binary_of_its_format(fmu_all, fmu3_all, version):
+    root = (fmu_all if version == "2.0" else fmu3_all)[1]
+    column = 0 if version == "2.0" else 1
+    folder = {what: names[column] for what, names in FOLDERS.items()}
     found = {p.parent.name: p for p in (root / "binaries").glob("*/*")}
-    assert set(found) == set(PLATFORMS)
+    assert set(found) == set(platforms_of(version))
     assert all(len(list(p.parent.iterdir())) == 1 for p in found.values())  # no .lib, .pdb
-    elf_machine = {p: struct.unpack_from("<H", found[p].read_bytes(), 18)[0]
-                   for p in ("linux64", "aarch64-linux")}  # fmt: skip
-    assert elf_machine == {"linux64": 62, "aarch64-linux": 183}  # EM_X86_64, EM_AARCH64
-    pe = found["win64"].read_bytes()
+    elf_machine = {w: struct.unpack_from("<H", found[folder[w]].read_bytes(), 18)[0]
+                   for w in ("x86_64 ELF", "AArch64 ELF")}  # fmt: skip
+    assert elf_machine == {"x86_64 ELF": 62, "AArch64 ELF": 183}  # EM_X86_64, EM_AARCH64
+    pe = found[folder["AMD64 PE"]].read_bytes()
     pe_offset = struct.unpack_from("<I", pe, 0x3C)[0]
     assert pe[:2] == b"MZ" and pe[pe_offset : pe_offset + 4] == b"PE\0\0"
     assert struct.unpack_from("<H", pe, pe_offset + 4)[0] == 0x8664  # AMD64
 
 
-@pytest.mark.parametrize(("folder", "cpu"), [("darwin64", "x86_64"), ("aarch64-darwin", "ARM64")])
-def test_macos_binaries_export_fmi2_and_need_only_libsystem(fmu_all, folder, cpu):
+@pytest.mark.parametrize(
+    ("version", "folder", "cpu"),
+    [("2.0", "darwin64", "x86_64"), ("2.0", "aarch64-darwin", "ARM64"),
+     ("3.0", "x86_64-darwin", "x86_64"), ("3.0", "aarch64-darwin", "ARM64")],
+)  # fmt: skip
+def test_macos_binaries_export_fmi_and_need_only_libsystem(fmu_all, fmu3_all, version, folder,
+                                                           cpu):  # fmt: skip
     macholib = pytest.importorskip("macholib")
     from macholib.mach_o import CPU_TYPE_NAMES, LC_LOAD_DYLIB
     from macholib.MachO import MachO
     from macholib.SymbolTable import SymbolTable
 
     assert macholib
-    path = next((fmu_all[1] / "binaries" / folder).iterdir())
+    path = next(((fmu_all if version == "2.0" else fmu3_all)[1] / "binaries" / folder).iterdir())
     binary = MachO(str(path))
     header = binary.headers[0]
     assert CPU_TYPE_NAMES.get(header.header.cputype) == cpu
@@ -94,7 +129,7 @@ def test_macos_binaries_export_fmi2_and_need_only_libsystem(fmu_all, folder, cpu
     # C symbols carry one leading underscore in Mach-O
     defined = {_c_name(name) for _, name in symbols.extdefsyms}
     undefined = {_c_name(name) for _, name in symbols.undefsyms}
-    assert FMI2_FUNCTIONS <= defined
+    assert (FMI2_FUNCTIONS if version == "2.0" else FMI3_FUNCTIONS) <= defined
     assert undefined - {"dyld_stub_binder"} <= LIBSYSTEM, undefined - LIBSYSTEM
     dylibs = [c[2].rstrip(b"\0").decode() for c in header.commands if c[0].cmd == LC_LOAD_DYLIB]
     assert dylibs == ["/usr/lib/libSystem.B.dylib"]

@@ -22,14 +22,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from gatetwin.api._simulation import SimulationResult, simulate_plant
-from gatetwin.errors import ExportError
 
 if TYPE_CHECKING:  # model files and plants pull in scipy: imported where they are used
     from gatetwin.modelfile import ModelFile
     from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant
 
 #: FMI versions :meth:`Model.export_fmu` writes.
-FMI_VERSIONS = ("2.0",)
 
 
 @dataclass(frozen=True)
@@ -381,8 +379,8 @@ class Model:
             Target ``.fmu`` file, written atomically.
         backend : {"c", "python"}
             Native C compiled with the system compiler, or a pythonfmu FMU.
-        fmi_version : {"2.0"}
-            FMI version; only 2.0 is written.
+        fmi_version : {"2.0", "3.0"}
+            FMI version (3.0: C backend only); same variables, value references and outputs.
 
         Returns
         -------
@@ -404,13 +402,9 @@ class Model:
         from gatetwin.fmu import export_fmu
         from gatetwin.fmu.provenance import fmu_provenance
 
-        if fmi_version not in FMI_VERSIONS:
-            raise ExportError(
-                f"FMI {fmi_version} export is not implemented; this gatetwin "
-                f"writes FMI {', '.join(FMI_VERSIONS)} co-simulation FMUs"
-            )
         return export_fmu(self.plant, os.fspath(path), backend=backend, model_name=self.name,
-                          provenance=fmu_provenance(self.file))  # fmt: skip
+                          provenance=fmu_provenance(self.file),
+                          fmi_version=fmi_version)  # fmt: skip
 
 
 def load_model(path: str | os.PathLike[str]) -> Model:

@@ -152,11 +152,19 @@ def add_export_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--backend", choices=("c", "python"), required=True)
     parser.add_argument("--out", metavar="NAME.fmu", required=True)
     parser.add_argument(
+        "--fmi",
+        choices=("2", "3"),
+        default="2",
+        help="FMI version of the co-simulation FMU: 2 (default) or 3 (C backend)",
+    )
+    parser.add_argument(
         "--platforms",
         metavar="WHICH",
         default="host",
-        help="C backend: host (default), all, or a comma-separated list of linux64, win64, "
-        "darwin64, aarch64-linux, aarch64-darwin; other than the host's need gatetwin[cross]",
+        help="C backend: host (default), all, or a comma-separated list of binary folders: "
+        "FMI 2: linux64, win64, darwin64, aarch64-linux, aarch64-darwin; FMI 3: x86_64-linux, "
+        "x86_64-windows, x86_64-darwin, aarch64-linux, aarch64-darwin; other than the host's "
+        "need gatetwin[cross]",
     )
     parser.add_argument(
         "--cross-check",
@@ -180,7 +188,8 @@ def run_export(args: argparse.Namespace) -> int:
     model = read_model_file(args.model)
     check_writable(args.out)
     path = export_fmu(model.plant, args.out, backend=args.backend, model_name=model.name,
-                      provenance=fmu_provenance(model), platforms=args.platforms)  # fmt: skip
+                      provenance=fmu_provenance(model), platforms=args.platforms,
+                      fmi_version=f"{args.fmi}.0")  # fmt: skip
     print(f"wrote {path}")
     if args.cross_check:
         from gatetwin.bundled import bundled_records_dir

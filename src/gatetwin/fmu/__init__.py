@@ -1,4 +1,4 @@
-"""Export a plant as an FMI 2.0 co-simulation FMU (C or pythonfmu backend).
+"""Export a plant as an FMI co-simulation FMU: FMI 2.0 (C or pythonfmu backend) or FMI 3.0 (C).
 
 Both backends render the same :class:`~gatetwin.fmu.description.FmuDescription` and follow
 :class:`gatetwin.plant.simulate.PlantSimulator` operation by operation. This package builds
@@ -20,8 +20,10 @@ from gatetwin.fmu.description import FmuDescription, describe
 from gatetwin.plant.model import ArxPlant, FopdtPlant, PhysicalPlant, Plant, plant_to_dict
 
 BACKENDS = ("c", "python")
+#: FMI versions an FMU can be exported in (FMI 3.0: the C backend).
+FMI_VERSIONS = ("2.0", "3.0")
 
-__all__ = ["BACKENDS", "FmuDescription", "describe", "export_fmu"]
+__all__ = ["BACKENDS", "FMI_VERSIONS", "FmuDescription", "describe", "export_fmu"]
 
 
 def export_fmu(
@@ -32,6 +34,7 @@ def export_fmu(
     model_name: str,
     provenance: dict[str, Any],
     platforms: str | tuple[str, ...] = "host",
+    fmi_version: str = "2.0",
 ) -> Path:
     """Build an FMU of ``plant`` at ``out_path``; return its path.
 
@@ -54,8 +57,11 @@ def export_fmu(
         in the modelDescription ``description`` attribute.
     platforms : str or tuple of str
         C backend: ``"host"`` (the default), ``"all"``, or folder names of
-        :data:`gatetwin.fmu.platforms.PLATFORMS` (comma-separated, or a tuple); platforms
-        other than the host's are cross-compiled with Zig (``gatetwin[cross]``).
+        :func:`gatetwin.fmu.platforms.platforms_of` in the FMI version's layout
+        (comma-separated, or a tuple); platforms other than the host's are cross-compiled
+        with Zig (``gatetwin[cross]``).
+    fmi_version : {"2.0", "3.0"}
+        FMI 3.0 co-simulation: C backend; same variables, value references and outputs.
 
     Raises
     ------
@@ -71,28 +77,41 @@ def export_fmu(
         raise ExportError(
             f"cannot export {type(plant).__name__}: expected FopdtPlant, ArxPlant or PhysicalPlant"
         )
+    if fmi_version not in FMI_VERSIONS:
+        raise ExportError(f"fmi_version must be one of {', '.join(FMI_VERSIONS)} (got "
+                          f"{str(fmi_version)[:20]!r})")  # fmt: skip
+    if fmi_version == "3.0" and backend != "c":
+        raise ExportError("FMI 3.0 FMUs are built by the C backend (--backend c)")
     target = Path(out_path)
     if target.suffix.lower() != ".fmu":
         raise ExportError(f"output {target} must end in .fmu")
-    folders = _platform_folders(backend, platforms)
+    folders = _platform_folders(backend, platforms, fmi_version)
     desc = describe(plant, model_name, provenance, f"{backend}:{_code_digest(backend)}")
     check_finite_response(plant, model_name, provenance)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
-            _build(plant, desc, backend, Path(tmp), target, folders)
+            _build(plant, desc, backend, Path(tmp), target, folders, fmi_version)
     except OSError as exc:
         raise OutputError(f"{target}: cannot write the FMU ({exc.strerror or exc})") from None
     return target
 
 
-def _platform_folders(backend: str, platforms: str | tuple[str, ...]) -> tuple[str, ...]:
-    """The binaries' folders to build (checked before anything is built)."""
-    from fmpy import platform
+def _host_folder(fmi_version: str) -> str:
+    """The host's folder under ``binaries/`` in ``fmi_version``'s layout."""
+    from fmpy import platform, platform_tuple
 
+    return platform if fmi_version == "2.0" else platform_tuple
+
+
+def _platform_folders(
+    backend: str, platforms: str | tuple[str, ...], fmi_version: str = "2.0"
+) -> tuple[str, ...]:
+    """The binaries' folders to build (checked before anything is built)."""
     from gatetwin.fmu.platforms import resolve, zig_cc
 
-    folders = resolve(platforms, platform)
+    platform = _host_folder(fmi_version)
+    folders = resolve(platforms, platform, fmi_version)
     if backend != "c" and folders != (platform,):
         raise ExportError("platforms: the python backend runs on the exporting platform only")
     if any(f != platform for f in folders):
@@ -107,11 +126,12 @@ def _build(
     work: Path,
     target: Path,
     folders: tuple[str, ...] = (),
+    fmi_version: str = "2.0",
 ) -> None:
     resources = _write_resources(plant, desc, backend, work / "resources")
     built = work / target.name
     if backend == "c":
-        _build_c(desc, work / "fmu", resources, built, folders)
+        _build_c(desc, work / "fmu", resources, built, folders, fmi_version)
     else:
         from gatetwin.fmu.python_build import build_python_fmu
 
@@ -160,12 +180,14 @@ def _build_c(
     resources: list[Path],
     out: Path,
     folders: tuple[str, ...] = (),
+    fmi_version: str = "2.0",
 ) -> None:
-    from fmpy import platform, sharedLibraryExtension
+    from fmpy import sharedLibraryExtension
 
     from gatetwin.fmu.c_build import build_c_fmu, zip_folder
 
-    build_c_fmu(desc, fmu_dir, platform, sharedLibraryExtension, folders)
+    platform = _host_folder(fmi_version)
+    build_c_fmu(desc, fmu_dir, platform, sharedLibraryExtension, folders, fmi_version)
     (fmu_dir / "resources").mkdir()
     for path in resources:
         (fmu_dir / "resources" / path.name).write_bytes(path.read_bytes())

@@ -14,6 +14,7 @@ import shlex
 import shutil
 import subprocess
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 from gatetwin.errors import ExportError
@@ -24,6 +25,7 @@ from gatetwin.fmu.description import (
     model_config_header,
     model_description_xml,
 )
+from gatetwin.fmu.description3 import model_description_xml3
 
 #: Compile flags of every C FMU; -ffp-contract=off keeps compilers from fusing a*b+c into
 #: one FMA, which would change results in the last bit against the Python reference.
@@ -40,18 +42,32 @@ CFLAGS = (
 )
 #: blocks.c/.h are generated from gatetwin.plant.blocks (:func:`generated_blocks`).
 #: component.c (the variable table and the message formatter) serves every component.
-COMMON_SOURCES = ("fmi2_glue.c", "component.c", "plant.c", "support.c", "effects.c", "blocks.c")
-COMMON_HEADERS = (
-    "fmi2Functions.h",
-    "fmi2FunctionTypes.h",
-    "fmi2TypesPlatform.h",
-    "component.h",
-    "plant_data.h",
-    "plant.h",
-    "effects.h",
-    "blocks.h",
-)
-LICENSE_FILE = "LICENSE-FMI2-headers.txt"
+COMMON_SOURCES = ("component.c", "plant.c", "support.c", "effects.c", "blocks.c")
+COMMON_HEADERS = ("component.h", "plant_data.h", "plant.h", "effects.h", "blocks.h")
+
+
+@dataclass(frozen=True)
+class FmiApi:
+    """What one FMI version adds to the component: its glue, headers and their licence."""
+
+    version: str
+    glue: str
+    headers: tuple[str, ...]
+    license: str
+
+
+#: The FMI APIs a C FMU can carry, by ``fmiVersion``.
+FMI_APIS = {
+    api.version: api
+    for api in (
+        FmiApi("2.0", "fmi2_glue.c",
+               ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
+               "LICENSE-FMI2-headers.txt"),
+        FmiApi("3.0", "fmi3_glue.c",
+               ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h"),
+               "LICENSE-FMI3-headers.txt"),
+    )
+}  # fmt: skip
 FLAGS = CoSimulationFlags(
     needs_execution_tool=False,
     can_serialize_fmu_state=True,
@@ -87,10 +103,12 @@ KERNEL_HEADERS = ("physical_kernel.h", "kernel_support.h")
 KERNEL_PREFIX = "gt_"
 
 
-def source_files(family: str, with_kernel: bool = False) -> tuple[str, ...]:
+def source_files(
+    family: str, with_kernel: bool = False, fmi_version: str = "2.0"
+) -> tuple[str, ...]:
     """The C files compiled for one family, in compile order."""
     kernel = KERNEL_SOURCES if with_kernel or family == "physical" else ()
-    return (*COMMON_SOURCES, *kernel, f"model_{family}.c")
+    return (FMI_APIS[fmi_version].glue, *COMMON_SOURCES, *kernel, f"model_{family}.c")
 
 
 def generated_kernel() -> dict[str, str]:
@@ -111,15 +129,18 @@ def generated_blocks() -> dict[str, str]:
     return {"blocks.c": source, "blocks.h": header}
 
 
-def write_sources(desc: FmuDescription, sources_dir: Path) -> tuple[str, ...]:
+def write_sources(
+    desc: FmuDescription, sources_dir: Path, fmi_version: str = "2.0"
+) -> tuple[str, ...]:
     """Copy the templates one model needs into ``sources_dir`` and generate model_config.h."""
     templates = templates_dir()
     sources_dir.mkdir(parents=True, exist_ok=True)
     with_kernel = desc.kernel_first is not None
-    c_files = source_files(desc.family, with_kernel)
+    api = FMI_APIS[fmi_version]
+    c_files = source_files(desc.family, with_kernel, fmi_version)
     generated = {**generated_blocks(), **(generated_kernel() if with_kernel else {})}
-    headers = KERNEL_HEADERS if with_kernel else ()
-    for name in (*c_files, *COMMON_HEADERS, *headers, f"model_{desc.family}.h", LICENSE_FILE):
+    headers = (*api.headers, *COMMON_HEADERS, *(KERNEL_HEADERS if with_kernel else ()))
+    for name in (*c_files, *headers, f"model_{desc.family}.h", api.license):
         if name not in generated:
             shutil.copyfile(templates / name, sources_dir / name)
     for name, text in generated.items():
@@ -202,18 +223,20 @@ def build_c_fmu(
     platform: str,
     extension: str,
     platforms: tuple[str, ...] = (),
+    fmi_version: str = "2.0",
 ) -> None:
     """Lay out the C FMU in ``fmu_dir`` (sources, binaries, modelDescription.xml): the host's
     binary in ``binaries/<platform>``, and one per other folder of ``platforms``
-    (:data:`gatetwin.fmu.platforms.PLATFORMS`), cross-compiled."""
-    from gatetwin.fmu.platforms import PLATFORMS, Platform, zig_cc
+    (:func:`gatetwin.fmu.platforms.platforms_of`), cross-compiled."""
+    from gatetwin.fmu.platforms import Platform, platforms_of, zig_cc
 
     sources_dir = fmu_dir / "sources"
-    c_files = write_sources(desc, sources_dir)
+    c_files = write_sources(desc, sources_dir, fmi_version)
     binary_dir = fmu_dir / "binaries" / platform
     binary_dir.mkdir(parents=True, exist_ok=True)
     compile_shared(sources_dir, c_files, binary_dir / f"{desc.model_identifier}{extension}")
-    foreign = [PLATFORMS[f] for f in platforms if f != platform]
+    known = platforms_of(fmi_version)
+    foreign = [known[f] for f in platforms if f != platform]
 
     def cross(target: Platform) -> None:
         out = fmu_dir / "binaries" / target.folder / f"{desc.model_identifier}{target.extension}"
@@ -227,6 +250,5 @@ def build_c_fmu(
     with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
         list(pool.map(cross, foreign))
     flags = dataclasses.replace(FLAGS, source_files=c_files)
-    (fmu_dir / "modelDescription.xml").write_bytes(
-        model_description_xml(desc, flags, tool="gatetwin (C backend)")
-    )
+    render = model_description_xml if fmi_version == "2.0" else model_description_xml3
+    (fmu_dir / "modelDescription.xml").write_bytes(render(desc, flags, tool="gatetwin (C backend)"))

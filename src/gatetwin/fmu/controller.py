@@ -40,7 +40,7 @@ from gatetwin.errors import ExportError, OutputError
 from gatetwin.fmu.c_build import (
     CFLAGS,
     FLAGS,
-    LICENSE_FILE,
+    FMI_APIS,
     build_description_xml,
     compile_shared,
     templates_dir,
@@ -63,10 +63,11 @@ if TYPE_CHECKING:
 
 #: Controllers a model can be exported with; ``mpc`` is refused (:func:`check_controller_kind`).
 CONTROLLER_KINDS = ("pi", "mpc")
+#: The FMI API the controller FMU carries.
+FMI_API = FMI_APIS["2.0"]
 #: The C files of the PI controller FMU, in compile order (``pi_law.c`` is generated).
-PI_SOURCES = ("fmi2_glue.c", "component.c", "controller_pi.c", "pi_law.c")
-PI_HEADERS = ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h", "component.h",
-              "controller_data.h", "pi_law.h")  # fmt: skip
+PI_SOURCES = (FMI_API.glue, "component.c", "controller_pi.c", "pi_law.c")
+PI_HEADERS = (*FMI_API.headers, "component.h", "controller_data.h", "pi_law.h")
 #: Prefix of the generated C functions (as blocks.c's).
 PREFIX = "gt_"
 #: A communication step may be this far (relative) from a whole number of samples (the ARX's
@@ -280,7 +281,7 @@ def write_controller_sources(desc: ControllerDescription, sources_dir: Path) -> 
     templates = templates_dir()
     sources_dir.mkdir(parents=True, exist_ok=True)
     generated = generated_pi_law()
-    for name in (*PI_SOURCES, *PI_HEADERS, LICENSE_FILE):
+    for name in (*PI_SOURCES, *PI_HEADERS, FMI_API.license):
         if name not in generated:
             shutil.copyfile(templates / name, sources_dir / name)
     for name, text in generated.items():

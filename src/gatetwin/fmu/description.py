@@ -668,17 +668,17 @@ def model_description_xml(desc: ComponentInterface, flags: CoSimulationFlags, to
         "CoSimulation",
         {
             "modelIdentifier": desc.model_identifier,
-            "needsExecutionTool": _xml_bool(flags.needs_execution_tool),
+            "needsExecutionTool": xml_bool(flags.needs_execution_tool),
             "canHandleVariableCommunicationStepSize": "true",
             "canInterpolateInputs": "false",
             "maxOutputDerivativeOrder": "0",
             "canRunAsynchronuously": "false",
             "canBeInstantiatedOnlyOncePerProcess": "false",
-            "canNotUseMemoryManagementFunctions": _xml_bool(
+            "canNotUseMemoryManagementFunctions": xml_bool(
                 flags.can_not_use_memory_management_functions
             ),
             "canGetAndSetFMUstate": "true",
-            "canSerializeFMUstate": _xml_bool(flags.can_serialize_fmu_state),
+            "canSerializeFMUstate": xml_bool(flags.can_serialize_fmu_state),
             "providesDirectionalDerivative": "false",
         },
     )
@@ -686,6 +686,14 @@ def model_description_xml(desc: ComponentInterface, flags: CoSimulationFlags, to
         files = ET.SubElement(cs, "SourceFiles")
         for name in flags.source_files:
             ET.SubElement(files, "File", {"name": name})
+    shared_elements(root, desc)
+    _model_variables(root, desc)
+    _model_structure(root, desc)
+    return finished_xml(root, f"{desc.model_identifier}: modelDescription.xml")
+
+
+def shared_elements(root: ET.Element, desc: FmuDescription) -> None:
+    """What both FMI versions write alike: units, log categories, default experiment."""
     _unit_definitions(root)
     categories = ET.SubElement(root, "LogCategories")
     for name, text in LOG_CATEGORIES.items():
@@ -693,18 +701,20 @@ def model_description_xml(desc: ComponentInterface, flags: CoSimulationFlags, to
     ET.SubElement(
         root, "DefaultExperiment", {"startTime": "0.0", "stepSize": repr(desc.step_size_s)}
     )
-    _model_variables(root, desc)
-    _model_structure(root, desc)
+
+
+def finished_xml(root: ET.Element, what: str) -> bytes:
+    """The document's bytes, every attribute escaped and the result parsed back."""
     for element in root.iter():
         for key, value in element.attrib.items():
             element.set(key, xml_text(value))
     ET.indent(root)
     xml = ET.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
-    check_well_formed(xml, f"{desc.model_identifier}: modelDescription.xml")
+    check_well_formed(xml, what)
     return xml
 
 
-def _xml_bool(value: bool) -> str:
+def xml_bool(value: bool) -> str:
     return "true" if value else "false"
 
 
@@ -737,18 +747,25 @@ def _model_variables(root: ET.Element, desc: ComponentInterface) -> None:
         ET.SubElement(sv, "Real", real)
 
 
-def _model_structure(root: ET.Element, desc: ComponentInterface) -> None:
-    """The output has no direct feedthrough; initially it depends on the inputs and parameters
-    marked ``initial_dependency`` (a plant: the equilibrium they define)."""
-    index = {v.name: i for i, v in enumerate(desc.variables, start=1)}
+def initial_dependencies(desc: ComponentInterface) -> list[VariableSpec]:
+    """The inputs and parameters the output's initial value depends on: those marked
+    ``initial_dependency`` but the dynamics-only columns (time constant, dead time, sample
+    period); for a plant, what its equilibrium depends on."""
     dynamic_only = {"time_constant_s", "dead_time_s", "sample_period_s"}
-    initial_deps = [
-        index[v.name]
+    return [
+        v
         for v in desc.variables
         if v.causality in ("input", "parameter")
         and v.initial_dependency
         and not any(v.name.startswith(f"schedule.{c}[") or v.name == c for c in dynamic_only)
     ]
+
+
+def _model_structure(root: ET.Element, desc: ComponentInterface) -> None:
+    """The output has no direct feedthrough; initially it depends on
+    :func:`initial_dependencies` (a plant: the equilibrium of the inputs)."""
+    index = {v.name: i for i, v in enumerate(desc.variables, start=1)}
+    initial_deps = [index[v.name] for v in initial_dependencies(desc)]
     structure = ET.SubElement(root, "ModelStructure")
     out = index[desc.output.name]
     outputs = ET.SubElement(structure, "Outputs")

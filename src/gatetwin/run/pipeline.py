@@ -142,30 +142,38 @@ def identify_models(ctx: PipelineContext) -> None:
     ctx.progress(f"      {len(ident.models)} model(s): {', '.join(sorted(ident.models))}")
 
 
+#: Where ``gatetwin run`` puts each kind of FMU: (folder under fmus/, backend, FMI version).
+FMU_KINDS = (("c", "c", "2.0"), ("python", "python", "2.0"), ("fmi3", "c", "3.0"))
+
+
 def export_fmus(ctx: PipelineContext) -> None:
-    """Export every model with both backends: ``fmus/c/NAME.fmu``, ``fmus/python/NAME.fmu``;
-    the C FMUs for every platform when Zig's C compiler is installed (else the host's)."""
+    """Export every model with both backends, ``fmus/c/NAME.fmu`` and
+    ``fmus/python/NAME.fmu`` (FMI 2.0), and as FMI 3.0, ``fmus/fmi3/NAME.fmu`` (C); the C FMUs
+    for every platform when Zig's C compiler is installed (else the host's)."""
     from gatetwin.fmu import export_fmu
-    from gatetwin.fmu.platforms import PLATFORMS, zig_available
+    from gatetwin.fmu.platforms import platforms_of, zig_available
     from gatetwin.fmu.provenance import fmu_provenance
     from gatetwin.modelfile import read_model_file
 
     if zig_available():
         platforms = "all"
-        ctx.progress(f"      C FMUs carry binaries for {', '.join(PLATFORMS)} (Zig's C compiler)")
+        for version in ("2.0", "3.0"):
+            ctx.progress(f"      C FMUs (FMI {version}) carry binaries for "
+                         f"{', '.join(platforms_of(version))} (Zig's C compiler)")  # fmt: skip
     else:
         platforms = "host"
         ctx.progress("      C FMUs carry the host's binary only: pip install 'gatetwin[cross]' "
                      "adds Windows, macOS and 64-bit ARM")  # fmt: skip
-    fmus: dict[str, list[Path]] = {"c": [], "python": []}
+    fmus: dict[str, list[Path]] = {folder: [] for folder, _, _ in FMU_KINDS}
     for path in ctx.results["model_paths"]:
         model = read_model_file(path)
-        for backend, paths in fmus.items():
-            out = ctx.out_dir / "fmus" / backend / f"{model.name}.fmu"
-            ctx.progress(f"      exporting {model.name} ({backend})")
-            paths.append(export_fmu(model.plant, out, backend=backend, model_name=model.name,
-                                    provenance=fmu_provenance(model),
-                                    platforms=platforms if backend == "c" else "host"))  # fmt: skip
+        for folder, backend, version in FMU_KINDS:
+            out = ctx.out_dir / "fmus" / folder / f"{model.name}.fmu"
+            ctx.progress(f"      exporting {model.name} ({backend}, FMI {version})")
+            built = export_fmu(model.plant, out, backend=backend, model_name=model.name,
+                               provenance=fmu_provenance(model), fmi_version=version,
+                               platforms=platforms if backend == "c" else "host")  # fmt: skip
+            fmus[folder].append(built)
     ctx.results["fmus"] = fmus
     _cross_checks(ctx, fmus["c"])
 
@@ -231,7 +239,7 @@ STAGES: tuple[PipelineStage, ...] = (
     PipelineStage("checking records", check_records),
     PipelineStage("writing the record summary", write_record_summary),
     PipelineStage("identifying models", identify_models),
-    PipelineStage("exporting FMUs (C and python)", export_fmus),
+    PipelineStage("exporting FMUs (C and python; FMI 2.0 and 3.0)", export_fmus),
     PipelineStage("tables and figures", tables_and_figures),
     PipelineStage("validating every FMU against every record (fmpy)", _stages.validate_all),
     PipelineStage("comparing the model families on every record", _stages.compare_families),

@@ -45,9 +45,10 @@ def validate_all(ctx: Any) -> None:
     c_cells = [c for c in cells if c["backend"] == "c"]
     skipped = "\n".join(f"- {o['model']} × {o['record']}: {o['reason']}" for o in outside)
     ctx.results.setdefault("summary_sections", []).append(
-        "## Validation matrix (C FMUs; the python FMUs give the same numbers)\n\n"
+        "## Validation matrix (C FMUs; the python and FMI 3.0 FMUs give the same numbers)\n\n"
         f"Criterion: {', '.join(MATRIX_FAIL_UNDER)}; {n_pass} of {len(cells)} cells pass "
-        f"over both backends. {FLOOR_NOTE}\n\n"
+        f"over the {len(ctx.results['fmus'])} FMU sets ({', '.join(ctx.results['fmus'])}). "
+        f"{FLOOR_NOTE}\n\n"
         + matrix_markdown(c_cells)
         + "\nOutside a model's validity (not validated):\n\n"
         + skipped

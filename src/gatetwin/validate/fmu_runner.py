@@ -1,8 +1,8 @@
-"""Open an FMI 2.0 co-simulation FMU with fmpy and drive it with a record's inputs.
+"""Open an FMI 2.0 or 3.0 co-simulation FMU with fmpy and drive it with a record's inputs.
 
 * :func:`inspect_fmu` checks that a file is an FMU this harness can run (a zip whose
-  members all stay inside its folder, with a readable ``modelDescription.xml``, FMI 2.0
-  co-simulation, a binary for this platform, Real inputs ``opening_mm`` and ``flow_m3h``)
+  members all stay inside its folder, with a readable ``modelDescription.xml``, FMI 2.0 or
+  3.0 co-simulation, a binary for this platform, Real inputs ``opening_mm`` and ``flow_m3h``)
   and returns its :class:`FmuInfo`;
 * :func:`static_findings` runs fmpy's static validator;
 * :func:`communication_grid` lays the record's samples on the FMU's communication grid;
@@ -29,6 +29,8 @@ import numpy as np
 from gatetwin.records import GAP_FACTOR, gauge_of_column
 from gatetwin.validate.errors import ValidationError
 
+#: FMI versions the harness runs (co-simulation).
+FMI_VERSIONS = ("2.0", "3.0")
 #: The inputs every gatetwin plant FMU has, in the order they are set.
 INPUTS = ("opening_mm", "flow_m3h")
 #: FMI 2.0 status names, by value.
@@ -90,6 +92,7 @@ class FmuInfo:
     outputs: tuple[str, ...]
     value_references: dict[str, int] = field(repr=False)
     sha256: str = ""
+    fmi_version: str = "2.0"
 
     @property
     def name(self) -> str:
@@ -108,6 +111,7 @@ class FmuInfo:
             "sha256": self.sha256,
             "model_identifier": self.model_identifier,
             "guid": self.guid,
+            "fmi_version": self.fmi_version,
             "generation_tool": self.generation_tool,
             "inputs": list(self.inputs),
             "outputs": list(self.outputs),
@@ -154,9 +158,11 @@ def _model_description(fmu: Path) -> Any:
         raise ValidationError(f"{fmu}: modelDescription.xml cannot be read ({text})") from None
 
 
-def _check_binary(fmu: Path, names: set[str], identifier: str) -> None:
-    from fmpy import platform, sharedLibraryExtension
+def _check_binary(fmu: Path, names: set[str], identifier: str, fmi_version: str) -> None:
+    from fmpy import platform, platform_tuple, sharedLibraryExtension
 
+    if fmi_version != "2.0":
+        platform = platform_tuple  # FMI 3.0 names binary folders by platform tuple
     if f"binaries/{platform}/{identifier}{sharedLibraryExtension}" in names:
         return
     found = sorted(
@@ -171,7 +177,7 @@ def _check_binary(fmu: Path, names: set[str], identifier: str) -> None:
 def _check_inputs(fmu: Path, md: Any) -> None:
     inputs = {v.name: v.type for v in md.modelVariables if v.causality == "input"}
     for name in INPUTS:
-        if inputs.get(name) != "Real":
+        if inputs.get(name) not in ("Real", "Float64"):  # FMI 2.0, FMI 3.0
             raise ValidationError(
                 f"{fmu}: no Real input '{name}'; expected inputs {', '.join(INPUTS)} "
                 f"(found: {', '.join(sorted(inputs)) or 'none'})"
@@ -194,7 +200,7 @@ def inspect_fmu(path: str | Path) -> FmuInfo:
     ------
     ValidationError
         Missing file, not a zip archive, a member with an absolute path or a ``..`` part,
-        no or unreadable ``modelDescription.xml``, not FMI 2.0 co-simulation, no binary for
+        no or unreadable ``modelDescription.xml``, not FMI 2.0 or 3.0 co-simulation, no binary for
         this platform, no Real inputs ``opening_mm`` and ``flow_m3h``.
     """
     fmu = Path(path)
@@ -202,13 +208,13 @@ def inspect_fmu(path: str | Path) -> FmuInfo:
     if "modelDescription.xml" not in names:
         raise ValidationError(f"{fmu}: not an FMU (the archive has no modelDescription.xml)")
     md = _model_description(fmu)
-    if md.fmiVersion != "2.0" or md.coSimulation is None:
+    if md.fmiVersion not in FMI_VERSIONS or md.coSimulation is None:
         raise ValidationError(
-            f"{fmu}: FMI {md.fmiVersion} without co-simulation; expected an FMI 2.0 "
+            f"{fmu}: FMI {md.fmiVersion} without co-simulation; expected an FMI 2.0 or 3.0 "
             "co-simulation FMU"
         )
     identifier = md.coSimulation.modelIdentifier
-    _check_binary(fmu, names, identifier)
+    _check_binary(fmu, names, identifier, md.fmiVersion)
     _check_inputs(fmu, md)
     return FmuInfo(
         path=str(fmu),
@@ -220,6 +226,7 @@ def inspect_fmu(path: str | Path) -> FmuInfo:
         outputs=tuple(v.name for v in md.modelVariables if v.causality == "output"),
         value_references={v.name: v.valueReference for v in md.modelVariables},
         sha256=hashlib.sha256(fmu.read_bytes()).hexdigest(),
+        fmi_version=md.fmiVersion,
     )
 
 
@@ -401,7 +408,75 @@ class _Session:
         self.slave.setReal(vrs, [float(opening_mm), float(flow_m3h)])
 
 
+class _Fmi3Slave:
+    """An :class:`fmpy.fmi3.FMU3Slave` behind the FMI 2.0 verbs the harness calls, so that one
+    protocol (:func:`_simulate`) drives both versions: ``setupExperiment`` keeps the start
+    time for ``fmi3EnterInitializationMode``; get/set Real are get/set Float64; ``doStep``
+    asks for no early return and no events (the FMU declares neither)."""
+
+    def __init__(self, slave: Any) -> None:
+        self.slave = slave
+        self.start_time_s = 0.0
+
+    def setupExperiment(self, startTime: float) -> None:  # noqa: N802, N803 (fmpy's names)
+        self.start_time_s = startTime
+
+    def enterInitializationMode(self) -> None:  # noqa: N802
+        self.slave.enterInitializationMode(startTime=self.start_time_s)
+
+    def exitInitializationMode(self) -> None:  # noqa: N802
+        self.slave.exitInitializationMode()
+
+    def getReal(self, vr: list[int]) -> list[float]:  # noqa: N802
+        return self.slave.getFloat64(vr)
+
+    def setReal(self, vr: list[int], values: list[float]) -> None:  # noqa: N802
+        self.slave.setFloat64(vr, values)
+
+    def doStep(self, t: float, h: float) -> None:  # noqa: N802
+        self.slave.doStep(t, h)
+
+    def terminate(self) -> None:
+        self.slave.terminate()
+
+    def freeInstance(self) -> None:  # noqa: N802
+        self.slave.freeInstance()
+
+    def freeLibrary(self) -> None:  # noqa: N802
+        self.slave.freeLibrary()
+
+
+def _open_session3(info: FmuInfo, unzip_dir: str, where: Position | None = None) -> _Session:
+    from fmpy.fmi3 import FMU3Slave
+
+    try:
+        slave = FMU3Slave(guid=info.guid, unzipDirectory=unzip_dir,
+                          modelIdentifier=info.model_identifier,
+                          instanceName="gatetwin_validate")  # fmt: skip
+    except OSError as exc:
+        raise ValidationError(f"{info.path}: the FMU's binary cannot be loaded ({exc})") from None
+    session = _Session(info, _Fmi3Slave(slave))
+
+    def log(env: Any, status: int, category: Any, message: bytes) -> None:
+        session.log(env, None, status, category, message)
+
+    if where is not None:
+        where.values[Position.CALL] = INSTANTIATE
+    try:
+        slave.instantiate(loggingOn=True, logMessage=log)
+    except Exception:  # fmpy raises a bare Exception when fmi3Instantiate fails
+        slave.freeLibrary()
+        detail = session.last_problem()
+        raise ValidationError(
+            f"{info.path}: fmi3InstantiateCoSimulation failed"
+            + (f"; FMU log: {detail}" if detail else "")
+        ) from None
+    return session
+
+
 def _open_session(info: FmuInfo, unzip_dir: str, where: Position | None = None) -> _Session:
+    if info.fmi_version != "2.0":
+        return _open_session3(info, unzip_dir, where)
     from fmpy import calloc, free
     from fmpy.fmi2 import (
         FMU2Slave,
