@@ -182,11 +182,14 @@ class _Master:
         self.slaves: dict[str, Any] = {}
         self.vrs: dict[str, dict[str, int]] = {}
         self.steps: dict[str, float] = {}
-        self.folder = folder
-        for c in system.components:
-            self._instantiate(c, folder)
-        self._check_connections()
         self.parameters = parameters
+        try:
+            for c in system.components:
+                self._instantiate(c, folder)
+            self._check_connections()
+        except BaseException:
+            self.close()  # the instances made so far
+            raise
 
     def _instantiate(self, c: SspComponent, folder: Path) -> None:
         from fmpy import extract, read_model_description
@@ -211,9 +214,14 @@ class _Master:
         elif md.defaultExperiment is not None and md.defaultExperiment.stepSize:
             self.steps.setdefault("", float(md.defaultExperiment.stepSize))
         unzipped = extract(str(path), str(folder / f"fmu_{len(self.slaves)}"))
-        slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
-                          modelIdentifier=md.coSimulation.modelIdentifier, instanceName=c.name)
-        slave.instantiate(loggingOn=False)
+        try:
+            slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
+                              modelIdentifier=md.coSimulation.modelIdentifier,
+                              instanceName=c.name)  # fmt: skip
+            slave.instantiate(loggingOn=False)
+        except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions here
+            raise SspError(f"{self.where}: component {c.name}: the FMU cannot be instantiated "
+                           f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
         self.slaves[c.name] = slave
 
     def _check_connections(self) -> None:
