@@ -13,7 +13,8 @@ approximation (:func:`control.pade`); the controller itself never uses it.
 
 The controller is positional, with back-calculation anti-windup (the integral tracks
 the opening actually commanded after the opening-range and rate limits, with tracking
-time ``Tt``), and the same rate limit as the MPC.
+time ``Tt``), and the same rate limit as the MPC. The arithmetic of one sample is
+:func:`gatetwin.mpc.pi_law.pi_step`, from which the C controller FMU's is generated.
 """
 
 from __future__ import annotations
