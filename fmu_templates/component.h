@@ -1,9 +1,10 @@
 /* What the FMI glue (fmi2_glue.c, fmi3_glue.c) sees of the component an FMU carries: a
  * table of Real variables, one fixed-size pointer-free ModelData (copied and serialised as
- * bytes by the FMU-state functions) and five verbs. The component is the plant (plant.h,
- * plant.c); the generated model_config.h names the header that defines its ModelData
- * (GT_COMPONENT_HEADER), which holds at least `time_s`, `real[GT_N_REAL]` and
- * `parameters_changed`.
+ * bytes by the FMU-state functions) and five verbs. The component is a plant (plant.h,
+ * plant.c) or a controller (controller_data.h, controller_pi.c); the generated model_config.h
+ * names the header that defines its ModelData (GT_COMPONENT_HEADER), which holds at least
+ * `time_s`, `real[GT_N_REAL]` and `parameters_changed`. component.c holds the variable table
+ * and the message formatter every component shares.
  */
 #ifndef GATETWIN_COMPONENT_H
 #define GATETWIN_COMPONENT_H
@@ -21,7 +22,7 @@ typedef struct {
 
 typedef enum { GT_KIND_INPUT, GT_KIND_OUTPUT, GT_KIND_TUNABLE, GT_KIND_FIXED } VariableKind;
 
-/* One Real variable of the model description (the table is generated, see plant.c). */
+/* One Real variable of the model description (the table is generated, see component.c). */
 typedef struct {
     const char *name;
     VariableKind kind;

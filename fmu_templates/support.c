@@ -1,27 +1,11 @@
-/* What every part of the C FMU uses and nothing in it calls back: the variable table, the
- * message formatter and the schedule lookup (mirrors gatetwin.plant.model.interp_clamped
- * operation by operation). plant.c orchestrates; the families (model_*.c), the effect blocks
- * (effects.c) and the kernel support call only down into this file and the generated code, so
- * the translation units form no call circle.
+/* What every part of the plant uses and nothing in it calls back: the schedule lookup
+ * (mirrors gatetwin.plant.model.interp_clamped operation by operation);
+ * the variable table and the message formatter are in component.c. plant.c orchestrates; the
+ * families (model_*.c), the effect blocks (effects.c) and the kernel support call only down
+ * into this file, component.c and the generated code, so the translation units form no call
+ * circle.
  */
-#include <math.h>
-#include <stdarg.h>
-#include <stdio.h>
-#include <string.h>
-
 #include "plant.h"
-
-#define GT_VARIABLE_ENTRY(name, kind, start) {name, kind, start},
-const PlantVariable plant_variables[GT_N_REAL] = {GT_VARIABLES(GT_VARIABLE_ENTRY)};
-#undef GT_VARIABLE_ENTRY
-
-void plant_message(PlantMessage *msg, const char *format, ...)
-{
-    va_list args;
-    va_start(args, format);
-    vsnprintf(msg->text, sizeof msg->text, format, args);
-    va_end(args);
-}
 
 /* --- schedule: piecewise-linear in the discharge, clamped outside the knots ---------------- */
 
@@ -51,5 +35,3 @@ double plant_interp(const KnotPosition *at, const double *column)
     }
     return column[at->index] + at->weight * (column[at->index + 1] - column[at->index]);
 }
-
-/* --- checks ---------------------------------------------------------------------------------- */

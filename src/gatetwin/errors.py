@@ -44,3 +44,8 @@ class OutputError(GatetwinError, OSError):
 
 class PipelineError(GatetwinError, RuntimeError):
     """The ``gatetwin run`` pipeline cannot run or cannot write its output directory."""
+
+
+class SspError(GatetwinError, ValueError):
+    """A System Structure package (``.ssp``) cannot be read or simulated; the message names
+    the file and the element at fault."""

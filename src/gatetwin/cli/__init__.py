@@ -20,6 +20,7 @@ from typing import NoReturn
 from gatetwin._io import write_json_atomic
 from gatetwin.cli import diagnose as _diagnose_cmds
 from gatetwin.cli import model as _model_cmds
+from gatetwin.cli import ssp as _ssp_cmds
 from gatetwin.errors import GatetwinError, RecordError
 from gatetwin.records.sidecar import TEST_TYPES
 from gatetwin.records.summary import format_record_summary, format_static_summary
@@ -347,6 +348,12 @@ _COMMANDS: tuple[Command, ...] = (
         _model_cmds.run_export,
     ),
     Command(
+        "export-controller",
+        "export the level controller of a model file as an FMI 2.0 co-simulation FMU (C)",
+        _model_cmds.add_export_controller_arguments,
+        _model_cmds.run_export_controller,
+    ),
+    Command(
         "validate",
         "simulate an FMU on measured records with fmpy and score it (JSON, JUnit, plots)",
         _add_validate_arguments,
@@ -357,6 +364,18 @@ _COMMANDS: tuple[Command, ...] = (
         "MPC vs SIMC PI on the exported FMU or the virtual flume: metrics JSON and plots",
         _add_mpc_demo_arguments,
         _run_mpc_demo,
+    ),
+    Command(
+        "ssp",
+        "pack a model's closed loop (plant FMU, controller FMU, scenario) as an SSP 1.0 package",
+        _ssp_cmds.add_ssp_arguments,
+        _ssp_cmds.run_ssp,
+    ),
+    Command(
+        "simulate-ssp",
+        "run an SSP's FMUs with gatetwin's fixed-step master and write the result as CSV",
+        _ssp_cmds.add_simulate_ssp_arguments,
+        _ssp_cmds.run_simulate_ssp,
     ),
     Command(
         "diagnose",

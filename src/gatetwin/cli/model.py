@@ -201,3 +201,24 @@ def run_export(args: argparse.Namespace) -> int:
         write_cross_check(model, Path(path), record, folder)
         print(f"wrote the cross-check package {folder}")
     return 0
+
+
+def add_export_controller_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("model", metavar="MODEL.json", help="FOPDT model file (SIMC tuning)")
+    parser.add_argument(
+        "--kind", choices=("pi", "mpc"), default="pi",
+        help="controller: pi (default; the MPC controller FMU is not built by this command)",
+    )  # fmt: skip
+    parser.add_argument("--out", metavar="NAME.fmu", required=True)
+
+
+def run_export_controller(args: argparse.Namespace) -> int:
+    from gatetwin.fmu.controller import check_controller_kind, export_controller
+    from gatetwin.modelfile import read_model_file
+
+    check_controller_kind(args.kind)
+    model = read_model_file(args.model)
+    check_writable(args.out)
+    path = export_controller(model, args.kind, args.out)
+    print(f"wrote {path}")
+    return 0

@@ -11,7 +11,6 @@ import hashlib
 import json
 import os
 import tempfile
-import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -185,14 +184,11 @@ def _build_c(
 ) -> None:
     from fmpy import sharedLibraryExtension
 
-    from gatetwin.fmu.c_build import build_c_fmu
+    from gatetwin.fmu.c_build import build_c_fmu, zip_folder
 
     platform = _host_folder(fmi_version)
     build_c_fmu(desc, fmu_dir, platform, sharedLibraryExtension, folders, fmi_version)
     (fmu_dir / "resources").mkdir()
     for path in resources:
         (fmu_dir / "resources" / path.name).write_bytes(path.read_bytes())
-    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
-        for path in sorted(fmu_dir.rglob("*")):
-            if path.is_file():
-                zf.write(path, path.relative_to(fmu_dir).as_posix())
+    zip_folder(fmu_dir, out)

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from gatetwin.errors import ExportError
 from gatetwin.fmu.description import (
+    ComponentInterface,
     CoSimulationFlags,
     FmuDescription,
     model_config_header,
@@ -46,7 +47,8 @@ CFLAGS = (
 #: CMake rebuild from sources/ too.
 HOST_FLAGS = ("-flto",)
 #: blocks.c/.h are generated from gatetwin.plant.blocks (:func:`generated_blocks`).
-COMMON_SOURCES = ("plant.c", "support.c", "effects.c", "blocks.c")
+#: component.c (the variable table and the message formatter) serves every component.
+COMMON_SOURCES = ("component.c", "plant.c", "support.c", "effects.c", "blocks.c")
 COMMON_HEADERS = ("component.h", "plant_data.h", "plant.h", "effects.h", "blocks.h")
 
 
@@ -167,7 +169,7 @@ def write_sources(
     return c_files
 
 
-def build_description_xml(desc: FmuDescription, c_files: tuple[str, ...]) -> bytes:
+def build_description_xml(desc: ComponentInterface, c_files: tuple[str, ...]) -> bytes:
     """``sources/buildDescription.xml`` (the FMI build description, the format FMI 3.0
     defines and FMI 2.0.4 adopts): one build configuration, the C99 sources, the compiler
     options the shipped binaries are built with."""
@@ -182,6 +184,16 @@ def build_description_xml(desc: FmuDescription, c_files: tuple[str, ...]) -> byt
     ET.SubElement(config, "Library", name="m", description="the C math library (libm)")
     ET.indent(root)
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
+
+
+def zip_folder(folder: Path, out: Path) -> None:
+    """Zip every file under ``folder`` into ``out`` (an FMU or an SSP), paths relative to it."""
+    import zipfile
+
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
+        for path in sorted(folder.rglob("*")):
+            if path.is_file():
+                zf.write(path, path.relative_to(folder).as_posix())
 
 
 def compile_shared(

@@ -9,7 +9,9 @@ at every step (:mod:`~gatetwin.mpc.envelope`); a Kalman
 filter on an input disturbance for offset-free control (:mod:`~gatetwin.mpc.observer`);
 a condensed dense QP through casadi's conic plugins (:mod:`~gatetwin.mpc.qp`), checked
 against a ``casadi.Opti`` + IPOPT formulation (:mod:`~gatetwin.mpc.opti`). The PI
-baseline is tuned by SIMC with python-control margins (:mod:`~gatetwin.mpc.pi`). Plants
+baseline is tuned by SIMC with python-control margins (:mod:`~gatetwin.mpc.pi`); the
+arithmetic of its sample is written once (:mod:`~gatetwin.mpc.pi_law`) and also runs as a
+C controller FMU, which :mod:`~gatetwin.mpc.fmu_controller` puts in the loop. Plants
 in the loop (FMU, flume, Python model) share one step interface
 (:mod:`~gatetwin.mpc.plants`); runs and metrics are in :mod:`~gatetwin.mpc.loop`, the demo
 in :mod:`~gatetwin.mpc.demo`.

@@ -300,9 +300,17 @@ def compare_controllers(
     return runs
 
 
+def pi_controller(plant_model: Plant, settings: DemoSettings | None = None) -> PiController:
+    """The demo's PI: SIMC-tuned at ``settings.flow_m3h`` on ``plant_model`` (an FOPDT), with
+    the limits of ``settings.pi`` (also the C controller FMU's start values,
+    :mod:`gatetwin.fmu.controller`)."""
+    s = settings or DemoSettings()
+    return PiController(_pi_tuning(plant_model, s), s.pi)
+
+
 def _controller(name: str, plant_model: FopdtPlant, s: DemoSettings) -> Any:
     if name == "pi":
-        return PiController(_pi_tuning(plant_model, s), s.pi)
+        return pi_controller(plant_model, s)
     linearisation = "schedule" if name == "mpc" else "envelope"
     return MpcController(plant_model, s.mpc, linearisation=linearisation)
 
@@ -494,6 +502,7 @@ __all__ = [
     "envelope_comparison",
     "flume_levels_mm",
     "load_demo_plant",
+    "pi_controller",
     "plot_runs",
     "run_mpc_demo",
     "wide_scenario",

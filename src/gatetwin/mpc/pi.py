@@ -13,7 +13,8 @@ approximation (:func:`control.pade`); the controller itself never uses it.
 
 The controller is positional, with back-calculation anti-windup (the integral tracks
 the opening actually commanded after the opening-range and rate limits, with tracking
-time ``Tt``), and the same rate limit as the MPC.
+time ``Tt``), and the same rate limit as the MPC. The arithmetic of one sample is
+:func:`gatetwin.mpc.pi_law.pi_step`, from which the C controller FMU's is generated.
 """
 
 from __future__ import annotations
@@ -23,10 +24,10 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import control
-import numpy as np
 
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
 from gatetwin.mpc.errors import ControlError
+from gatetwin.mpc.pi_law import pi_step
 from gatetwin.plant.model import FopdtPlant
 
 
@@ -220,23 +221,26 @@ class PiController:
         self.integral_mm = float(opening_mm)
         self.previous_opening_mm = float(opening_mm)
 
+    @property
+    def tracking_time_s(self) -> float:
+        """Back-calculation time ``Tt`` in force, s (the settings', default ``Ti / 2``)."""
+        return self.settings.tracking_time_s or 0.5 * self.tuning.integral_time_s
+
     def step(self, level_mm: float, flow_m3h: float, setpoint_mm: float) -> float:
-        """Opening (mm) to hold over the next sample (``flow_m3h`` is not used)."""
+        """Opening (mm) to hold over the next sample (``flow_m3h`` is not used).
+
+        The arithmetic is :func:`gatetwin.mpc.pi_law.pi_step`, the same the C controller FMU
+        runs.
+        """
         if math.isnan(self.integral_mm):
             raise ControlError("pi: call reset() before step()")
         s, t = self.settings, self.tuning
-        error = setpoint_mm - level_mm
-        wanted = t.gain_mm_per_mm * error + self.integral_mm
-        step = s.opening_rate_mm_s * s.sample_period_s
-        opening = float(
-            np.clip(wanted, self.previous_opening_mm - step, self.previous_opening_mm + step)
-        )
-        opening = float(np.clip(opening, *s.opening_range_mm))
-        tracking = s.tracking_time_s or 0.5 * t.integral_time_s
-        ts = s.sample_period_s
-        self.integral_mm += t.gain_mm_per_mm * ts / t.integral_time_s * error + ts / tracking * (
-            opening - wanted
-        )
+        lo, hi = s.opening_range_mm
+        opening, self.integral_mm = pi_step(
+            float(level_mm), float(setpoint_mm), self.integral_mm, self.previous_opening_mm,
+            t.gain_mm_per_mm, t.integral_time_s, self.tracking_time_s, float(lo), float(hi),
+            s.opening_rate_mm_s, s.sample_period_s,
+        )  # fmt: skip
         self.previous_opening_mm = opening
         return opening
 

@@ -1,0 +1,378 @@
+"""Export a level controller as an FMI 2.0 co-simulation FMU (C), next to the plant's FMU.
+
+The PI of :class:`gatetwin.mpc.pi.PiController` becomes a C FMU built from the plant FMU's
+unchanged glue (``fmi2_glue.c``, ``component.h``, ``component.c``) around its own component:
+``controller_data.h`` (its ModelData) and ``controller_pi.c`` (checks, state, sampling),
+which calls ``gt_pi_step``, generated from :func:`gatetwin.mpc.pi_law.pi_step` by
+:mod:`gatetwin.plant.ast_render`. The interface is one :class:`ControllerDescription`,
+rendered into ``model_config.h`` and ``modelDescription.xml`` by the same functions as the
+plant's (:mod:`gatetwin.fmu.description`).
+
+Variables (value references in this order):
+
+* inputs ``level_<gauge>_mm`` (the plant FMU's output), ``flow_m3h``, ``setpoint_mm``;
+* output ``opening_mm`` (discrete: it changes at samples only);
+* tunable ``gain_mm_per_mm`` (``Kc``), ``integral_time_s`` (``Ti``), ``tracking_time_s``
+  (``Tt``), ``opening_min_mm``, ``opening_max_mm``, ``opening_rate_mm_s``;
+* fixed ``sample_period_s`` and ``start_opening_mm``.
+
+Start values: SIMC on the model's FOPDT at the demo's discharge and the demo's PI limits and
+start opening (:class:`gatetwin.mpc.demo.DemoSettings`, :func:`gatetwin.mpc.demo.pi_controller`).
+Sampling semantics: ``controller_pi.c``. Only the PI is built here; this module does not run
+controllers (see :mod:`gatetwin.mpc.fmu_controller` and :mod:`gatetwin.ssp`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import re
+import shutil
+import tempfile
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from gatetwin.errors import ExportError, OutputError
+from gatetwin.fmu.c_build import (
+    CFLAGS,
+    FLAGS,
+    FMI_APIS,
+    build_description_xml,
+    compile_shared,
+    templates_dir,
+    zip_folder,
+)
+from gatetwin.fmu.description import (
+    VariableSpec,
+    component_config_lines,
+    guid_of,
+    model_description_xml,
+    output_name,
+    variable_table_lines,
+)
+from gatetwin.plant.model import FopdtPlant, Plant
+from gatetwin.plant.simulate import ARX_MAX_SUBSTEPS, ARX_STEP_RTOL
+
+if TYPE_CHECKING:
+    from gatetwin.modelfile import ModelFile
+    from gatetwin.mpc.demo import DemoSettings
+
+#: Controllers a model can be exported with; ``mpc`` is refused (:func:`check_controller_kind`).
+CONTROLLER_KINDS = ("pi", "mpc")
+#: The FMI API the controller FMU carries.
+FMI_API = FMI_APIS["2.0"]
+#: The C files of the PI controller FMU, in compile order (``pi_law.c`` is generated).
+PI_SOURCES = (FMI_API.glue, "component.c", "controller_pi.c", "pi_law.c")
+PI_HEADERS = (*FMI_API.headers, "component.h", "controller_data.h", "pi_law.h")
+#: Prefix of the generated C functions (as blocks.c's).
+PREFIX = "gt_"
+#: A communication step may be this far (relative) from a whole number of samples (the ARX's
+#: rule), and span at most this many samples.
+STEP_RTOL = ARX_STEP_RTOL
+MAX_SAMPLES_PER_STEP = ARX_MAX_SUBSTEPS
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
+
+
+@dataclass(frozen=True)
+class ControllerDescription:
+    """The interface of a controller FMU (see the module for its variables).
+
+    Attributes
+    ----------
+    model_identifier, guid : str
+        FMI identity.
+    kind : str
+        ``"pi"``.
+    gauge : str
+        Gauge whose level the controller reads.
+    summary : str
+        The modelDescription's ``description``.
+    step_size_s : float
+        The sample period: the default experiment's step size, s.
+    variables : tuple of VariableSpec
+        Every Real variable, in value-reference order.
+    provenance : dict
+        What the controller was built from (``resources/provenance.json``).
+    """
+
+    model_identifier: str
+    guid: str
+    kind: str
+    gauge: str
+    summary: str
+    step_size_s: float
+    variables: tuple[VariableSpec, ...]
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def output(self) -> VariableSpec:
+        return next(v for v in self.variables if v.causality == "output")
+
+    def vr(self, name: str) -> int:
+        return next(v.vr for v in self.variables if v.name == name)
+
+    def start(self, name: str) -> float:
+        return float(next(v.start for v in self.variables if v.name == name) or 0.0)
+
+
+def check_controller_kind(kind: str) -> None:
+    """Raise :class:`ExportError` unless ``kind`` is a controller this package builds."""
+    if kind == "mpc":
+        raise ExportError("the MPC controller FMU is not built by this command yet; only the "
+                          "PI controller (pi) is")  # fmt: skip
+    if kind not in CONTROLLER_KINDS:
+        raise ExportError(f"controller kind must be one of {', '.join(CONTROLLER_KINDS)} "
+                          f"(got {kind!r})")  # fmt: skip
+
+
+def rest_level_mm(plant: Plant, opening_mm: float, flow_m3h: float) -> float:
+    """The plant's steady level at the inputs (the Python reference, equal to its FMU's)."""
+    from gatetwin.plant.simulate import PlantSimulator
+
+    sim = PlantSimulator(plant)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # Q beyond the knots: clamped
+        sim.initialize(opening_mm, flow_m3h)
+    return float(sim.level_mm)
+
+
+def describe_pi_controller(
+    plant: Plant,
+    model_identifier: str,
+    *,
+    settings: DemoSettings | None = None,
+    provenance: dict[str, Any] | None = None,
+) -> ControllerDescription:
+    """The PI controller FMU's description for ``plant`` (an FOPDT; SIMC tuning).
+
+    Raises
+    ------
+    ExportError
+        The plant is not an FOPDT, the identifier is not a C identifier, or the tuning fails.
+    """
+    from gatetwin.errors import GatetwinError
+    from gatetwin.mpc.demo import DemoSettings, pi_controller
+
+    if not isinstance(plant, FopdtPlant):
+        raise ExportError(f"the PI controller is tuned by SIMC from an FOPDT model; got a "
+                          f"{plant.kind} model")  # fmt: skip
+    if not _IDENTIFIER.fullmatch(model_identifier):
+        raise ExportError(f"controller name {model_identifier!r} must be a C identifier "
+                          "(letters, digits, _; <= 64 chars)")  # fmt: skip
+    s = settings or DemoSettings()
+    try:
+        pi = pi_controller(plant, s)
+    except GatetwinError as exc:
+        raise ExportError(f"PI tuning: {exc}") from None
+    level = rest_level_mm(plant, s.opening_mm, s.flow_m3h)
+    variables = _pi_variables(plant.gauge, pi, s.opening_mm, s.flow_m3h, level)
+    facts = {
+        "controller": "pi",
+        "tuning": pi.tuning.to_dict(),
+        "settings": dataclasses.asdict(pi.settings),
+        "tracking_time_s": pi.tracking_time_s,
+        "start_opening_mm": s.opening_mm,
+        **(provenance or {}),
+    }
+    t = pi.tuning
+    summary = (
+        f"gatetwin PI controller of the level at gauge {plant.gauge}: SIMC tuning at Q = "
+        f"{s.flow_m3h:g} m3/h (Kc {t.gain_mm_per_mm:.4g} mm/mm, Ti {t.integral_time_s:.4g} s), "
+        f"rate and range limits, back-calculation anti-windup; sample period "
+        f"{pi.settings.sample_period_s:g} s"
+    )
+    return ControllerDescription(
+        model_identifier=model_identifier,
+        guid=guid_of([[v.name for v in variables], [v.start for v in variables],
+                      model_identifier, facts, f"c:{_code_digest()}"]),  # fmt: skip
+        kind="pi",
+        gauge=plant.gauge,
+        summary=summary,
+        step_size_s=pi.settings.sample_period_s,
+        variables=variables,
+        provenance=facts,
+    )
+
+
+def _pi_variables(
+    gauge: str, pi: Any, start_opening_mm: float, flow_m3h: float, level_mm: float
+) -> tuple[VariableSpec, ...]:
+    s, t = pi.settings, pi.tuning
+    lo, hi = s.opening_range_mm
+    rows: list[tuple[str, str, str, str | None, str, str, float | None]] = [
+        (output_name(gauge), "input", "continuous", None, "mm",
+         f"Level at gauge {gauge} (the plant FMU's output), sampled at each step's start",
+         level_mm),
+        ("flow_m3h", "input", "continuous", None, "m3/h",
+         "Discharge Q (not used by the PI; the plants' second input)", flow_m3h),
+        ("setpoint_mm", "input", "continuous", None, "mm",
+         "Level set-point, sampled at each step's start", level_mm),
+        ("opening_mm", "output", "discrete", "calculated", "mm",
+         "Gate opening of the last sample (start_opening_mm before the first step)", None),
+        ("gain_mm_per_mm", "parameter", "tunable", "exact", "mm/mm",
+         "Kc: opening change per mm of level error (error = set-point - level)",
+         t.gain_mm_per_mm),
+        ("integral_time_s", "parameter", "tunable", "exact", "s", "Ti (> 0)",
+         t.integral_time_s),
+        ("tracking_time_s", "parameter", "tunable", "exact", "s",
+         "Tt: back-calculation (anti-windup) time (> 0)", pi.tracking_time_s),
+        ("opening_min_mm", "parameter", "tunable", "exact", "mm", "Smallest opening (>= 0)", lo),
+        ("opening_max_mm", "parameter", "tunable", "exact", "mm", "Largest opening", hi),
+        ("opening_rate_mm_s", "parameter", "tunable", "exact", "mm/s", "Largest gate speed (> 0)",
+         s.opening_rate_mm_s),
+        ("sample_period_s", "parameter", "fixed", "exact", "s",
+         "Ts: communication steps must be whole multiples", s.sample_period_s),
+        ("start_opening_mm", "parameter", "fixed", "exact", "mm",
+         "Opening at rest: the first output and the integral's start (bumpless)",
+         start_opening_mm),
+    ]  # fmt: skip
+    return tuple(
+        VariableSpec(r[0], vr, *r[1:], initial_dependency=r[0] == "start_opening_mm")
+        for vr, r in enumerate(rows)
+    )
+
+
+def _macro(name: str) -> str:
+    return "VR_LEVEL_MM" if name.startswith("level_") else "VR_" + name.upper()
+
+
+def controller_config_header(desc: ControllerDescription) -> str:
+    """``model_config.h`` of the controller FMU: the glue's head, the sampling limits, the
+    value references and the variable table."""
+    lines = [
+        *component_config_lines(desc, "controller_data.h"),
+        f"#define GT_STEP_RTOL {float(STEP_RTOL)!r}",
+        f"#define GT_MAX_SAMPLES_PER_STEP {float(MAX_SAMPLES_PER_STEP)!r}",
+        "",
+        "/* value references (indices into ModelData.real) */",
+        *(f"#define {_macro(v.name)} {v.vr}" for v in desc.variables if v.causality != "output"),
+        f"#define VR_OUTPUT {desc.output.vr}",
+    ]
+    return "\n".join(lines + variable_table_lines(desc.variables))
+
+
+def generated_pi_law() -> dict[str, str]:
+    """File name -> text of the C rendering of :mod:`gatetwin.mpc.pi_law`."""
+    from gatetwin.mpc import pi_law
+    from gatetwin.plant.ast_render import c_module
+
+    source, header = c_module(pi_law, pi_law.RENDERED_C, PREFIX)
+    return {"pi_law.c": source, "pi_law.h": header}
+
+
+def _code_digest() -> str:
+    """sha256 (first 16 hex digits) of the code the controller FMU is built from."""
+    templates = templates_dir()
+    law = Path(__file__).resolve().parents[1] / "mpc" / "pi_law.py"
+    digest = hashlib.sha256()
+    for path in [*(templates / n for n in (*PI_SOURCES, *PI_HEADERS) if n != "pi_law.c"
+                   and n != "pi_law.h"), law]:  # fmt: skip
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def write_controller_sources(desc: ControllerDescription, sources_dir: Path) -> None:
+    """The templates, the generated ``pi_law.c``/``.h`` and ``model_config.h`` in
+    ``sources_dir``, with ``BUILD.txt`` and ``buildDescription.xml``."""
+    templates = templates_dir()
+    sources_dir.mkdir(parents=True, exist_ok=True)
+    generated = generated_pi_law()
+    for name in (*PI_SOURCES, *PI_HEADERS, FMI_API.license):
+        if name not in generated:
+            shutil.copyfile(templates / name, sources_dir / name)
+    for name, text in generated.items():
+        (sources_dir / name).write_text(text, encoding="utf-8")
+    (sources_dir / "model_config.h").write_text(controller_config_header(desc), encoding="utf-8")
+    line = " ".join(["cc", *CFLAGS, "-o", f"{desc.model_identifier}.so", *PI_SOURCES, "-lm"])
+    (sources_dir / "BUILD.txt").write_text(
+        "Build the FMU binary from this folder (any C99 compiler with the same flags):\n\n"
+        f"    {line}\n\nmodel_config.h is generated by gatetwin (gatetwin.fmu.controller), "
+        "pi_law.c and pi_law.h\nfrom gatetwin.mpc.pi_law; the other files are gatetwin's fixed "
+        "FMU templates.\n",
+        encoding="utf-8",
+    )
+    (sources_dir / "buildDescription.xml").write_bytes(build_description_xml(desc, PI_SOURCES))
+
+
+def build_controller_fmu(desc: ControllerDescription, work: Path, out: Path) -> None:
+    """Lay out the controller FMU in ``work/fmu`` (sources, the host's binary, resources,
+    modelDescription.xml) and zip it into ``out``."""
+    from fmpy import platform, sharedLibraryExtension
+
+    fmu_dir = work / "fmu"
+    sources = fmu_dir / "sources"
+    write_controller_sources(desc, sources)
+    binary = fmu_dir / "binaries" / platform / f"{desc.model_identifier}{sharedLibraryExtension}"
+    binary.parent.mkdir(parents=True)
+    compile_shared(sources, PI_SOURCES, binary)
+    flags = dataclasses.replace(FLAGS, source_files=PI_SOURCES)
+    (fmu_dir / "modelDescription.xml").write_bytes(
+        model_description_xml(desc, flags, tool="gatetwin (C backend)")
+    )
+    (fmu_dir / "resources").mkdir()
+    text = json.dumps(desc.provenance, indent=2, sort_keys=True, allow_nan=False)
+    (fmu_dir / "resources" / "provenance.json").write_text(text + "\n", encoding="utf-8")
+    zip_folder(fmu_dir, out)
+
+
+def export_controller(
+    model: ModelFile,
+    kind: str,
+    out_path: str | os.PathLike[str],
+    *,
+    settings: DemoSettings | None = None,
+    model_name: str | None = None,
+) -> Path:
+    """Build the ``kind`` controller FMU of ``model`` at ``out_path``; return its path.
+
+    Parameters
+    ----------
+    model : ModelFile
+        A read model file (:func:`gatetwin.modelfile.read_model_file`) of an FOPDT plant.
+    kind : {"pi", "mpc"}
+        ``"pi"``; ``"mpc"`` raises :class:`ExportError` (not built by this function yet).
+    out_path : path
+        Target ``.fmu``, written atomically (built next to it, moved into place on success).
+    settings : DemoSettings, optional
+        Operating point, start opening and PI limits (default: the demo's).
+    model_name : str, optional
+        modelIdentifier (default ``<model name>_pi``).
+
+    Raises
+    ------
+    ExportError
+        Unknown or unbuilt kind, a model that is not an FOPDT, no C compiler, build failure.
+    OutputError
+        The FMU cannot be written where asked.
+    """
+    check_controller_kind(kind)
+    target = Path(out_path)
+    if target.suffix.lower() != ".fmu":
+        raise ExportError(f"output {target} must end in .fmu")
+    provenance = {"model": model.name, "model_sha256": model.sha256}
+    desc = describe_pi_controller(model.plant, model_name or f"{model.name}_{kind}",
+                                  settings=settings, provenance=provenance)  # fmt: skip
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
+            built = Path(tmp) / target.name
+            build_controller_fmu(desc, Path(tmp), built)
+            os.replace(built, target)
+    except OSError as exc:
+        raise OutputError(f"{target}: cannot write the FMU ({exc.strerror or exc})") from None
+    return target
+
+
+__all__ = [
+    "CONTROLLER_KINDS",
+    "ControllerDescription",
+    "check_controller_kind",
+    "controller_config_header",
+    "describe_pi_controller",
+    "export_controller",
+    "generated_pi_law",
+]

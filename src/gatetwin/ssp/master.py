@@ -1,0 +1,393 @@
+"""gatetwin's fixed-step co-simulation master for an SSP of FMI 2.0 co-simulation FMUs.
+
+What it runs: one system of FMU components (no nested systems), Real connectors,
+connections without transformations, parameter sets bound to the system (``<element>.<name>``
+sets a component's variable, other names are the system's parameters) and piecewise-constant
+system inputs given as parameters (input ``X``: ``X.value[k]`` from ``X.time_s[k]`` on, the
+convention of :mod:`gatetwin.ssp.write`). Anything else is refused with one line naming it.
+
+How it steps (Gauss-Seidel, fixed step ``h``, the controller's sample period when an element
+has a ``sample_period_s`` parameter, else the first FMU's default step): at each
+communication point ``t_k = start + k h`` the system inputs take their values at ``t_k``;
+the components are stepped in document order, each one's inputs set from the current
+values of their sources just before its ``doStep(t_k, h)`` and its outputs read just after.
+With the controller listed before the plant (as :func:`~gatetwin.ssp.write.write_ssp` lists
+them) this is :func:`gatetwin.mpc.loop.run_closed_loop`: ``u_k = C(y_k)``, then the plant
+holds ``u_k`` over ``[t_k, t_k + h]``.
+
+Initialisation: every component is instantiated, set up at the start time and put into
+initialisation mode; the bound parameters are set; the connections are propagated as many
+times as there are components (outputs read in initialisation mode: each one's value at
+rest), then each component leaves initialisation mode in document order.
+
+The result (:class:`SspRun`) holds, per communication point, every component input as the
+component received it for the step from that point, and the system inputs.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import tempfile
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gatetwin.errors import SspError
+from gatetwin.ssp.documents import NS, SSD_SCHEMA, read_parameter_set, schema_problems
+
+#: A signal's change at ``time_s`` is in force from the first communication point not before
+#: ``time_s - SIGNAL_TIME_TOL_S`` (the rule of :meth:`gatetwin.mpc.loop.Scenario.schedules`).
+SIGNAL_TIME_TOL_S = 1e-9
+#: Largest number of communication steps one run takes.
+MAX_STEPS = 10_000_000
+
+
+@dataclass(frozen=True)
+class SspComponent:
+    """One FMU of the system: name, source in the package, connectors ``{name: kind}``."""
+
+    name: str
+    source: str
+    connectors: dict[str, str]
+
+
+@dataclass(frozen=True)
+class SspSystem:
+    """What the master reads from an SSD (see the module)."""
+
+    name: str
+    components: tuple[SspComponent, ...]
+    inputs: tuple[str, ...]
+    #: (start element or None, start connector, end element or None, end connector)
+    connections: tuple[tuple[str | None, str, str | None, str], ...]
+    parameter_sources: tuple[str, ...]
+    start_time_s: float
+    stop_time_s: float
+
+
+@dataclass(frozen=True, eq=False)
+class SspRun:
+    """A run of :func:`simulate_ssp`: ``columns[name][k]`` at ``time_s[k]``.
+
+    Columns are ``<element>.<input>`` (what the component received for the step from
+    ``time_s[k]``) and ``<system input>``.
+    """
+
+    time_s: np.ndarray
+    columns: dict[str, np.ndarray] = field(default_factory=dict)
+    step_s: float = math.nan
+
+    def iae(self, measured: str, reference: str) -> float:
+        """``∫|measured − reference| dt`` over the run, as :func:`gatetwin.mpc.loop.loop_metrics`
+        sums it (per communication point times the step)."""
+        return float(np.sum(np.abs(self.columns[measured] - self.columns[reference])) * self.step_s)
+
+    def to_csv(self) -> str:
+        names = list(self.columns)
+        lines = [",".join(["time_s", *names])]
+        for k, t in enumerate(self.time_s):
+            row = [t, *(self.columns[n][k] for n in names)]
+            lines.append(",".join(repr(float(x)) for x in row))
+        return "\n".join(lines) + "\n"
+
+
+def _float(value: str | None, what: str, where: str) -> float:
+    try:
+        out = float(value) if value is not None else math.nan
+    except ValueError:
+        out = math.nan
+    if not math.isfinite(out):
+        raise SspError(f"{where}: {what} {value!r} is not a finite number")
+    return out
+
+
+def read_ssd(xml: bytes, where: str) -> SspSystem:
+    """The system of an SSD document, checked against the SSP 1.0 schema and the subset the
+    master runs."""
+    from lxml import etree
+
+    problems = schema_problems(xml, SSD_SCHEMA)
+    if problems:
+        raise SspError(f"{where}: not an SSP 1.0 system structure: {problems[0]}")
+    root = etree.fromstring(xml)
+    system = root.find("ssd:System", NS)
+    if system.find("ssd:Elements/ssd:System", NS) is not None:
+        raise SspError(f"{where}: nested systems are not run by this master")
+    components = []
+    for c in system.iterfind("ssd:Elements/*", NS):
+        kind = c.get("type", "application/x-fmu-sharedlibrary")
+        if etree.QName(c).localname != "Component" or kind != "application/x-fmu-sharedlibrary":
+            raise SspError(f"{where}: element {c.get('name')} is not an FMU component")
+        connectors = {k.get("name"): k.get("kind") for k in c.iterfind("ssd:Connectors/*", NS)}
+        components.append(SspComponent(c.get("name"), c.get("source"), connectors))
+    connections = []
+    for c in system.iterfind("ssd:Connections/ssd:Connection", NS):
+        if len(c):
+            raise SspError(f"{where}: connection to {c.get('endConnector')} has a "
+                           "transformation; this master runs plain connections")  # fmt: skip
+        connections.append((c.get("startElement"), c.get("startConnector"),
+                            c.get("endElement"), c.get("endConnector")))  # fmt: skip
+    inputs = tuple(k.get("name") for k in system.iterfind("ssd:Connectors/ssd:Connector", NS)
+                   if k.get("kind") == "input")  # fmt: skip
+    sources = tuple(b.get("source") for b in system.iterfind(
+        "ssd:ParameterBindings/ssd:ParameterBinding", NS))  # fmt: skip
+    if any(s is None for s in sources):
+        raise SspError(f"{where}: only parameter bindings with a source file are run")
+    experiment = root.find("ssd:DefaultExperiment", NS)
+    if experiment is None or experiment.get("stopTime") is None:
+        raise SspError(f"{where}: DefaultExperiment with a stopTime is needed")
+    start = _float(experiment.get("startTime", "0.0"), "startTime", where)
+    stop = _float(experiment.get("stopTime"), "stopTime", where)
+    if not stop > start:
+        raise SspError(f"{where}: stopTime {stop} must lie after startTime {start}")
+    return SspSystem(system.get("name"), tuple(components), inputs, tuple(connections),
+                     sources, start, stop)  # fmt: skip
+
+
+def _signal(parameters: dict[str, float], name: str, where: str) -> tuple[np.ndarray, np.ndarray]:
+    times, values = [], []
+    k = 1
+    while f"{name}.time_s[{k}]" in parameters:
+        if f"{name}.value[{k}]" not in parameters:
+            raise SspError(f"{where}: {name}.time_s[{k}] has no {name}.value[{k}]")
+        times.append(parameters[f"{name}.time_s[{k}]"])
+        values.append(parameters[f"{name}.value[{k}]"])
+        k += 1
+    if not times:
+        raise SspError(f"{where}: system input {name} has no signal ({name}.time_s[1] and "
+                       f"{name}.value[1] in a bound parameter set)")  # fmt: skip
+    if any(b <= a for a, b in zip(times, times[1:], strict=False)):
+        raise SspError(f"{where}: {name}.time_s[k] must increase strictly")
+    return np.array(times), np.array(values)
+
+
+def _signal_at(signal: tuple[np.ndarray, np.ndarray], t: float) -> float:
+    times, values = signal
+    k = int(np.searchsorted(times, t + SIGNAL_TIME_TOL_S, side="right")) - 1
+    return float(values[max(k, 0)])
+
+
+class _Master:
+    """The FMUs of one run and the values on their connectors."""
+
+    def __init__(self, system: SspSystem, folder: Path, parameters: dict[str, float],
+                 where: str) -> None:  # fmt: skip
+        self.system, self.where = system, where
+        self.signals = {name: _signal(parameters, name, where) for name in system.inputs}
+        self.values: dict[tuple[str | None, str], float] = {}
+        self.slaves: dict[str, Any] = {}
+        self.vrs: dict[str, dict[str, int]] = {}
+        self.steps: dict[str, float] = {}
+        self.parameters = parameters
+        try:
+            for c in system.components:
+                self._instantiate(c, folder)
+            self._check_connections()
+        except BaseException:
+            self.close()  # the instances made so far
+            raise
+
+    def _instantiate(self, c: SspComponent, folder: Path) -> None:
+        from fmpy import extract, read_model_description
+        from fmpy.fmi2 import FMU2Slave
+
+        path = folder / "package" / c.source
+        try:
+            md = read_model_description(str(path))
+        except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions on bad FMUs
+            raise SspError(f"{self.where}: component {c.name}: {c.source} is not an FMU "
+                           f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
+        if md.fmiVersion != "2.0" or md.coSimulation is None:
+            raise SspError(f"{self.where}: component {c.name}: not an FMI 2.0 co-simulation FMU")
+        self.vrs[c.name] = {v.name: v.valueReference for v in md.modelVariables
+                            if v.type == "Real"}  # fmt: skip
+        missing = [n for n in c.connectors if n not in self.vrs[c.name]]
+        if missing:
+            raise SspError(f"{self.where}: component {c.name} has no Real variable {missing[0]}")
+        if "sample_period_s" in self.vrs[c.name]:
+            period = next(v for v in md.modelVariables if v.name == "sample_period_s").start
+            self.steps[c.name] = float(period)
+        elif md.defaultExperiment is not None and md.defaultExperiment.stepSize:
+            self.steps.setdefault("", float(md.defaultExperiment.stepSize))
+        unzipped = extract(str(path), str(folder / f"fmu_{len(self.slaves)}"))
+        try:
+            slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
+                              modelIdentifier=md.coSimulation.modelIdentifier,
+                              instanceName=c.name)  # fmt: skip
+            slave.instantiate(loggingOn=False)
+        except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions here
+            raise SspError(f"{self.where}: component {c.name}: the FMU cannot be instantiated "
+                           f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
+        self.slaves[c.name] = slave
+
+    def _check_connections(self) -> None:
+        connectors = {(c.name, n) for c in self.system.components for n in c.connectors}
+        for start_el, start_c, end_el, end_c in self.system.connections:
+            for element, connector in ((start_el, start_c), (end_el, end_c)):
+                if element is not None and (element, connector) not in connectors:
+                    raise SspError(f"{self.where}: a connection names {element}.{connector}, "
+                                   "which no component declares")  # fmt: skip
+
+    def step_size_s(self, override: float | None) -> float:
+        if override is not None:
+            return float(override)
+        periods = [v for k, v in self.steps.items() if k]
+        h = periods[0] if periods else self.steps.get("")
+        if h is None or not h > 0:
+            raise SspError(f"{self.where}: no step size (no sample_period_s and no default "
+                           "experiment step in the FMUs); give one")  # fmt: skip
+        return h
+
+    def set_system_inputs(self, t: float) -> None:
+        for name, signal in self.signals.items():
+            self.values[(None, name)] = _signal_at(signal, t)
+
+    def inputs_of(self, name: str) -> dict[str, float]:
+        """The values this component's inputs receive now (those whose source is known)."""
+        out = {}
+        for start_el, start_c, end_el, end_c in self.system.connections:
+            if end_el == name and (start_el, start_c) in self.values:
+                out[end_c] = self.values[(start_el, start_c)]
+        return out
+
+    def push_inputs(self, name: str) -> dict[str, float]:
+        inputs = self.inputs_of(name)
+        if inputs:
+            vr = self.vrs[name]
+            self.slaves[name].setReal([vr[n] for n in inputs], list(inputs.values()))
+        return inputs
+
+    def pull_outputs(self, c: SspComponent) -> None:
+        outs = [n for n, kind in c.connectors.items() if kind == "output"]
+        if outs:
+            values = self.slaves[c.name].getReal([self.vrs[c.name][n] for n in outs])
+            self.values.update({(c.name, n): float(v) for n, v in zip(outs, values, strict=True)})
+
+    def apply_parameters(self) -> None:
+        for c in self.system.components:
+            own = {k.split(".", 1)[1]: v for k, v in self.parameters.items()
+                   if k.startswith(c.name + ".")}  # fmt: skip
+            unknown = [n for n in own if n not in self.vrs[c.name]]
+            if unknown:
+                raise SspError(f"{self.where}: parameter {c.name}.{unknown[0]}: no such "
+                               "variable in the FMU")  # fmt: skip
+            if own:
+                vr = self.vrs[c.name]
+                self.slaves[c.name].setReal([vr[n] for n in own], list(own.values()))
+
+    def close(self) -> None:
+        for slave in self.slaves.values():
+            try:
+                slave.freeInstance()
+            except Exception:  # noqa: BLE001, S110 - freeing is all that is left to do
+                pass
+
+
+def _initialize(m: _Master, start: float) -> None:
+    for slave in m.slaves.values():
+        slave.setupExperiment(startTime=start)
+        slave.enterInitializationMode()
+    m.apply_parameters()
+    m.set_system_inputs(start)
+    for _ in m.system.components:  # propagate through the loop: each pass reaches one further
+        for c in m.system.components:
+            m.push_inputs(c.name)
+            m.pull_outputs(c)
+    for c in m.system.components:
+        m.push_inputs(c.name)
+        m.slaves[c.name].exitInitializationMode()
+        m.pull_outputs(c)
+
+
+def _run(m: _Master, h: float) -> SspRun:
+    start, stop = m.system.start_time_s, m.system.stop_time_s
+    n = int(round((stop - start) / h))
+    if not 1 <= n <= MAX_STEPS:
+        raise SspError(f"{m.where}: {n} steps of {h} s from {start} to {stop} s; need 1 to "
+                       f"{MAX_STEPS}")  # fmt: skip
+    rows: dict[str, list[float]] = {}
+    times = start + np.arange(n) * h
+    for k in range(n):
+        t = float(times[k])
+        m.set_system_inputs(t)
+        for name in m.system.inputs:
+            rows.setdefault(name, []).append(m.values[(None, name)])
+        for c in m.system.components:
+            for connector, value in m.push_inputs(c.name).items():
+                rows.setdefault(f"{c.name}.{connector}", []).append(value)
+            m.slaves[c.name].doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            m.pull_outputs(c)
+    for slave in m.slaves.values():
+        slave.terminate()
+    return SspRun(times, {k: np.array(v) for k, v in rows.items()}, h)
+
+
+def simulate_ssp(
+    ssp_path: str | Path, *, out_csv: str | Path | None = None, step_size_s: float | None = None
+) -> SspRun:
+    """Run the system of an SSP with gatetwin's master (see the module); write ``out_csv``.
+
+    Raises
+    ------
+    SspError
+        The package, its SSD, a parameter set or an FMU is not what the master runs, or an
+        FMU refuses a call (the message names the component and the time).
+    """
+    from fmpy.fmi1 import FMICallException
+
+    from gatetwin._io import write_text_atomic
+
+    path = Path(ssp_path)
+    where = str(path)
+    with tempfile.TemporaryDirectory(prefix="gatetwin-ssp-") as tmp:
+        folder = Path(tmp)
+        system, parameters = _unpack(path, folder, where)
+        master = _Master(system, folder, parameters, where)
+        try:
+            h = master.step_size_s(step_size_s)
+            _initialize(master, system.start_time_s)
+            run = _run(master, h)
+        except FMICallException as exc:
+            raise SspError(f"{where}: an FMU refused a call ({exc})") from None
+        finally:
+            master.close()
+    if out_csv is not None:
+        write_text_atomic(out_csv, run.to_csv())
+    return run
+
+
+def _unpack(path: Path, folder: Path, where: str) -> tuple[SspSystem, dict[str, float]]:
+    try:
+        with zipfile.ZipFile(path) as zf:
+            names = set(zf.namelist())
+            if "SystemStructure.ssd" not in names:
+                raise SspError(f"{where}: no SystemStructure.ssd in the package")
+            ssd = zf.read("SystemStructure.ssd")
+            system = read_ssd(ssd, f"{where}: SystemStructure.ssd")
+            parameters: dict[str, float] = {}
+            for source in system.parameter_sources:
+                if source not in names:
+                    raise SspError(f"{where}: parameter set {source} is not in the package")
+                parameters.update(read_parameter_set(zf.read(source), f"{where}: {source}"))
+            for c in system.components:
+                if c.source not in names:
+                    raise SspError(f"{where}: component {c.name}: no file {c.source} in the "
+                                   "package")  # fmt: skip
+                target = (folder / "package" / c.source).resolve()
+                if (folder / "package").resolve() not in target.parents:
+                    raise SspError(f"{where}: component {c.name}: source {c.source} points "
+                                   "outside the package")  # fmt: skip
+                target.parent.mkdir(parents=True, exist_ok=True)
+                with zf.open(c.source) as src, open(target, "wb") as dst:
+                    shutil.copyfileobj(src, dst)
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise SspError(f"{where}: cannot read the package ({exc})") from None
+    return system, parameters
+
+
+__all__ = ["SIGNAL_TIME_TOL_S", "SspComponent", "SspRun", "SspSystem", "read_ssd",
+           "simulate_ssp"]  # fmt: skip

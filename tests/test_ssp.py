@@ -1,0 +1,136 @@
+"""The closed loop as an SSP: the package follows the SSP 1.0 schemas, gatetwin's master runs
+it as the Python loop runs the PI on the same plant FMU, fmpy's own SSP simulation reads it,
+and bad packages are refused in one line without output."""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gatetwin.cli import main
+from gatetwin.errors import ExportError, SspError
+from gatetwin.modelfile import read_model_file
+from gatetwin.mpc.demo import DemoSettings, demo_scenarios, pi_controller
+from gatetwin.mpc.loop import loop_metrics, run_closed_loop
+from gatetwin.mpc.plants import FmuCore, LoopPlant
+from gatetwin.ssp import simulate_ssp, write_ssp
+from gatetwin.ssp.documents import SSD_SCHEMA, SSV_SCHEMA, read_parameter_set, schema_problems
+from gatetwin.ssp.master import SIGNAL_TIME_TOL_S, _signal, _signal_at
+from gatetwin.ssp.write import PARAMETERS_SOURCE, PLANT_SOURCE, SSD_NAME
+
+MODEL = Path(__file__).resolve().parents[1] / "models" / "fopdt_3F.json"
+#: Same operations in the same order in both loops (the PI's C is generated from the Python,
+#: -ffp-contract=off; the plant FMU is the same file): equal to the bit; 1e-9 leaves room only
+#: for a compiler ordering a library call differently.
+SAME_ARITHMETIC = 1e-9
+MINUTES = 30.0
+
+
+@pytest.fixture(scope="module")
+def package(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("ssp")
+    out = folder / "loop.ssp"
+    assert main(["ssp", str(MODEL), "--out", str(out), "--minutes", str(MINUTES)]) == 0
+    return out
+
+
+def _read(package: Path, name: str) -> bytes:
+    with zipfile.ZipFile(package) as zf:
+        return zf.read(name)
+
+
+def test_the_ssd_and_the_parameter_set_follow_the_ssp_1_0_schemas(package):
+    assert schema_problems(_read(package, SSD_NAME), SSD_SCHEMA) == []
+    assert schema_problems(_read(package, PARAMETERS_SOURCE), SSV_SCHEMA) == []
+    broken = _read(package, SSD_NAME).replace(b'kind="input"', b'kind="sideways"', 1)
+    assert schema_problems(broken, SSD_SCHEMA)  # the check can fail
+
+
+def _python_loop(package: Path, tmp_path: Path):
+    """PiController against the package's own plant FMU, noise-free, no actuator rounding:
+    the loop the SSP describes."""
+    (tmp_path / "plant.fmu").write_bytes(_read(package, PLANT_SOURCE))
+    s = DemoSettings()
+    scenario = demo_scenarios(MINUTES, s)[0]
+    core = FmuCore(tmp_path / "plant.fmu", s.pi.sample_period_s)
+    try:
+        return run_closed_loop(LoopPlant(core, noise=None, actuator_resolution_mm=0.0),
+                               pi_controller(read_model_file(MODEL).plant, s), scenario,
+                               level_band_mm=None, max_move_mm=s.mpc.max_move_mm,
+                               opening_range_mm=s.pi.opening_range_mm,
+                               sample_period_s=s.pi.sample_period_s)  # fmt: skip
+    finally:
+        core.cleanup()
+
+
+def test_the_ssp_run_is_the_python_loop(package, tmp_path, capsys):
+    csv = tmp_path / "result.csv"
+    assert main(["simulate-ssp", str(package), "--out", str(csv)]) == 0
+    assert "closed-loop IAE" in capsys.readouterr().out
+    table = np.genfromtxt(csv, delimiter=",", names=True)
+    run = simulate_ssp(package)
+    python = _python_loop(package, tmp_path)
+    assert np.array_equal(table["plantopening_mm"], run.columns["plant.opening_mm"])
+    level, setpoint = run.columns["controller.level_3F_mm"], run.columns["controller.setpoint_mm"]
+    assert np.max(np.abs(python.command_mm - run.columns["plant.opening_mm"])) <= SAME_ARITHMETIC
+    assert np.max(np.abs(python.level_mm - level)) <= SAME_ARITHMETIC
+    assert np.max(np.abs(python.setpoint_mm - setpoint)) <= SAME_ARITHMETIC
+    assert np.ptp(setpoint) > 30 and np.ptp(run.columns["plant.opening_mm"]) > 1  # it acts
+    iae = run.iae("controller.level_3F_mm", "controller.setpoint_mm")
+    # the same doubles summed in the same order (numpy's sum of |level - set-point|, times Ts)
+    assert abs(iae - loop_metrics(python)["iae"]) <= SAME_ARITHMETIC
+
+
+def test_fmpy_simulate_ssp_reads_and_runs_the_package(package):
+    """fmpy's own master (Jacobi: every FMU steps on the values of the previous point, its
+    connectors start at 0) reads the SSD and, given the parameter set and the scenario as
+    inputs, runs the loop to the end; the PI brings the level back to the set-point."""
+    from fmpy.ssp.simulation import simulate_ssp as fmpy_simulate_ssp
+    from fmpy.ssp.ssd import read_ssv
+
+    parameters = read_parameter_set(_read(package, PARAMETERS_SOURCE), "ssv")
+    signals = {n: _signal(parameters, n, "ssv") for n in ("setpoint_mm", "flow_m3h")}
+    inputs = {n: (lambda t, sig=sig: _signal_at(sig, t)) for n, sig in signals.items()}
+    out = fmpy_simulate_ssp(str(package), stop_time=MINUTES * 60, step_size=1.2,
+                            parameter_set=read_ssv(str(package), resource=PARAMETERS_SOURCE),
+                            input=inputs)  # fmt: skip
+    assert len(out) == int(round(MINUTES * 60 / 1.2))
+    # the settle band of the demo's scoring (LoopSettings.settle_band_mm)
+    assert abs(out["plant.level_3F_mm"][-1] - out["controller.setpoint_mm"][-1]) <= 5.0
+
+
+def test_signals_switch_at_their_times():
+    params = {"x.time_s[1]": 0.0, "x.value[1]": 1.0, "x.time_s[2]": 6.0, "x.value[2]": 2.0}
+    sig = _signal(params, "x", "test")
+    assert [_signal_at(sig, t) for t in (0.0, 5.9, 6.0 - SIGNAL_TIME_TOL_S / 2, 7.0)] == [
+        1.0, 1.0, 2.0, 2.0]  # fmt: skip
+    with pytest.raises(SspError, match="increase strictly"):
+        _signal({**params, "x.time_s[2]": 0.0}, "x", "test")
+
+
+def test_bad_packages_and_requests_are_one_line_without_output(package, tmp_path, capsys):
+    not_zip = tmp_path / "not.ssp"
+    not_zip.write_text("hello", encoding="utf-8")
+    no_ssd = tmp_path / "no_ssd.ssp"
+    with zipfile.ZipFile(no_ssd, "w") as zf:
+        zf.writestr("other.txt", "x")
+    bad_ssd = tmp_path / "bad_ssd.ssp"
+    with zipfile.ZipFile(package) as src, zipfile.ZipFile(bad_ssd, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            dst.writestr(item, data.replace(b"resources/plant.fmu", b"../plant.fmu")
+                         if item.filename == SSD_NAME else data)  # fmt: skip
+    for bad in (not_zip, no_ssd, bad_ssd, tmp_path / "missing.ssp"):
+        out = tmp_path / "r.csv"
+        assert main(["simulate-ssp", str(bad), "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("gatetwin: error:") and str(bad) in err[0]
+        assert not out.exists()
+    assert main(["ssp", str(MODEL), "--out", str(tmp_path / "m.ssp"), "--controller", "mpc"]) == 2
+    assert "MPC controller FMU is not built" in capsys.readouterr().err
+    assert not (tmp_path / "m.ssp").exists()
+    with pytest.raises(ExportError, match="must end in .ssp"):
+        write_ssp(read_model_file(MODEL), tmp_path / "loop.zip")
