@@ -192,7 +192,7 @@ def test_sidecar_overrides_detection_and_option_overrides_sidecar(tmp_path: Path
 
 
 def test_bad_test_option_is_refused(tmp_path: Path) -> None:
-    with pytest.raises(RecordError, match="expected 'step', 'prbs' or 'free'"):
+    with pytest.raises(RecordError, match="expected 'step', 'prbs', 'free' or 'routine'"):
         read_record(_write(tmp_path, _rows(STEP)), test="ramp")
 
 

@@ -376,7 +376,8 @@ def routine_history(cfg: FlumeConfig, logger: LoggerConfig, settings: RoutineSet
         the flume's K, T, L for each, and the set-points.
     """
     run, setpoints = routine_run(cfg, settings, base_flow_m3h=base_flow_m3h,
-                                 target_level_mm=target_level_mm, gauge=gauge, seed=seed)  # fmt: skip
+                                 target_level_mm=target_level_mm, gauge=gauge,
+                                 seed=seed)  # fmt: skip
     rng = np.random.default_rng(seed + 1)
     keep = _gap_mask(settings, run.time_s.size, cfg.sample_period_s, rng)
     side: dict[str, Any] = {"test": "routine", "control": settings.control, **(sidecar or {})}

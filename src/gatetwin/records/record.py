@@ -61,7 +61,7 @@ class Record:
     gauges_m : dict[str, float]
         Distance of each gauge upstream of the gate, m, where known (sidecar).
     test : str
-        ``"step"``, ``"prbs"`` or ``"free"``.
+        ``"step"``, ``"prbs"``, ``"free"`` or ``"routine"``.
     test_source : str
         Where ``test`` came from: ``"option"``, ``"sidecar"`` or ``"detected"``.
     sample_period_s : float
@@ -159,7 +159,7 @@ class Record:
             median time step.
         gauges : dict[str, float], optional
             Gauge distance upstream of the gate, m.
-        test : {"step", "prbs", "free"}, optional
+        test : {"step", "prbs", "free", "routine"}, optional
             Test type; else ``metadata["test"]``, else detected.
         metadata : dict, optional
             Sidecar-like contents kept on the record.
@@ -208,7 +208,7 @@ def read_record(
         The record's CSV file (Parquet if it ends in ``.parquet`` or ``.pq``); a sidecar
         ``NAME.json`` next to it is read if present. A DataFrame is taken as
         :meth:`Record.from_pandas` takes it.
-    test : {"step", "prbs", "free"}, optional
+    test : {"step", "prbs", "free", "routine"}, optional
         Test type from the command line; overrides the sidecar and detection.
     limits : ReadLimits, optional
         File size and line length limits; default :class:`ReadLimits` with the
@@ -284,7 +284,7 @@ def record_from_arrays(
         Inflow discharge, m³/h (no NaN).
     levels_mm : dict[str, array_like]
         Upstream level per gauge name, mm; NaN where missing.
-    test : {"step", "prbs", "free"}, optional
+    test : {"step", "prbs", "free", "routine"}, optional
         Test type (``test_source="option"``); else ``metadata["test"]``, else detected.
     sample_period_s : float, optional
         Nominal sample period, s; else ``metadata["sample_period_s"]``, else median step.

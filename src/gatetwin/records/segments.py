@@ -272,7 +272,7 @@ def choose_test(
     """The test type and where it came from (option, then sidecar, then detection)."""
     if option is not None:
         if option not in TEST_TYPES:
-            raise origin.error(f"test {option!r}", "expected 'step', 'prbs' or 'free'")
+            raise origin.error(f"test {option!r}", "expected 'step', 'prbs', 'free' or 'routine'")
         return option, "option"
     if sidecar is not None:
         return sidecar, "sidecar"

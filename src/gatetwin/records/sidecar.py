@@ -19,7 +19,7 @@ from gatetwin.errors import RecordError
 from gatetwin.records.limits import MAX_SIDECAR_BYTES, open_regular
 
 #: The test types of the data format.
-TEST_TYPES = ("step", "prbs", "free")
+TEST_TYPES = ("step", "prbs", "free", "routine")
 #: Sidecar ``role`` of a record that is read and validated against but never fitted
 #: (the others: ``fit``, the default, and ``held_out``, which checks the fits).
 VALIDATION_ROLE = "validation"
@@ -32,7 +32,8 @@ class Sidecar:
     Attributes
     ----------
     test : str or None
-        ``"step"``, ``"prbs"`` or ``"free"``.
+        ``"step"``, ``"prbs"``, ``"free"`` or ``"routine"`` (a history of routine
+        operation: no designed test).
     sample_period_s : float or None
         Nominal sample period, s.
     gauges_m : dict[str, float]
@@ -110,7 +111,7 @@ def _test_word(name: str, value: Any) -> str | None:
         return value
     raise RecordError(
         f"{name}: sidecar field 'test': {value!r} is not a test type; expected "
-        "'step', 'prbs' or 'free'"
+        "'step', 'prbs', 'free' or 'routine'"
     )
 
 
