@@ -150,6 +150,16 @@ def _add_flume_arguments(parser: argparse.ArgumentParser) -> None:
         "one folder of records per gate, each with its truth.json, and truth.json for all",
     )  # fmt: skip
     parser.add_argument(
+        "--routine", metavar="CONTROL", choices=("schedule", "pi", "mixed"),
+        help="with --district: instead of step tests, one routine operation history per gate "
+        "(routine.csv: the gate moved by an operator's schedule, by a PI level controller, or "
+        "mixed: every fourth gate under the controller), with the flume's K, T at every move "
+        "in truth.json",
+    )  # fmt: skip
+    parser.add_argument(
+        "--days", type=float, default=7.0, help="length of a routine history, days (default 7)"
+    )
+    parser.add_argument(
         "--seed", type=int, default=0, help="seed of the district's draws (default 0)"
     )
     parser.add_argument(
@@ -168,6 +178,8 @@ def _run_flume(args: argparse.Namespace) -> int:
 
     if args.district is not None:
         return _run_district(args)
+    if args.routine is not None:
+        raise GatetwinError("--routine applies with --district N")
     if args.scenario:
         scn = load_scenario(args.scenario)
         path = run_scenario(scn).write(Path(args.out) / f"{scn.name}.csv")
@@ -193,9 +205,23 @@ def _run_district(args: argparse.Namespace) -> int:
         raise GatetwinError("--district generates its own records; drop --scenario and --only")
     if args.district < 1 or args.workers < 1:
         raise GatetwinError("--district and --workers: expected whole numbers >= 1")
+    if args.routine is not None:
+        return _run_routine_district(args)
     path = write_district(args.district, args.out, seed=args.seed, workers=args.workers,
                           progress=print_to_stderr)  # fmt: skip
     print(f"wrote {args.district} gate folders in {args.out} and {path}")
+    return 0
+
+
+def _run_routine_district(args: argparse.Namespace) -> int:
+    from gatetwin.fleet.routine import write_routine_district
+
+    if not 0 < args.days <= 366:
+        raise GatetwinError(f"--days: expected a length in (0, 366] days, got {args.days:g}")
+    path = write_routine_district(args.district, args.out, seed=args.seed, control=args.routine,
+                                  days=args.days, workers=args.workers,
+                                  progress=print_to_stderr)  # fmt: skip
+    print(f"wrote {args.district} routine histories in {args.out} and {path}")
     return 0
 
 
@@ -334,6 +360,12 @@ _COMMANDS: tuple[Command, ...] = (
         "identify FOPDT (step records) or ARX (PRBS records) models of one record",
         _model_cmds.add_identify_arguments,
         _model_cmds.run_identify,
+    ),
+    Command(
+        "routine",
+        "identify FOPDT models from a routine operation history (SCADA log, no designed test)",
+        _model_cmds.add_routine_arguments,
+        _model_cmds.run_routine,
     ),
     Command(
         "models",

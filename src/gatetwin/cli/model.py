@@ -63,11 +63,60 @@ def run_identify(args: argparse.Namespace) -> int:
         print(f"ARX({result['na']},{result['nb']},{result['nk']}) at {result['gauge']}: "
               f"a {result['a']} b {result['b']}; one-step R² {result['one_step']['r2']:.3f}, "
               f"free-run fit {result['simulation']['fit_percent']:.1f} %")  # fmt: skip
+    elif record.test == "routine":
+        raise IdentificationError(
+            f"{args.path}: a routine operation history; identify it with gatetwin routine"
+        )
     else:
         raise IdentificationError(
             f"{args.path}: a {record.test!r} record has no method; use --test step or prbs"
         )
     write_json_atomic(args.json, result)
+    return 0
+
+
+def add_routine_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("path", metavar="RECORD.csv", help="routine operation history")
+    parser.add_argument("--gauge", help="gauge (default: the record's only gauge)")
+    parser.add_argument(
+        "--pre-s", type=float, default=300.0,
+        help="steady hold needed before a move, s (default 300)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--post-s", type=float, default=480.0,
+        help="hold needed after a move for the level to settle, s: over 3 time constants "
+        "(default 480)",
+    )  # fmt: skip
+    parser.add_argument("--json", metavar="OUT.json", required=True,
+                        help="windows, schedule on Q and overall estimate")  # fmt: skip
+    parser.epilog = (
+        "exit status 0 with at least one informative window; 2 when the history has none "
+        "(one line saying why the moves were rejected; nothing is written) or cannot be read"
+    )
+
+
+def run_routine(args: argparse.Namespace) -> int:
+    from gatetwin.identify.routine import WindowCriteria, identify_routine
+    from gatetwin.records import read_record
+
+    check_writable(args.json)
+    if not (args.pre_s > 0 and args.post_s > 0):
+        raise GatetwinError("--pre-s and --post-s: expected durations > 0 s")
+    criteria = WindowCriteria(pre_s=args.pre_s, post_min_s=args.post_s,
+                              post_max_s=max(1200.0, args.post_s))  # fmt: skip
+    record = read_record(args.path, test="routine")
+    res = identify_routine(record, args.gauge, criteria)
+    o = res.overall
+    print(f"{res.gauge}: {len(res.windows)} informative window(s) of {res.n_moves} observed "
+          f"move(s); K {o['gain_mm_per_mm']:.2f} mm/mm, T {o['time_constant_s']:.1f} s, "
+          f"L {o['dead_time_s']:.1f} s over Q {o['flow_min_m3h']:.1f}-{o['flow_max_m3h']:.1f} "
+          "m3/h")  # fmt: skip
+    for b in res.schedule:
+        print(f"  Q {b.flow_m3h:.1f} m3/h ({b.n_windows} windows): K {b.gain_mm_per_mm:.2f} "
+              f"T {b.time_constant_s:.1f} s L {b.dead_time_s:.1f} s")  # fmt: skip
+    for warning in res.warnings:
+        print(f"gatetwin: warning: {warning}", file=sys.stderr)
+    write_json_atomic(args.json, res.to_dict())
     return 0
 
 

@@ -169,8 +169,8 @@ def move_events(record: Record, post_min_s: float) -> list[tuple[StepOnset, ...]
     events: list[list[StepOnset]] = []
     for step in record.steps:
         prev = events[-1][-1] if events else None
-        joined = (prev is not None and prev.after == step.before
-                  and _hold_s(record, step.before.start, step.before.stop) < post_min_s)  # fmt: skip
+        short = _hold_s(record, step.before.start, step.before.stop) < post_min_s
+        joined = prev is not None and prev.after == step.before and short
         if joined:
             events[-1].append(step)
         else:
@@ -311,7 +311,7 @@ def _overall(windows: list[RoutineWindow]) -> dict[str, float]:
         "time_constant_iqr_s": float(np.subtract(*np.percentile(tau, [75, 25]))),
         "flow_min_m3h": float(min(w.flow_m3h for w in windows)),
         "flow_max_m3h": float(max(w.flow_m3h for w in windows)),
-        "n_windows": float(len(windows)),
+        "n_windows_used": float(len(windows)),
     }  # fmt: skip
 
 
