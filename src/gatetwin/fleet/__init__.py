@@ -4,9 +4,10 @@
 patterns, a manifest, or records whose sidecars name their ``gate``), one task per gate,
 serially, on a local process pool or on a ``dask.distributed`` cluster
 (:class:`FleetSettings`), and writes one model set per gate and a fleet summary.
-:func:`write_district` generates a synthetic district with known truth. Identification
-from routine operation histories is not what this package does: each gate brings test
-records (step tests and a static rating table) like the bundled ones.
+:func:`write_district` generates a synthetic district with known truth. Each gate brings
+test records (step tests and a static rating table) like the bundled ones; routine
+operation histories (:mod:`gatetwin.fleet.routine`) are generated here too and identified
+one at a time by :func:`gatetwin.identify.routine.identify_routine`.
 """
 
 from gatetwin.fleet.district import GateTruth, district_gates, write_district

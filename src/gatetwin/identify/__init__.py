@@ -16,7 +16,9 @@ Layout (one concept per module):
   fits of the polynomial family (innovations, minimisation, the fitted model);
 * :mod:`~gatetwin.identify.oe`, :mod:`~gatetwin.identify.armax`,
   :mod:`~gatetwin.identify.bj` -- output-error, ARMAX and Box-Jenkins fits;
-* :mod:`~gatetwin.identify.discrete_select` -- the structure that simulates best.
+* :mod:`~gatetwin.identify.discrete_select` -- the structure that simulates best;
+* :mod:`~gatetwin.identify.routine` -- FOPDT windows and a schedule on Q from a routine
+  operation history (no designed test).
 """
 
 from gatetwin.identify.armax import fit_armax
@@ -51,6 +53,7 @@ from gatetwin.identify.preprocess import (
     record_segments,
     split_segments,
 )
+from gatetwin.identify.routine import RoutineIdentification, WindowCriteria, identify_routine
 from gatetwin.identify.step import GaugeStep, StepIdentification, identify_step
 
 __all__ = [
@@ -65,10 +68,12 @@ __all__ = [
     "PaperStepResult",
     "PemFit",
     "PrbsIdentification",
+    "RoutineIdentification",
     "SimulationMetrics",
     "SpikeCorrection",
     "StepIdentification",
     "Whiteness",
+    "WindowCriteria",
     "arx_poles",
     "choose",
     "continuous_segments",
@@ -83,6 +88,7 @@ __all__ = [
     "hampel_filter",
     "holdout_split",
     "identify_prbs",
+    "identify_routine",
     "identify_step",
     "is_stable",
     "one_step_metrics",
