@@ -194,7 +194,7 @@ def test_identify_points_a_routine_history_to_its_command(short_district, tmp_pa
 def test_twenty_week_long_histories_within_10_percent(tmp_path) -> None:
     """20 district gates, a week each at 1.2 s (15 under an operator's schedule, 5 under PI
     level control): K and T within 10 % of the truth for at least 90 % of the gates.
-    About 6 minutes on one core (generation ~15 s a gate, identification ~4 s)."""
+    About 5 minutes here (285 s wall, 126 s CPU, on the shared 2-core machine)."""
     gates = district_gates(20, seed=0)
     write_routine_district(20, tmp_path, seed=0, control="mixed", days=7.0)
     rows = [_gate_errors(tmp_path / g.gate, g) for g in gates]
