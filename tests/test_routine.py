@@ -190,6 +190,20 @@ def test_identify_points_a_routine_history_to_its_command(short_district, tmp_pa
     assert "gatetwin routine" in capsys.readouterr().err
 
 
+def test_cli_flume_writes_routine_histories_with_truth(tmp_path) -> None:
+    out = tmp_path / "d"
+    assert main(["flume", "--district", "1", "--routine", "pi", "--days", "0.05",
+                 "--out", str(out), "--seed", "2"]) == 0  # fmt: skip
+    side = json.loads((out / "gate001" / "routine.json").read_text())
+    assert side["test"] == "routine" and side["level_control"]["kind"] == "PI"
+    truth = json.loads((out / "gate001" / "truth.json").read_text())
+    assert truth["gate"] == "gate001" and truth["routine"]["settings"]["control"] == "pi"
+    assert read_record(out / "gate001" / "routine.csv").test == "routine"
+    assert main(["flume", "--district", "1", "--routine", "pi", "--days", "0",
+                 "--out", str(tmp_path / "e")]) == 2  # fmt: skip
+    assert not (tmp_path / "e").exists()
+
+
 @pytest.mark.slow
 def test_twenty_week_long_histories_within_10_percent(tmp_path) -> None:
     """20 district gates, a week each at 1.2 s (15 under an operator's schedule, 5 under PI

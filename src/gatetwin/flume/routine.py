@@ -305,10 +305,10 @@ def run_pi_loop(cfg: FlumeConfig, settings: RoutineSettings, flow: np.ndarray,
 
 def _gap_mask(settings: RoutineSettings, n: int, dt: float,
               rng: np.random.Generator) -> np.ndarray:  # fmt: skip
-    """True for the samples the logger keeps."""
+    """True for the samples the logger keeps (a gap is at most 5 % of a short history)."""
     keep = np.ones(n, dtype=bool)
     for _ in range(settings.gaps):
-        length = round(rng.uniform(*settings.gap_s) / dt)
+        length = min(round(rng.uniform(*settings.gap_s) / dt), n // 20)
         start = int(rng.integers(1, max(2, n - length - 1)))
         keep[start : start + length] = False
     return keep
