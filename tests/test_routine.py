@@ -77,7 +77,7 @@ def test_coarse_routine_cell_keeps_the_flumes_k_and_t() -> None:
 
 @pytest.fixture(scope="module")
 def short_district(tmp_path_factory) -> Path:
-    """Three gates, one day each: two under an operator's schedule, one under PI control."""
+    """Four gates, one day each: three under an operator's schedule, the fourth under PI."""
     out = tmp_path_factory.mktemp("routine")
     write_routine_district(4, out, seed=11, control="mixed", days=1.0)
     return out
