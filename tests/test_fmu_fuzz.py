@@ -13,9 +13,11 @@ of the envelope FOPDT.
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 from fmpy import extract, read_model_description
@@ -50,6 +52,19 @@ CASES = tuple(SEQUENCES)
 INPUT_RANGES = {"opening_mm": (0.0, 90.0), "flow_m3h": (0.0, 150.0)}
 #: The long run: ten times as many.
 SLOW_FACTOR = 10
+#: A check the PI controller makes on a state it restores (every variable finite), and the
+#: line without it: the fuzzer must notice the state the controller then accepts.
+PLANTED_BUG = ("if (!isfinite(m->real[vr])) {", "if (0) {")
+
+
+class Fuzzed(NamedTuple):
+    """One FMU ready for the fuzzer."""
+
+    binary: Path  # rebuilt with the sanitizers
+    fuzzer: Path
+    spec: Path
+    guid: str
+    extracted: Path
 
 
 def _export(case: str, folder: Path) -> Path:
@@ -75,8 +90,7 @@ def _plant_and_provenance(case: str):
 
 
 @pytest.fixture(scope="module")
-def fuzzers(tmp_path_factory) -> dict[str, tuple[Path, Path, Path, str]]:
-    """case -> (sanitised binary, fuzzer, SPEC, GUID)."""
+def fuzzers(tmp_path_factory) -> dict[str, Fuzzed]:
     if compiler() is None:
         pytest.skip("no C compiler (cc/gcc) on PATH")
     folder = tmp_path_factory.mktemp("fuzz")
@@ -87,21 +101,25 @@ def fuzzers(tmp_path_factory) -> dict[str, tuple[Path, Path, Path, str]]:
     for case in CASES:
         extracted = Path(extract(str(_export(case, folder)), str(folder / case)))
         spec = fuzz_spec(extracted, folder / f"{case}.spec", INPUT_RANGES)
-        out[case] = (build_sanitized(extracted, folder), fuzzer, spec,
-                     read_model_description(str(extracted)).guid)  # fmt: skip
+        out[case] = Fuzzed(build_sanitized(extracted, folder), fuzzer, spec,
+                           read_model_description(str(extracted)).guid, extracted)
     return out
 
 
-def _fuzz(fuzzers, case: str, seed: int, sequences: int) -> str:
-    binary, fuzzer, spec, _ = fuzzers[case]
-    other_binary, _, _, other_guid = fuzzers[CASES[(CASES.index(case) + 1) % len(CASES)]]
-    run = subprocess.run(
-        [str(fuzzer), str(binary), str(spec), str(seed), str(sequences), str(other_binary),
-         other_guid],
+def _run(fuzzers, case: str, seed: int, sequences: int, binary: Path | None = None):
+    this = fuzzers[case]
+    other = fuzzers[CASES[(CASES.index(case) + 1) % len(CASES)]]
+    return subprocess.run(
+        [str(this.fuzzer), str(binary or this.binary), str(this.spec), str(seed), str(sequences),
+         str(other.binary), other.guid],
         capture_output=True,
         text=True,
         timeout=1200,
-    )
+    )  # fmt: skip
+
+
+def _fuzz(fuzzers, case: str, seed: int, sequences: int) -> str:
+    run = _run(fuzzers, case, seed, sequences)
     assert run.returncode == 0, run.stderr[-4000:]
     assert f"fuzz: {sequences} sequences" in run.stdout
     return run.stdout
@@ -116,3 +134,28 @@ def test_random_call_sequences_find_nothing(fuzzers, case):
 @pytest.mark.parametrize("case", CASES)
 def test_long_fuzzing_finds_nothing(fuzzers, case):
     _fuzz(fuzzers, case, seed=1, sequences=SLOW_FACTOR * SEQUENCES[case])
+
+
+def test_the_fuzzer_finds_a_state_check_left_out(fuzzers, tmp_path):
+    """The PI controller rebuilt without one of its state checks is caught (exit 1)."""
+    planted = Path(shutil.copytree(fuzzers["pi_controller"].extracted, tmp_path / "planted"))
+    code = (planted / "sources" / "controller_pi.c").read_text(encoding="utf-8")
+    assert code.count(PLANTED_BUG[0]) == 1
+    (planted / "sources" / "controller_pi.c").write_text(code.replace(*PLANTED_BUG),
+                                                         encoding="utf-8")  # fmt: skip
+    run = _run(fuzzers, "pi_controller", 20261123, SEQUENCES["pi_controller"],
+               build_sanitized(planted, tmp_path))  # fmt: skip
+    assert run.returncode == 1, run.stdout + run.stderr[-2000:]
+    assert "FINDING" in run.stderr and "accepted" in run.stderr
+
+
+def test_a_bad_spec_is_one_line_naming_the_file_and_line(fuzzers, tmp_path):
+    this = fuzzers["pi_controller"]
+    lines = this.spec.read_text(encoding="utf-8").splitlines()
+    bad = tmp_path / "bad.spec"
+    bad.write_text("\n".join([lines[0], lines[2], *lines[1:]]), encoding="utf-8")  # var 1 first
+    run = subprocess.run([str(this.fuzzer), str(this.binary), str(bad), "1", "1"],
+                         capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert run.returncode == 2 and run.stdout == ""
+    assert run.stderr.strip().splitlines() == [run.stderr.strip()]
+    assert run.stderr.startswith(f"{bad}:2: ")
