@@ -14,6 +14,7 @@
 #include "plant.h"
 
 static PlantStatus level_output(const ModelData *m, double *level_mm, PlantMessage *msg);
+static double level_at(const ModelData *m, const KnotPosition *at);
 
 static PlantStatus check_inputs(double opening_mm, double flow_m3h, PlantMessage *msg)
 {
@@ -117,14 +118,12 @@ static PlantStatus check_validity(ModelData *m, double opening_mm, double flow_m
     return PLANT_OK;
 }
 
-/* The output after initialisation or a step, kept in m->output_mm: finite, or an error
- * saying when. */
-static PlantStatus finite_output(ModelData *m, const char *when, double *level_mm,
-                                 PlantMessage *msg)
+/* The output after initialisation or a step (`at`: the discharge in force), kept in
+ * m->output_mm: finite, or an error saying when. */
+static PlantStatus finite_output(ModelData *m, const KnotPosition *at, const char *when,
+                                 double *level_mm, PlantMessage *msg)
 {
-    if (level_output(m, level_mm, msg) != PLANT_OK) {
-        return PLANT_ERROR;
-    }
+    *level_mm = level_at(m, at);
     m->output_mm = *level_mm;
     if (!isfinite(*level_mm)) {
         plant_message(msg,
@@ -189,7 +188,7 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
     m->flow_in_force_m3h = m->real[VR_FLOW_M3H];
     m->parameters_changed = 0;
     m->initialized = 1;
-    if (finite_output(m, "at initialisation", &level, msg) != PLANT_OK) {
+    if (finite_output(m, &at, "at initialisation", &level, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     return check_validity(m, m->real[VR_OPENING_MM], m->flow_in_force_m3h, level, msg);
@@ -225,10 +224,16 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     m->flow_in_force_m3h = flow_m3h;
     m->time_s += step_s;
     double level_mm;
-    if (finite_output(m, "after the step", &level_mm, msg) != PLANT_OK) {
+    if (finite_output(m, &at, "after the step", &level_mm, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     return check_validity(m, opening_mm, flow_m3h, level_mm, msg);
+}
+
+/* The output of an initialised instance; `at` locates the discharge in force. */
+static double level_at(const ModelData *m, const KnotPosition *at)
+{
+    return effects_output(m, level_offset(m, at) + m->dyn.x);
 }
 
 static PlantStatus level_output(const ModelData *m, double *level_mm, PlantMessage *msg)
@@ -237,8 +242,7 @@ static PlantStatus level_output(const ModelData *m, double *level_mm, PlantMessa
     double u, x;
     if (m->initialized) {
         at = plant_locate(m, m->flow_in_force_m3h);
-        x = m->dyn.x;
-        *level_mm = effects_output(m, level_offset(m, &at) + x);
+        *level_mm = level_at(m, &at);
         return PLANT_OK;
     }
     if (equilibrium(m, &u, &at, &x, msg) != PLANT_OK) {

@@ -100,8 +100,15 @@ def test_c_fmu_ships_sources_that_rebuild(fmus, tmp_path):
     with zipfile.ZipFile(path) as zf:
         zf.extractall(tmp_path)
     listed = [f.get("name") for f in _xml(path).iter("File")]
-    assert listed == ["fmi2_glue.c", "component.c", "plant.c", "support.c", "effects.c", "blocks.c",
-                      "model_arx.c"]
+    assert listed == [
+        "fmi2_glue.c",
+        "component.c",
+        "plant.c",
+        "support.c",
+        "effects.c",
+        "blocks.c",
+        "model_arx.c",
+    ]
     build_line = (tmp_path / "sources" / "BUILD.txt").read_text().splitlines()[2].split()
     assert "-Werror" in build_line and "-fvisibility=hidden" in build_line
     build_line[0] = compiler()

@@ -113,7 +113,8 @@ def test_run_writes_models_fmus_figures_and_summary(tmp_path):
     summary = (out / "summary.md").read_text(encoding="utf-8")
     assert "Paper's Table 2" in summary and "Published vs ours" in summary
     validation = json.loads((out / "validation.json").read_text(encoding="utf-8"))
-    by_kind = {kind: {(c["fmu"], c["record"]): c["metrics"] for c in validation["matrix"]
+    scores = ("fit_percent", "rmse_mm", "max_abs_error_mm", "bias_mm")
+    by_kind = {kind: {(c["fmu"], c["record"]): [c[k] for k in scores] for c in validation["matrix"]
                       if c["backend"] == kind} for kind in ("c", "fmi3")}  # fmt: skip
     assert by_kind["fmi3"] and by_kind["fmi3"] == by_kind["c"]  # same bits, same scores
     listed = {(Path(c["fmu"]).stem, Path(c["record"]).stem) for c in validation["matrix"]}
@@ -122,6 +123,21 @@ def test_run_writes_models_fmus_figures_and_summary(tmp_path):
         assert {(m, record) for m in models} <= listed, record
     assert {f"physical_{g}" for g in ("1D", "2E", "3F", "4G", "5H")} <= set(models)
     _check_families(json.loads((out / "families.json").read_text(encoding="utf-8")))
+    _check_closed_loop(out)
+
+
+def _check_closed_loop(out: Path) -> None:
+    """controllers/ and loop.ssp: the FMUs pass fmpy's validation, and the SSP master's IAE is
+    the Python loop's (the same arithmetic both ways: 1e-9 relative, rounding only)."""
+    from fmpy.validation import validate_fmu
+
+    assert [p.name for p in sorted((out / "controllers").glob("*.fmu"))] == ["fopdt_3F_pi.fmu"]
+    assert validate_fmu(str(out / "controllers" / "fopdt_3F_pi.fmu")) == []
+    loop = json.loads((out / "mpc.json").read_text(encoding="utf-8"))["closed_loop_ssp"]
+    assert (out / loop["package"]).is_file() and (out / loop["result"]).is_file()
+    assert loop["iae_ssp"] > 0 and abs(loop["iae_ssp"] - loop["iae_python_loop"]) <= 1e-9 * loop[
+        "iae_python_loop"]  # fmt: skip
+    assert loop["max_abs_level_difference_mm"] <= 1e-9
 
 
 def _check_families(doc: dict) -> None:

@@ -13,13 +13,13 @@ import pytest
 from gatetwin.cli import main
 from gatetwin.errors import ExportError, SspError
 from gatetwin.modelfile import read_model_file
-from gatetwin.mpc.demo import DemoSettings, demo_scenarios, pi_controller
-from gatetwin.mpc.loop import loop_metrics, run_closed_loop
-from gatetwin.mpc.plants import FmuCore, LoopPlant
+from gatetwin.mpc.demo import DemoSettings, demo_scenarios
+from gatetwin.mpc.loop import loop_metrics
 from gatetwin.ssp import simulate_ssp, write_ssp
 from gatetwin.ssp.documents import SSD_SCHEMA, SSV_SCHEMA, read_parameter_set, schema_problems
 from gatetwin.ssp.master import SIGNAL_TIME_TOL_S, _signal, _signal_at
-from gatetwin.ssp.write import PARAMETERS_SOURCE, PLANT_SOURCE, SSD_NAME
+from gatetwin.ssp.reference import python_loop
+from gatetwin.ssp.write import PARAMETERS_SOURCE, SSD_NAME
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "fopdt_3F.json"
 #: Same operations in the same order in both loops (the PI's C is generated from the Python,
@@ -52,18 +52,8 @@ def test_the_ssd_and_the_parameter_set_follow_the_ssp_1_0_schemas(package):
 def _python_loop(package: Path, tmp_path: Path):
     """PiController against the package's own plant FMU, noise-free, no actuator rounding:
     the loop the SSP describes."""
-    (tmp_path / "plant.fmu").write_bytes(_read(package, PLANT_SOURCE))
     s = DemoSettings()
-    scenario = demo_scenarios(MINUTES, s)[0]
-    core = FmuCore(tmp_path / "plant.fmu", s.pi.sample_period_s)
-    try:
-        return run_closed_loop(LoopPlant(core, noise=None, actuator_resolution_mm=0.0),
-                               pi_controller(read_model_file(MODEL).plant, s), scenario,
-                               level_band_mm=None, max_move_mm=s.mpc.max_move_mm,
-                               opening_range_mm=s.pi.opening_range_mm,
-                               sample_period_s=s.pi.sample_period_s)  # fmt: skip
-    finally:
-        core.cleanup()
+    return python_loop(package, read_model_file(MODEL).plant, demo_scenarios(MINUTES, s)[0], s)
 
 
 def test_the_ssp_run_is_the_python_loop(package, tmp_path, capsys):

@@ -206,8 +206,15 @@ def describe_pi_controller(
     )
     return ControllerDescription(
         model_identifier=model_identifier,
-        guid=guid_of([[v.name for v in variables], [v.start for v in variables],
-                      model_identifier, facts, f"c:{_code_digest()}"]),  # fmt: skip
+        guid=guid_of(
+            [
+                [v.name for v in variables],
+                [v.start for v in variables],
+                model_identifier,
+                facts,
+                f"c:{_code_digest()}",
+            ]
+        ),  # fmt: skip
         kind="pi",
         gauge=plant.gauge,
         summary=summary,

@@ -47,8 +47,10 @@ class FmuController:
         needed = {"flow_m3h", "setpoint_mm", "opening_mm", "start_opening_mm", "sample_period_s"}
         if len(levels) != 1 or not needed <= set(self._vr):
             shutil.rmtree(self._unzipped, ignore_errors=True)
-            raise ControlError(f"{self.path.name}: not a controller FMU (expected inputs "
-                               "level_<gauge>_mm, flow_m3h, setpoint_mm, output opening_mm)")
+            raise ControlError(
+                f"{self.path.name}: not a controller FMU (expected inputs "
+                "level_<gauge>_mm, flow_m3h, setpoint_mm, output opening_mm)"
+            )
         self._inputs = [self._vr[levels[0]], self._vr["flow_m3h"], self._vr["setpoint_mm"]]
         self.sample_period_s = float(variables["sample_period_s"].start)
         self._fmi3 = md.fmiVersion.startswith("3.")

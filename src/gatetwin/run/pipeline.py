@@ -244,6 +244,7 @@ STAGES: tuple[PipelineStage, ...] = (
     PipelineStage("validating every FMU against every record (fmpy)", _stages.validate_all),
     PipelineStage("comparing the model families on every record", _stages.compare_families),
     PipelineStage("MPC demo against PI (FMU and flume in the loop)", _stages.mpc_demo),
+    PipelineStage("controller FMUs and the closed loop as an SSP", _stages.closed_loop_artefacts),
     PipelineStage("diagnosing the bundled records", _stages.diagnose_records),
     PipelineStage("writing summary.md", write_summary),
     PipelineStage("writing report.html", _stages.write_report),

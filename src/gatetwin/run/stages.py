@@ -202,6 +202,48 @@ def mpc_demo(ctx: Any) -> None:
     ctx.results.setdefault("summary_sections", []).append(_mpc_markdown(doc))
 
 
+#: Controller FMUs ``gatetwin run`` builds for the MPC demo's model (``controllers/``).
+CONTROLLER_KINDS = ("pi",)
+
+
+def closed_loop_artefacts(ctx: Any) -> None:
+    """``controllers/<model>_<kind>.fmu`` for the MPC demo's model, and ``loop.ssp`` (plant
+    FMU + PI FMU, the demo's set-point scenario), run by gatetwin's SSP master next to the
+    Python loop it packs; both IAEs go into ``mpc.json`` (``closed_loop_ssp``)."""
+    from gatetwin._io import write_json_atomic
+    from gatetwin.fmu.controller import export_controller
+    from gatetwin.modelfile import read_model_file
+    from gatetwin.mpc.demo import DemoSettings, demo_scenarios
+    from gatetwin.mpc.loop import loop_metrics
+    from gatetwin.ssp import simulate_ssp, write_ssp
+    from gatetwin.ssp.reference import python_loop
+
+    model = read_model_file(ctx.out_dir / "models" / f"fopdt_{FAMILY_GAUGE}.json")
+    folder = ctx.out_dir / "controllers"
+    built = [export_controller(model, kind, folder / f"{model.name}_{kind}.fmu")
+             for kind in CONTROLLER_KINDS]  # fmt: skip
+    ctx.progress(f"      controllers/: {', '.join(p.name for p in built)}")
+    settings = DemoSettings()
+    scenario = demo_scenarios(MPC_MINUTES, settings)[0]
+    package = write_ssp(model, ctx.out_dir / "loop.ssp", controller="pi", scenario=scenario,
+                        settings=settings)  # fmt: skip
+    run = simulate_ssp(package, out_csv=ctx.out_dir / "loop.csv")
+    level = f"controller.level_{model.plant.gauge}_mm"
+    iae_ssp = run.iae(level, "controller.setpoint_mm")
+    reference = python_loop(package, model.plant, scenario, settings)
+    iae_python = loop_metrics(reference)["iae"]
+    doc = ctx.results["mpc"]
+    doc["closed_loop_ssp"] = {
+        "package": "loop.ssp", "result": "loop.csv", "model": model.name, "controller": "pi",
+        "scenario": scenario.name, "minutes": MPC_MINUTES, "noise": False,
+        "iae_ssp": iae_ssp, "iae_python_loop": iae_python,
+        "max_abs_level_difference_mm": float(abs(run.columns[level] - reference.level_mm).max()),
+    }  # fmt: skip
+    write_json_atomic(ctx.out_dir / "mpc.json", doc)
+    ctx.progress(f"      loop.ssp ({scenario.name}, PI, noise-free): IAE {iae_ssp:.1f} mm·s by "
+                 f"the SSP master, {iae_python:.1f} mm·s by the Python loop")  # fmt: skip
+
+
 MPC_COLUMNS = ("iae", "max_dev_mm", "settling_s", "travel_mm", "violations",
                "solve_ms_median", "solve_ms_p99")  # fmt: skip
 

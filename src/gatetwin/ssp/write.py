@@ -117,17 +117,29 @@ def ssd_xml(
                                   type="application/x-fmu-sharedlibrary",
                                   source=CONTROLLER_SOURCE)  # fmt: skip
     c_conn = etree.SubElement(controller, f"{{{SSD}}}Connectors")
-    for cname, kind, unit in ((level, "input", "mm"), ("flow_m3h", "input", "m3/h"),
-                              ("setpoint_mm", "input", "mm"), ("opening_mm", "output", "mm")):
+    for cname, kind, unit in (
+        (level, "input", "mm"),
+        ("flow_m3h", "input", "m3/h"),
+        ("setpoint_mm", "input", "mm"),
+        ("opening_mm", "output", "mm"),
+    ):
         _connector(c_conn, cname, kind, unit)  # fmt: skip
     for pname, _, unit in parameters:
         if pname.startswith("controller."):
             _connector(c_conn, pname.split(".", 1)[1], "parameter", unit)
-    plant = etree.SubElement(elements, f"{{{SSD}}}Component", name="plant",
-                             type="application/x-fmu-sharedlibrary", source=PLANT_SOURCE)
+    plant = etree.SubElement(
+        elements,
+        f"{{{SSD}}}Component",
+        name="plant",
+        type="application/x-fmu-sharedlibrary",
+        source=PLANT_SOURCE,
+    )
     p_conn = etree.SubElement(plant, f"{{{SSD}}}Connectors")
-    for cname, kind, unit in (("opening_mm", "input", "mm"), ("flow_m3h", "input", "m3/h"),
-                              (level, "output", "mm")):
+    for cname, kind, unit in (
+        ("opening_mm", "input", "mm"),
+        ("flow_m3h", "input", "m3/h"),
+        (level, "output", "mm"),
+    ):
         _connector(p_conn, cname, kind, unit)  # fmt: skip
     connections = etree.SubElement(system, f"{{{SSD}}}Connections")
     for start, end in ((("plant", level), ("controller", level)),
