@@ -151,6 +151,20 @@ def test_a_step_off_the_sample_grid_is_refused_with_a_logged_reason(fmus):
     driver.close()
 
 
+def test_a_step_that_overflows_is_refused_with_a_logged_reason(fmus):
+    """Finite inputs whose error overflows (Kc * 2e308): the range limits would hide it in the
+    opening, not in the integral; the step is refused and says why."""
+    driver = _driver(fmus, "overflow")
+    vr, slave = driver.vr, driver.slave
+    period = slave.getReal([vr["sample_period_s"]])[0]
+    slave.doStep(0.0, period)
+    slave.setReal([vr["level_3F_mm"], vr["setpoint_mm"]], [1e308, -1e308])
+    with pytest.raises(FMICallException):
+        slave.doStep(period, period)
+    assert any("sample 1 of the step overflows" in m for m in _errors(driver))
+    driver.close()
+
+
 def test_first_output_is_the_start_opening_and_a_multiple_step_is_that_many_samples(fmus):
     """Bumpless start; a step of 3 samples runs the PI 3 times on the inputs held (FMI's
     piecewise-constant inputs), as the Python PI stepped 3 times on the same inputs."""
