@@ -27,7 +27,8 @@
  *  - the status is one of fmi2OK..fmi2Pending;
  *  - a call on an instance that returns fmi2Error logs at least one error line;
  *  - after fmi2DoStep returns fmi2OK or fmi2Warning every output is finite;
- *  - an accepted serialised state has a finite time and finite variables;
+ *  - a state the FMU serialised is accepted back; an accepted serialised state has a finite
+ *    time and finite variables;
  *  - a refused fmi2SetFMUstate leaves the instance as it was, a refused
  *    fmi2DeSerializeFMUstate leaves the state it was to overwrite as it was (both compared as
  *    serialised bytes);
@@ -77,9 +78,14 @@ typedef struct {
 
 static Spec spec;
 
+/* One line naming the SPEC file (and the line, when one is to blame), exit 2. */
 static void bad_spec(const char *path, unsigned line, const char *why)
 {
-    fprintf(stderr, "%s:%u: %s\n", path, line, why);
+    if (line) {
+        fprintf(stderr, "%s:%u: %s\n", path, line, why);
+    } else {
+        fprintf(stderr, "%s: %s\n", path, why);
+    }
     exit(2);
 }
 
@@ -197,12 +203,12 @@ static void read_spec(const char *path)
     fclose(file);
     if (!spec.guid[0] || spec.n_real == 0 || spec.n_inputs == 0 || spec.n_outputs == 0 ||
         spec.data_size < 8 * (1 + (size_t)spec.n_real) || spec.period_vr >= (long)spec.n_real) {
-        bad_spec(path, line, "needs a guid, inputs, outputs, a data_size holding time and every "
-                             "variable, a sample_period among the variables");
+        bad_spec(path, 0, "needs a guid, inputs, outputs, a data_size holding time and every "
+                          "variable, a sample_period among the variables");
     }
     for (k = 0; k < spec.n_int_fields; k++) {
         if (spec.int_fields[k] + sizeof(int) > spec.data_size) {
-            bad_spec(path, line, "an int_field lies outside data_size");
+            bad_spec(path, 0, "an int_field lies outside data_size");
         }
     }
 }
