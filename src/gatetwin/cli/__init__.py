@@ -378,7 +378,7 @@ _COMMANDS: tuple[Command, ...] = (
     ),
     Command(
         "export-controller",
-        "export the level controller of a model file as an FMI 2.0 co-simulation FMU (C)",
+        "export the level controller of a model file as an FMI 2.0 or 3.0 co-simulation FMU (C)",
         _model_cmds.add_export_controller_arguments,
         _model_cmds.run_export_controller,
     ),
