@@ -206,8 +206,11 @@ def test_the_c_pi_law_is_the_python_one_to_the_bit(tmp_path):
 
 
 def test_export_controller_refuses_mpc_and_non_fopdt_models_without_output(tmp_path, capsys):
-    for argv in (["--kind", "mpc", str(MODEL)], ["--kind", "pi", str(MODELS / "arx_3F.json")],
-                 ["--fmi", "3", str(MODELS / "arx_3F.json")]):
+    for argv in (
+        ["--kind", "mpc", str(MODEL)],
+        ["--kind", "pi", str(MODELS / "arx_3F.json")],
+        ["--fmi", "3", str(MODELS / "arx_3F.json")],
+    ):
         out = tmp_path / "c.fmu"
         assert main(["export-controller", *argv, "--out", str(out)]) == 2
         err = capsys.readouterr().err.strip().splitlines()

@@ -101,8 +101,13 @@ def fuzzers(tmp_path_factory) -> dict[str, Fuzzed]:
     for case in CASES:
         extracted = Path(extract(str(_export(case, folder)), str(folder / case)))
         spec = fuzz_spec(extracted, folder / f"{case}.spec", INPUT_RANGES)
-        out[case] = Fuzzed(build_sanitized(extracted, folder), fuzzer, spec,
-                           read_model_description(str(extracted)).guid, extracted)
+        out[case] = Fuzzed(
+            build_sanitized(extracted, folder),
+            fuzzer,
+            spec,
+            read_model_description(str(extracted)).guid,
+            extracted,
+        )
     return out
 
 

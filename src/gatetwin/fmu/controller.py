@@ -346,9 +346,7 @@ def build_controller_fmu(
     compile_shared(sources, c_files, binary)
     flags = dataclasses.replace(FLAGS, source_files=c_files)
     render = model_description_xml if fmi_version == "2.0" else model_description_xml3
-    (fmu_dir / "modelDescription.xml").write_bytes(
-        render(desc, flags, tool="gatetwin (C backend)")
-    )
+    (fmu_dir / "modelDescription.xml").write_bytes(render(desc, flags, tool="gatetwin (C backend)"))
     (fmu_dir / "resources").mkdir()
     text = json.dumps(desc.provenance, indent=2, sort_keys=True, allow_nan=False)
     (fmu_dir / "resources" / "provenance.json").write_text(text + "\n", encoding="utf-8")
