@@ -152,14 +152,25 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     if (n < 0.0) {
         return PLANT_ERROR; /* nothing has changed: a refused step leaves the state as it was */
     }
+    opening_mm = m->previous_opening_mm;
+    integral_mm = m->integral_mm;
     for (k = 0.0; k < n; k += 1.0) {
-        gt_pi_step(r[VR_LEVEL_MM], r[VR_SETPOINT_MM], m->integral_mm, m->previous_opening_mm,
+        gt_pi_step(r[VR_LEVEL_MM], r[VR_SETPOINT_MM], integral_mm, opening_mm,
                    r[VR_GAIN_MM_PER_MM], r[VR_INTEGRAL_TIME_S], r[VR_TRACKING_TIME_S],
                    r[VR_OPENING_MIN_MM], r[VR_OPENING_MAX_MM], r[VR_OPENING_RATE_MM_S],
                    r[VR_SAMPLE_PERIOD_S], &opening_mm, &integral_mm);
-        m->previous_opening_mm = opening_mm;
-        m->integral_mm = integral_mm;
+        /* finite inputs and parameters can still overflow (a huge error times the gain, a
+         * tiny Ti); the range limits would hide it in the opening but not in the integral */
+        if (!isfinite(opening_mm) || !isfinite(integral_mm)) {
+            plant_message(msg,
+                          "sample %.0f of the step overflows: level %.17g mm, set-point %.17g mm "
+                          "give integral %g mm and opening %g mm with these parameters",
+                          k + 1.0, r[VR_LEVEL_MM], r[VR_SETPOINT_MM], integral_mm, opening_mm);
+            return PLANT_ERROR; /* the state stays as it was before the step */
+        }
     }
+    m->previous_opening_mm = opening_mm;
+    m->integral_mm = integral_mm;
     m->time_s += step_s;
     return PLANT_OK;
 }

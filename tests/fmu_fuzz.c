@@ -1,27 +1,41 @@
-/* An FMI 2.0 fuzzer for gatetwin's C FMUs: random call sequences from a seed.
+/* An FMI 2.0 fuzzer for gatetwin's C FMUs (plants and controllers): random call sequences
+ * from a seed.
  *
- * usage: fmu_fuzz BINARY SEED SEQUENCES [OTHER_BINARY OTHER_GUID]
+ * usage: fmu_fuzz BINARY SPEC SEED SEQUENCES [OTHER_BINARY OTHER_GUID]
  *
- * Compiled per FMU with -I <the FMU's sources/> (it reads model_config.h and plant.h for the
- * GUID, the value references and the layout of a serialised state) and, like the FMU binary,
- * with -fsanitize=address,undefined. Each sequence instantiates the FMU and makes 1..80 calls
- * drawn at random: calls in and out of order, NaN / inf / huge / negative inputs and
- * parameters, communication steps that are negative, zero, tiny or huge or start at the wrong
- * time, get/set of unknown value references and of every type, FMU state get/set/free and
- * serialise/deserialise round trips, tampered serialised states (flipped bytes, head/count and
- * flags and mode overwritten, doubles made NaN/inf, truncated or extended buffers), states of
- * another FMU (OTHER_BINARY), free/instantiate cycles.
+ * SPEC is a small text file that describes the FMU, one item per line (tests/test_fmu_fuzz.py
+ * writes it from the FMU's modelDescription.xml and tests/fmu_layout.c):
+ *
+ *   guid GUID
+ *   var VR KIND START          every Real variable, KIND input|output|tunable|fixed
+ *   range VR LO HI             optional, after its var: an input's plausible values
+ *                              (default START +- max(|START|, 1))
+ *   sample_period VR           optional: communication steps are whole multiples of it
+ *   data_size BYTES            sizeof(ModelData): a serialised state ends with it
+ *   int_field NAME OFFSET      optional, repeated: an int of ModelData (flag, index, count)
+ *
+ * The fuzzer needs only the FMI 2.0 headers (-I fmu_templates/) and is built, like the FMU
+ * binary, with -fsanitize=address,undefined. Each sequence instantiates the FMU and makes
+ * 1..80 calls drawn at random: calls in and out of order, NaN / inf / huge / negative inputs
+ * and parameters, communication steps that are negative, zero, tiny or huge or start at the
+ * wrong time, get/set of unknown value references and of every type, FMU state get/set/free
+ * and serialise/deserialise round trips, tampered serialised states (flipped bytes, header,
+ * mode and the component's int fields overwritten, doubles made NaN/inf, truncated or
+ * extended buffers), states of another FMU (OTHER_BINARY), free/instantiate cycles.
  *
  * Besides the sanitizers (any report aborts the run), each call is checked:
  *  - the status is one of fmi2OK..fmi2Pending;
  *  - a call on an instance that returns fmi2Error logs at least one error line;
- *  - after fmi2DoStep returns fmi2OK or fmi2Warning the output is finite;
+ *  - after fmi2DoStep returns fmi2OK or fmi2Warning every output is finite;
+ *  - a state the FMU serialised is accepted back; an accepted serialised state has a finite
+ *    time and finite variables;
  *  - a refused fmi2SetFMUstate leaves the instance as it was, a refused
  *    fmi2DeSerializeFMUstate leaves the state it was to overwrite as it was (both compared as
  *    serialised bytes);
  *  - an instance gives at most one fmi2Warning between (re)starts.
  * A sequence taking longer than HANG_S seconds counts as a hang. Exits 0 and prints the
- * counts when nothing was found, 1 with the seed and sequence of the first finding otherwise.
+ * counts when nothing was found, 1 with the seed and sequence of the first finding otherwise,
+ * 2 on bad arguments or a bad SPEC.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <dlfcn.h>
@@ -38,11 +52,166 @@
 #include <unistd.h>
 
 #include "fmi2Functions.h"
-#include "plant.h" /* model_config.h, ModelData: where a serialised state keeps its fields */
 
 #define HANG_S 20
 #define N_SLOTS 4
 #define MAX_CALLS 80
+#define MAX_INT_FIELDS 16
+
+/* --- what the fuzzer knows of the FMU (SPEC) ---------------------------------------------- */
+
+typedef enum { KIND_INPUT, KIND_OUTPUT, KIND_TUNABLE, KIND_FIXED } Kind;
+
+typedef struct {
+    char guid[128];
+    unsigned n_real;          /* Real variables: value references 0..n_real-1 */
+    Kind *kind;               /* by value reference */
+    double *start;            /* by value reference (0 where the description has none) */
+    double *lo, *hi;          /* an input's plausible values, by value reference */
+    unsigned *inputs, n_inputs;
+    unsigned *outputs, n_outputs;
+    long period_vr;           /* sample period's value reference, -1: none */
+    size_t data_size;         /* sizeof(ModelData) */
+    size_t int_fields[MAX_INT_FIELDS]; /* offsets of ints in ModelData */
+    unsigned n_int_fields;
+} Spec;
+
+static Spec spec;
+
+/* One line naming the SPEC file (and the line, when one is to blame), exit 2. */
+static void bad_spec(const char *path, unsigned line, const char *why)
+{
+    if (line) {
+        fprintf(stderr, "%s:%u: %s\n", path, line, why);
+    } else {
+        fprintf(stderr, "%s: %s\n", path, why);
+    }
+    exit(2);
+}
+
+static Kind kind_named(const char *name, const char *path, unsigned line)
+{
+    static const char *const names[] = {"input", "output", "tunable", "fixed"};
+    unsigned k;
+    for (k = 0; k < 4; k++) {
+        if (strcmp(name, names[k]) == 0) {
+            return (Kind)k;
+        }
+    }
+    bad_spec(path, line, "variable kind must be input, output, tunable or fixed");
+    return KIND_INPUT;
+}
+
+/* One "var VR KIND START" line: the variables come in value-reference order. */
+static void spec_variable(const char *rest, const char *path, unsigned line)
+{
+    unsigned vr;
+    char kind[16];
+    double start;
+    if (sscanf(rest, "%u %15s %lf", &vr, kind, &start) != 3 || vr != spec.n_real ||
+        vr >= 100000) {
+        bad_spec(path, line, "expected 'var VR KIND START', value references 0, 1, 2, ...");
+    }
+    spec.kind = (Kind *)realloc(spec.kind, (vr + 1) * sizeof *spec.kind);
+    spec.start = (double *)realloc(spec.start, (vr + 1) * sizeof *spec.start);
+    spec.lo = (double *)realloc(spec.lo, (vr + 1) * sizeof *spec.lo);
+    spec.hi = (double *)realloc(spec.hi, (vr + 1) * sizeof *spec.hi);
+    spec.inputs = (unsigned *)realloc(spec.inputs, (vr + 1) * sizeof *spec.inputs);
+    spec.outputs = (unsigned *)realloc(spec.outputs, (vr + 1) * sizeof *spec.outputs);
+    if (!spec.kind || !spec.start || !spec.lo || !spec.hi || !spec.inputs || !spec.outputs) {
+        bad_spec(path, line, "out of memory");
+    }
+    if (!isfinite(start)) {
+        bad_spec(path, line, "a start value must be finite");
+    }
+    spec.kind[vr] = kind_named(kind, path, line);
+    spec.start[vr] = start;
+    spec.lo[vr] = start - (fabs(start) > 1.0 ? fabs(start) : 1.0);
+    spec.hi[vr] = start + (fabs(start) > 1.0 ? fabs(start) : 1.0);
+    if (spec.kind[vr] == KIND_INPUT) {
+        spec.inputs[spec.n_inputs++] = vr;
+    } else if (spec.kind[vr] == KIND_OUTPUT) {
+        spec.outputs[spec.n_outputs++] = vr;
+    }
+    spec.n_real = vr + 1;
+}
+
+/* One "range VR LO HI" line, after the variable's. */
+static void spec_range(const char *rest, const char *path, unsigned line)
+{
+    unsigned vr;
+    double lo, hi;
+    if (sscanf(rest, "%u %lf %lf", &vr, &lo, &hi) != 3 || vr >= spec.n_real ||
+        spec.kind[vr] != KIND_INPUT || !(lo < hi) || !isfinite(hi - lo)) {
+        bad_spec(path, line, "expected 'range VR LO HI' of an input declared above, LO < HI");
+    }
+    spec.lo[vr] = lo;
+    spec.hi[vr] = hi;
+}
+
+static void spec_line(const char *text, const char *path, unsigned line)
+{
+    char key[32], name[64];
+    unsigned long value;
+    int used = 0;
+    if (sscanf(text, "%31s %n", key, &used) != 1) {
+        return; /* blank */
+    }
+    if (strcmp(key, "guid") == 0) {
+        if (sscanf(text + used, "%127s", spec.guid) != 1) {
+            bad_spec(path, line, "expected 'guid GUID'");
+        }
+    } else if (strcmp(key, "var") == 0) {
+        spec_variable(text + used, path, line);
+    } else if (strcmp(key, "range") == 0) {
+        spec_range(text + used, path, line);
+    } else if (strcmp(key, "sample_period") == 0) {
+        if (sscanf(text + used, "%lu", &value) != 1) {
+            bad_spec(path, line, "expected 'sample_period VR'");
+        }
+        spec.period_vr = (long)value;
+    } else if (strcmp(key, "data_size") == 0) {
+        if (sscanf(text + used, "%lu", &value) != 1 || value < 8) {
+            bad_spec(path, line, "expected 'data_size BYTES'");
+        }
+        spec.data_size = (size_t)value;
+    } else if (strcmp(key, "int_field") == 0) {
+        if (sscanf(text + used, "%63s %lu", name, &value) != 2 ||
+            spec.n_int_fields == MAX_INT_FIELDS) {
+            bad_spec(path, line, "expected 'int_field NAME OFFSET' (at most 16)");
+        }
+        spec.int_fields[spec.n_int_fields++] = (size_t)value;
+    } else {
+        bad_spec(path, line, "unknown item (guid, var, range, sample_period, data_size, "
+                             "int_field)");
+    }
+}
+
+static void read_spec(const char *path)
+{
+    char text[512];
+    unsigned line = 0, k;
+    FILE *file = fopen(path, "r");
+    if (!file) {
+        fprintf(stderr, "%s: cannot open the FMU spec\n", path);
+        exit(2);
+    }
+    spec.period_vr = -1;
+    while (fgets(text, sizeof text, file)) {
+        spec_line(text, path, ++line);
+    }
+    fclose(file);
+    if (!spec.guid[0] || spec.n_real == 0 || spec.n_inputs == 0 || spec.n_outputs == 0 ||
+        spec.data_size < 8 * (1 + (size_t)spec.n_real) || spec.period_vr >= (long)spec.n_real) {
+        bad_spec(path, 0, "needs a guid, inputs, outputs, a data_size holding time and every "
+                          "variable, a sample_period among the variables");
+    }
+    for (k = 0; k < spec.n_int_fields; k++) {
+        if (spec.int_fields[k] + sizeof(int) > spec.data_size) {
+            bad_spec(path, 0, "an int_field lies outside data_size");
+        }
+    }
+}
 
 typedef struct {
     fmi2InstantiateTYPE *instantiate;
@@ -227,9 +396,9 @@ static double step_size(void)
 static fmi2ValueReference any_vr(void)
 {
     switch (below(8)) {
-    case 0: return (fmi2ValueReference)(GT_N_REAL + below(4));
+    case 0: return (fmi2ValueReference)(spec.n_real + below(4));
     case 1: return (fmi2ValueReference)next_u64();
-    default: return (fmi2ValueReference)below(GT_N_REAL);
+    default: return (fmi2ValueReference)below(spec.n_real);
     }
 }
 
@@ -311,7 +480,7 @@ static void free_slots(Fuzz *f)
 
 static fmi2Component instantiate(Fuzz *f)
 {
-    return f->api->instantiate("fuzz", fmi2CoSimulation, GT_GUID, "file:///nowhere",
+    return f->api->instantiate("fuzz", fmi2CoSimulation, spec.guid, "file:///nowhere",
                                &f->callbacks, fmi2False, below(2) ? fmi2True : fmi2False);
 }
 
@@ -347,6 +516,20 @@ static void op_lifecycle(Fuzz *f)
     }
 }
 
+/* Set every input to a value drawn from the fractions [from, to] of its plausible range. */
+static fmi2Status set_inputs(Fuzz *f, double from, double to)
+{
+    fmi2Real value[8];
+    fmi2ValueReference vr[8];
+    size_t i, n = spec.n_inputs < 8 ? spec.n_inputs : 8;
+    for (i = 0; i < n; i++) {
+        const unsigned k = spec.inputs[i];
+        vr[i] = k;
+        value[i] = spec.lo[k] + (spec.hi[k] - spec.lo[k]) * uniform(from, to);
+    }
+    return f->api->set_real(f->c, vr, n, value);
+}
+
 static void op_set_get(Fuzz *f)
 {
     const Api *api = f->api;
@@ -360,17 +543,13 @@ static void op_set_get(Fuzz *f)
     }
     switch (below(5)) {
     case 0: /* plausible inputs: the run moves on */
-        vr[0] = VR_OPENING_MM;
-        vr[1] = VR_FLOW_M3H;
-        value[0] = uniform(0.0, 90.0);
-        value[1] = uniform(0.0, 150.0);
-        CALL(f, api->set_real(f->c, vr, 2, value));
+        CALL(f, set_inputs(f, 0.0, 1.0));
         break;
     case 1: CALL(f, api->set_real(f->c, vr, n, below(10) ? value : NULL)); break;
     case 2: CALL(f, api->get_real(f->c, below(10) ? vr : NULL, n, value)); break;
     case 3: { /* a parameter scaled: large but often still accepted */
         fmi2Real current;
-        vr[0] = (fmi2ValueReference)below(GT_N_REAL);
+        vr[0] = (fmi2ValueReference)below(spec.n_real);
         if (api->get_real(f->c, vr, 1, &current) == fmi2OK) {
             value[0] = current * (below(2) ? uniform(0.5, 2.0) : uniform(-1e3, 1e3));
             calls++;
@@ -398,31 +577,34 @@ static void op_step(Fuzz *f)
 {
     const Api *api = f->api;
     long long logs_before;
-    fmi2Real now = 0.0, level;
-    fmi2ValueReference out = VR_OUTPUT;
+    fmi2Real now = 0.0, output;
     fmi2Status status;
+    unsigned k;
     api->get_real_status(f->c, fmi2LastSuccessfulTime, &now);
     calls++;
     double h = step_size();
     if (!below(6)) {
         now = below(2) ? nasty_double() : now + uniform(-1.0, 1.0);
     }
-#ifdef VR_SAMPLE_PERIOD_S
-    if (below(2)) { /* ARX takes whole numbers of samples only */
-        fmi2ValueReference period_vr = VR_SAMPLE_PERIOD_S;
+    if (spec.period_vr >= 0 && below(2)) { /* sampled: whole numbers of samples only */
+        fmi2ValueReference period_vr = (fmi2ValueReference)spec.period_vr;
         if (api->get_real(f->c, &period_vr, 1, &h) == fmi2OK) {
             h *= 1 + below(below(8) ? 10 : 20000);
         }
     }
-#endif
     status = CALL(f, api->do_step(f->c, now, h, below(2)));
     if (status == fmi2OK || status == fmi2Warning) {
         f->warnings += status == fmi2Warning;
         steps_taken++;
-        if (api->get_real(f->c, &out, 1, &level) != fmi2OK || !isfinite(level)) {
-            finding("after a step that returned %d the output is %g", (int)status, level);
+        for (k = 0; k < spec.n_outputs; k++) {
+            output = NAN;
+            if (api->get_real(f->c, &spec.outputs[k], 1, &output) != fmi2OK ||
+                !isfinite(output)) {
+                finding("after a step that returned %d output %u is %g", (int)status,
+                        spec.outputs[k], output);
+            }
+            calls++;
         }
-        calls++;
     }
 }
 
@@ -430,7 +612,7 @@ static void op_misc(Fuzz *f)
 {
     const Api *api = f->api;
     long long logs_before;
-    fmi2ValueReference vr[2] = {VR_OUTPUT, VR_OPENING_MM};
+    fmi2ValueReference vr[2] = {spec.outputs[0], spec.inputs[0]};
     fmi2Real real[2] = {0.0, 0.0}, number;
     fmi2Integer order[2] = {1, 1}, integer;
     fmi2Status status;
@@ -493,7 +675,7 @@ static void op_state(Fuzz *f)
 /* Where a serialised state keeps ModelData: the payload ends with it. */
 static size_t data_offset(size_t size)
 {
-    return size - sizeof(ModelData);
+    return size - spec.data_size;
 }
 
 static void put_int(fmi2Byte *bytes, size_t at, int value)
@@ -516,6 +698,10 @@ static int nasty_int(void)
 static void tamper(fmi2Byte **bytes, size_t *size)
 {
     const size_t data = data_offset(*size);
+    if (*size < spec.data_size + 96) {
+        finding("a serialised state of %lu bytes cannot hold a header and ModelData (%lu bytes)",
+                (unsigned long)*size, (unsigned long)spec.data_size);
+    }
     switch (below(8)) {
     case 0: { /* flip a few bytes anywhere */
         unsigned k, n = 1 + below(4);
@@ -530,26 +716,17 @@ static void tamper(fmi2Byte **bytes, size_t *size)
     case 2: /* the mode, just before ModelData */
         put_int(*bytes, data - 8, nasty_int());
         break;
-    case 3: { /* a flag */
-        static const size_t flags[] = {offsetof(ModelData, initialized),
-                                       offsetof(ModelData, warned_validity),
-                                       offsetof(ModelData, parameters_changed)};
-        put_int(*bytes, data + flags[below(3)], nasty_int());
+    case 3: /* an int of the component: a flag, a ring index, a count */
+    case 5:
+        if (spec.n_int_fields && below(4)) {
+            put_int(*bytes, data + spec.int_fields[below(spec.n_int_fields)], nasty_int());
+        } else { /* any int-sized word */
+            put_int(*bytes, data + 4 * below((unsigned)(spec.data_size / 4)), nasty_int());
+        }
         break;
-    }
     case 4: /* a double of the state or of the variables */
-        put_double(*bytes, data + sizeof(double) * below(sizeof(ModelData) / sizeof(double)),
+        put_double(*bytes, data + sizeof(double) * below((unsigned)(spec.data_size / 8)),
                    nasty_double());
-        break;
-    case 5: /* the dead-time history's ring indices */
-#ifdef GATETWIN_MODEL_FOPDT_H
-        put_int(*bytes,
-                data + offsetof(ModelData, dyn) +
-                    (below(2) ? offsetof(DynamicsState, head) : offsetof(DynamicsState, count)),
-                nasty_int());
-#else
-        put_int(*bytes, data + 4 * below((unsigned)(sizeof(ModelData) / 4)), nasty_int());
-#endif
         break;
     case 6: /* truncated */
         *size = below(2) ? *size - 1 - below((unsigned)*size - 1) : *size - 1;
@@ -562,6 +739,21 @@ static void tamper(fmi2Byte **bytes, size_t *size)
             *size += 1 + below(8);
         }
     }
+    }
+}
+
+/* An accepted serialised state holds a finite time and finite variables (ModelData starts
+ * with time_s and real[], component.h). */
+static void check_finite(const fmi2Byte *bytes, size_t size)
+{
+    const size_t data = data_offset(size);
+    unsigned k;
+    double value;
+    for (k = 0; k <= spec.n_real; k++) {
+        memcpy(&value, bytes + data + sizeof(double) * k, sizeof value);
+        if (!isfinite(value)) {
+            finding("a state with %s %g was accepted", k ? "a variable" : "time", value);
+        }
     }
 }
 
@@ -585,6 +777,9 @@ static void op_tampered_state(Fuzz *f)
     tamper(&bytes, &size);
     target_before = f->slots[slot] ? snapshot(f, f->slots[slot], &target_size) : NULL;
     status = CALL(f, api->deserialize(f->c, bytes, size, &f->slots[slot]));
+    if (status == fmi2OK) {
+        check_finite(bytes, size);
+    }
     free(bytes);
     if (status != fmi2OK) {
         target_after = f->slots[slot] ? snapshot(f, f->slots[slot], &target_size) : NULL;
@@ -675,12 +870,10 @@ static void one_call(Fuzz *f)
     case 18: op_recycle(f); break;
     default: { /* a valid start, so that most sequences reach step mode */
         const Api *api = f->api;
-        fmi2ValueReference vr[2] = {VR_OPENING_MM, VR_FLOW_M3H};
-        fmi2Real value[2] = {uniform(5.0, 60.0), uniform(10.0, 120.0)};
         api->reset(f->c);
         api->setup_experiment(f->c, fmi2False, 0.0, uniform(-100.0, 100.0), fmi2False, 0.0);
         api->enter_initialization(f->c);
-        api->set_real(f->c, vr, 2, value);
+        set_inputs(f, 0.05, 0.75); /* well inside the plausible range */
         f->warnings = api->exit_initialization(f->c) == fmi2Warning;
         calls += 5;
         broken = 0;
@@ -696,11 +889,11 @@ static void hostile_instantiate(const Api *api, fmi2CallbackFunctions *callbacks
 {
     fmi2CallbackFunctions none = {NULL, NULL, NULL, NULL, NULL};
     if (api->instantiate("x", fmi2CoSimulation, "{wrong}", "", callbacks, 0, 0) ||
-        api->instantiate("x", fmi2ModelExchange, GT_GUID, "", callbacks, 0, 0) ||
-        api->instantiate("", fmi2CoSimulation, GT_GUID, "", callbacks, 0, 0) ||
-        api->instantiate(NULL, fmi2CoSimulation, GT_GUID, "", callbacks, 0, 0) ||
+        api->instantiate("x", fmi2ModelExchange, spec.guid, "", callbacks, 0, 0) ||
+        api->instantiate("", fmi2CoSimulation, spec.guid, "", callbacks, 0, 0) ||
+        api->instantiate(NULL, fmi2CoSimulation, spec.guid, "", callbacks, 0, 0) ||
         api->instantiate("x", fmi2CoSimulation, NULL, "", callbacks, 0, 0) ||
-        api->instantiate("x", fmi2CoSimulation, GT_GUID, "", NULL, 0, 0)) {
+        api->instantiate("x", fmi2CoSimulation, spec.guid, "", NULL, 0, 0)) {
         finding("fmi2Instantiate accepted bad arguments");
     }
     if (api->do_step(NULL, 0.0, 1.0, fmi2True) != fmi2Error ||
@@ -708,7 +901,7 @@ static void hostile_instantiate(const Api *api, fmi2CallbackFunctions *callbacks
         finding("a call without an instance did not return fmi2Error");
     }
     {
-        fmi2Component c = api->instantiate("nolog", fmi2CoSimulation, GT_GUID, "", &none, 0, 1);
+        fmi2Component c = api->instantiate("nolog", fmi2CoSimulation, spec.guid, "", &none, 0, 1);
         if (c) { /* no logger, default memory functions: must still work */
             api->do_step(c, 0.0, 1.0, fmi2True);
             api->free_instance(c);
@@ -723,19 +916,21 @@ int main(int argc, char **argv)
     Fuzz f;
     long sequences, s;
     struct timespec t0, t1;
-    if (argc != 4 && argc != 6) {
-        fprintf(stderr, "usage: %s BINARY SEED SEQUENCES [OTHER_BINARY OTHER_GUID]\n", argv[0]);
+    if (argc != 5 && argc != 7) {
+        fprintf(stderr, "usage: %s BINARY SPEC SEED SEQUENCES [OTHER_BINARY OTHER_GUID]\n",
+                argv[0]);
         return 2;
     }
+    read_spec(argv[2]);
     load_api(&api, argv[1]);
-    seed_arg = strtoull(argv[2], NULL, 10);
-    sequences = atol(argv[3]);
+    seed_arg = strtoull(argv[3], NULL, 10);
+    sequences = atol(argv[4]);
     memset(&f, 0, sizeof f);
     f.api = &api;
-    if (argc == 6) {
-        load_api(&other, argv[4]);
+    if (argc == 7) {
+        load_api(&other, argv[5]);
         f.other = &other;
-        f.other_guid = argv[5];
+        f.other_guid = argv[6];
     }
     f.callbacks.logger = logger;
     f.callbacks.allocateMemory = calloc;
@@ -763,6 +958,8 @@ int main(int argc, char **argv)
         calls += 1;
     }
     alarm(0);
+    free(spec.kind), free(spec.start), free(spec.lo), free(spec.hi);
+    free(spec.inputs), free(spec.outputs);
     clock_gettime(CLOCK_MONOTONIC, &t1);
     printf("fuzz: %ld sequences, %lld calls, %lld steps taken, %lld fmi2Error, %lld fmi2Warning, "
            "%.2f s\n",

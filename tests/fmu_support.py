@@ -321,21 +321,61 @@ def sanitizers_work(folder: Path) -> bool:
         return False
 
 
-def build_fuzzer(extracted: Path, out_dir: Path) -> tuple[Path, Path]:
-    """The FMU's binary rebuilt from its ``sources/`` and tests/fmu_fuzz.c compiled against
-    them, both with :data:`SANITIZE`; returns ``(binary, fuzzer)``."""
+def build_fuzzer(out_dir: Path) -> Path:
+    """tests/fmu_fuzz.c compiled with :data:`SANITIZE` against the FMI 2.0 headers of the
+    templates: one fuzzer for every gatetwin C FMU (each described by :func:`fuzz_spec`)."""
+    from gatetwin.fmu.c_build import templates_dir
+
+    fuzzer = out_dir / "fmu_fuzz"
+    subprocess.run(
+        [compiler(), "-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", *SANITIZE,
+         "-I", str(templates_dir()), "-o", str(fuzzer), str(TESTS / "fmu_fuzz.c"), "-ldl", "-lm"],
+        check=True, capture_output=True, text=True,
+    )  # fmt: skip
+    return fuzzer
+
+
+def build_sanitized(extracted: Path, out_dir: Path) -> Path:
+    """The FMU's binary rebuilt from its ``sources/`` with :data:`SANITIZE`."""
     from gatetwin.fmu.c_build import compile_shared
 
     md = read_model_description(str(extracted))
-    sources = extracted / "sources"
     binary = out_dir / f"{md.coSimulation.modelIdentifier}_sanitized.so"
     root = ET.parse(extracted / "modelDescription.xml").getroot()
     c_files = tuple(e.get("name") for e in root.iter("File"))
-    compile_shared(sources, c_files, binary, SANITIZE)
-    fuzzer = out_dir / f"{md.coSimulation.modelIdentifier}_fuzz"
+    compile_shared(extracted / "sources", c_files, binary, SANITIZE)
+    return binary
+
+
+#: The fuzzer's variable kinds by (causality, variability) of the modelDescription.
+_FUZZ_KINDS = {("input", None): "input", ("output", None): "output",
+               ("parameter", "tunable"): "tunable", ("parameter", "fixed"): "fixed"}  # fmt: skip
+
+
+def fuzz_spec(
+    extracted: Path, out: Path, ranges: dict[str, tuple[float, float]] | None = None
+) -> Path:
+    """The SPEC file tests/fmu_fuzz.c reads for the extracted FMI 2.0 FMU, written to ``out``:
+    GUID, value references, kinds and start values from its modelDescription.xml, the
+    plausible values of the inputs named in ``ranges``; the state's size and int fields from
+    tests/fmu_layout.c compiled against its ``sources/``."""
+    md = read_model_description(str(extracted))
+    lines = [f"guid {md.guid}"]
+    for v in sorted(md.modelVariables, key=lambda v: v.valueReference):
+        variability = v.variability if v.causality == "parameter" else None
+        start = float(v.start) if v.start is not None else 0.0
+        lines.append(f"var {v.valueReference} {_FUZZ_KINDS[v.causality, variability]} {start!r}")
+        if v.causality == "input" and v.name in (ranges or {}):
+            lo, hi = ranges[v.name]
+            lines.append(f"range {v.valueReference} {float(lo)!r} {float(hi)!r}")
+        if v.name == "sample_period_s":
+            lines.append(f"sample_period {v.valueReference}")
+    probe = out.with_suffix(".layout")
     subprocess.run(
-        [compiler(), "-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", *SANITIZE,
-         "-I", str(sources), "-o", str(fuzzer), str(TESTS / "fmu_fuzz.c"), "-ldl", "-lm"],
+        [compiler(), "-std=c99", "-Wall", "-Wextra", "-Werror", "-I", str(extracted / "sources"),
+         "-o", str(probe), str(TESTS / "fmu_layout.c")],
         check=True, capture_output=True, text=True,
     )  # fmt: skip
-    return binary, fuzzer
+    layout = subprocess.run([str(probe)], check=True, capture_output=True, text=True).stdout
+    out.write_text("\n".join([*lines, layout]), encoding="utf-8")
+    return out

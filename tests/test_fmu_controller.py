@@ -1,13 +1,16 @@
-"""The PI controller FMU: a valid FMI 2.0 co-simulation FMU whose closed loop with the plant
-FMU is the Python PI's, which refuses what it cannot honour with a logged reason, and whose
-C arithmetic is the Python's (generated from gatetwin.mpc.pi_law)."""
+"""The PI controller FMU: a valid FMI 2.0 and FMI 3.0 co-simulation FMU whose closed loop with
+the plant FMU is the Python PI's (and the FMI 3.0 one's the FMI 2.0 one's, to the bit), which
+refuses what it cannot honour with a logged reason, and whose C arithmetic is the Python's
+(generated from gatetwin.mpc.pi_law)."""
 
 from __future__ import annotations
 
 import ctypes
 import math
 import subprocess
+import zipfile
 from pathlib import Path
+from xml.etree import ElementTree as ET
 
 import numpy as np
 import pytest
@@ -42,15 +45,38 @@ def fmus(tmp_path_factory):
     folder = tmp_path_factory.mktemp("controller")
     model = read_model_file(MODEL)
     controller = export_controller(model, "pi", folder / "fopdt_3F_pi.fmu")
+    controller3 = export_controller(model, "pi", folder / "fmi3" / "fopdt_3F_pi.fmu",
+                                    fmi_version="3.0")  # fmt: skip
     # the plant FMU as run_mpc_demo(plant_kind="fmu") exports it
     plant = export_fmu(model.plant, folder / "gatetwin_mpc_plant.fmu", backend="c",
                        model_name="gatetwin_mpc_plant",
                        provenance={"purpose": "gatetwin mpc-demo plant"})  # fmt: skip
-    return {"model": model, "controller": controller, "plant": plant, "folder": folder}
+    return {"model": model, "controller": controller, "controller3": controller3,
+            "plant": plant, "folder": folder}  # fmt: skip
 
 
-def test_the_controller_fmu_passes_fmpy_validation(fmus):
-    assert validate_fmu(str(fmus["controller"])) == []
+@pytest.mark.parametrize("which", ["controller", "controller3"], ids=["fmi2", "fmi3"])
+def test_the_controller_fmu_passes_fmpy_validation(fmus, which):
+    assert validate_fmu(str(fmus[which])) == []
+
+
+def test_the_fmi3_controller_declares_the_fmi2_ones_variables_and_time(fmus):
+    """One description, two renderings: FMI 3.0 adds only the independent ``time``."""
+
+    def variables(path: Path) -> dict[str, dict[str, str]]:
+        with zipfile.ZipFile(path) as zf:
+            root = ET.fromstring(zf.read("modelDescription.xml"))
+        found = {}
+        for element in root.find("ModelVariables"):
+            attrs = dict(element.attrib)
+            attrs.update(getattr(element.find("Real"), "attrib", {}))
+            found[attrs.pop("name")] = attrs
+        return found
+
+    two, three = variables(fmus["controller"]), variables(fmus["controller3"])
+    time = three.pop("time")
+    assert time["causality"] == "independent" and int(time["valueReference"]) == len(two)
+    assert three == two
 
 
 def _loop(fmus, controller, scenario, s: DemoSettings):
@@ -66,18 +92,27 @@ def _loop(fmus, controller, scenario, s: DemoSettings):
         core.cleanup()
 
 
+def _fmu_loop(fmus, which, scenario, s: DemoSettings):
+    fmu = FmuController(fmus[which])
+    try:
+        return _loop(fmus, fmu, scenario, s)
+    finally:
+        fmu.cleanup()
+
+
 @pytest.mark.parametrize("which", [0, 1], ids=["setpoint_steps", "inflow_step"])
 def test_plant_fmu_with_pi_fmu_is_the_python_loop(fmus, which):
     """Plant FMU + PI FMU through fmpy against PiController on the same plant FMU: the demo's
-    scenario, noise (same seed) and actuator resolution, 30 simulated minutes."""
+    scenario, noise (same seed) and actuator resolution, 30 simulated minutes. The FMI 3.0 PI
+    compiles the same component with the same flags as the FMI 2.0 one, only the glue
+    differs: its loop is the FMI 2.0 one's to the bit."""
     s = DemoSettings()
     scenario = demo_scenarios(30.0, s)[which]
     python = _loop(fmus, pi_controller(fmus["model"].plant, s), scenario, s)
-    fmu = FmuController(fmus["controller"])
-    try:
-        cosim = _loop(fmus, fmu, scenario, s)
-    finally:
-        fmu.cleanup()
+    cosim = _fmu_loop(fmus, "controller", scenario, s)
+    cosim3 = _fmu_loop(fmus, "controller3", scenario, s)
+    assert np.array_equal(cosim3.command_mm, cosim.command_mm)
+    assert np.array_equal(cosim3.level_mm, cosim.level_mm)
     assert np.max(np.abs(np.diff(python.command_mm))) > 0.5  # the controller acts
     assert np.max(np.abs(cosim.command_mm - python.command_mm)) <= SAME_ARITHMETIC_MM
     assert np.max(np.abs(cosim.level_mm - python.level_mm)) <= SAME_ARITHMETIC_MM
@@ -113,6 +148,20 @@ def test_a_step_off_the_sample_grid_is_refused_with_a_logged_reason(fmus):
     with pytest.raises(FMICallException):
         driver.slave.doStep(0.0, 1.5 * period)
     assert any("not a whole multiple" in m for m in _errors(driver))
+    driver.close()
+
+
+def test_a_step_that_overflows_is_refused_with_a_logged_reason(fmus):
+    """Finite inputs whose error overflows (Kc * 2e308): the range limits would hide it in the
+    opening, not in the integral; the step is refused and says why."""
+    driver = _driver(fmus, "overflow")
+    vr, slave = driver.vr, driver.slave
+    period = slave.getReal([vr["sample_period_s"]])[0]
+    slave.doStep(0.0, period)
+    slave.setReal([vr["level_3F_mm"], vr["setpoint_mm"]], [1e308, -1e308])
+    with pytest.raises(FMICallException):
+        slave.doStep(period, period)
+    assert any("sample 1 of the step overflows" in m for m in _errors(driver))
     driver.close()
 
 
@@ -157,7 +206,11 @@ def test_the_c_pi_law_is_the_python_one_to_the_bit(tmp_path):
 
 
 def test_export_controller_refuses_mpc_and_non_fopdt_models_without_output(tmp_path, capsys):
-    for argv in (["--kind", "mpc", str(MODEL)], ["--kind", "pi", str(MODELS / "arx_3F.json")]):
+    for argv in (
+        ["--kind", "mpc", str(MODEL)],
+        ["--kind", "pi", str(MODELS / "arx_3F.json")],
+        ["--fmi", "3", str(MODELS / "arx_3F.json")],
+    ):
         out = tmp_path / "c.fmu"
         assert main(["export-controller", *argv, "--out", str(out)]) == 2
         err = capsys.readouterr().err.strip().splitlines()
@@ -208,3 +261,46 @@ def test_fmu_states_round_trip_and_a_corrupt_state_is_refused(fmus):
     assert slave.getReal([vr["opening_mm"]])[0] == before
     assert run(20, 1)  # still in step mode, at its own time
     driver.close()
+
+
+def _driver3(fmus, name):
+    unzipped = Path(extract(str(fmus["controller3"]), str(fmus["folder"] / name)))
+    driver = open_fmu(unzipped, name)
+    driver.slave.enterInitializationMode(startTime=0.0)
+    driver.slave.exitInitializationMode()
+    return driver
+
+
+def test_fmi3_bad_inputs_and_steps_return_error_with_a_logged_reason(fmus):
+    driver = _driver3(fmus, "fmi3_bad")
+    vr, slave = driver.vr, driver.slave
+    try:
+        with pytest.raises(FMICallException) as info:
+            slave.setFloat64([vr["level_3F_mm"]], [math.nan])
+        assert info.value.status == 3  # fmi3Error
+        assert driver.messages[-1][0] == 3
+        assert "level_3F_mm" in driver.messages[-1][1] and "finite" in driver.messages[-1][1]
+        slave.reset()  # out of the error state, as the FMI 3.0 standard allows
+        slave.enterInitializationMode(startTime=0.0)
+        slave.exitInitializationMode()
+        period = slave.getFloat64([vr["sample_period_s"]])[0]
+        with pytest.raises(FMICallException) as info:
+            slave.doStep(0.0, 1.5 * period)
+        assert info.value.status == 3
+        assert driver.messages[-1][0] == 3 and "not a whole multiple" in driver.messages[-1][1]
+    finally:
+        driver.close()
+
+
+def test_export_controller_cli_writes_fmi3_and_refuses_an_unknown_version(tmp_path, capsys):
+    out = tmp_path / "pi3.fmu"
+    assert main(["export-controller", str(MODEL), "--fmi", "3", "--out", str(out)]) == 0
+    with zipfile.ZipFile(out) as zf:
+        root = ET.fromstring(zf.read("modelDescription.xml"))
+        binaries = [n for n in zf.namelist() if n.startswith("binaries/")]
+    assert root.get("fmiVersion") == "3.0" and root.find("CoSimulation") is not None
+    assert binaries and all(n.count("/") == 2 and "-" in n.split("/")[1] for n in binaries)
+    capsys.readouterr()
+    with pytest.raises(ExportError, match="fmi_version"):
+        export_controller(read_model_file(MODEL), "pi", tmp_path / "x.fmu", fmi_version="4.0")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pi3.fmu"]

@@ -4,22 +4,34 @@ tests/fmu_fuzz.c drives an FMU binary built with the sanitizers through random c
 from a seed (out-of-order calls, NaN/inf/huge values, hostile step sizes, unknown value
 references, FMU state round trips, tampered and foreign serialised states, free/instantiate
 cycles) and checks what every call returns; any sanitizer report, crash, hang or failed check
-fails the test. One FMU per family: the envelope FOPDT and the physical model of the
-repository (with their validity envelopes), a FOPDT and an ARX plant carrying every effect
-block.
+fails the test. The fuzzer is built once and knows an FMU only by the SPEC file written from
+its modelDescription.xml (and its state's layout, tests/fmu_layout.c). One FMU per plant
+family: the envelope FOPDT and the physical model of the repository (with their validity
+envelopes), a FOPDT and an ARX plant carrying every effect block; and the PI controller FMU
+of the envelope FOPDT.
 """
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple
 
 import pytest
 from fmpy import extract, read_model_description
 
-from fmu_support import PLANTS, build_fuzzer, compiler, sanitizers_work
+from fmu_support import (
+    PLANTS,
+    build_fuzzer,
+    build_sanitized,
+    compiler,
+    fuzz_spec,
+    sanitizers_work,
+)
 from gatetwin.fmu import export_fmu
+from gatetwin.fmu.controller import export_controller
 from gatetwin.fmu.provenance import fmu_provenance
 from gatetwin.modelfile import read_model_file
 from gatetwin.plant.effects import KINDS, effect_dict
@@ -29,13 +41,40 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 #: A validity envelope for the test plants (their knots span 30..85 m3/h).
 VALIDITY = {"validity": {"opening_mm": [10.0, 40.0], "flow_m3h": [30.0, 85.0],
                          "level_mm": [150.0, 450.0]}}  # fmt: skip
-#: case -> sequences in the default run (12,000 in all, about 20 s on one core; a physical
-#: step of 1e5 s integrates 1.7e5 RK4 sub-steps, so the physical FMU gets fewer).
+#: case -> sequences in the default run (15,000 in all, a few seconds of fuzzing on one core;
+#: a physical step of 1e5 s integrates 1.7e5 RK4 sub-steps, so the physical FMU gets fewer).
 SEQUENCES = {"fopdt_envelope": 4000, "fopdt_effects": 4000, "arx_effects": 3000,
-             "physical": 1000}  # fmt: skip
+             "physical": 1000, "pi_controller": 3000}  # fmt: skip
 CASES = tuple(SEQUENCES)
+#: Plausible values of the plants' inputs (gate up to 90 mm, discharge up to 150 m3/h: inside
+#: and beyond the test plants' envelope); another input (the controller's level and set-point)
+#: draws from 0..2x its start.
+INPUT_RANGES = {"opening_mm": (0.0, 90.0), "flow_m3h": (0.0, 150.0)}
 #: The long run: ten times as many.
 SLOW_FACTOR = 10
+#: A check the PI controller makes on a state it restores (every variable finite), and the
+#: line without it: the fuzzer must notice the state the controller then accepts.
+PLANTED_BUG = ("if (!isfinite(m->real[vr])) {", "if (0) {")
+
+
+class Fuzzed(NamedTuple):
+    """One FMU ready for the fuzzer."""
+
+    binary: Path  # rebuilt with the sanitizers
+    fuzzer: Path
+    spec: Path
+    guid: str
+    extracted: Path
+
+
+def _export(case: str, folder: Path) -> Path:
+    """The FMI 2.0 C FMU of ``case``."""
+    if case == "pi_controller":
+        model = read_model_file(MODELS / "fopdt_3F.json")
+        return export_controller(model, "pi", folder / f"{case}.fmu", model_name=f"fuzz_{case}")
+    plant, provenance = _plant_and_provenance(case)
+    return export_fmu(plant, folder / f"{case}.fmu", backend="c", model_name=f"fuzz_{case}",
+                      provenance=provenance)  # fmt: skip
 
 
 def _plant_and_provenance(case: str):
@@ -51,33 +90,41 @@ def _plant_and_provenance(case: str):
 
 
 @pytest.fixture(scope="module")
-def fuzzers(tmp_path_factory) -> dict[str, tuple[Path, Path, str]]:
-    """case -> (sanitised binary, fuzzer, GUID)."""
+def fuzzers(tmp_path_factory) -> dict[str, Fuzzed]:
     if compiler() is None:
         pytest.skip("no C compiler (cc/gcc) on PATH")
     folder = tmp_path_factory.mktemp("fuzz")
     if not sanitizers_work(folder):
         pytest.skip("the C compiler cannot build or run -fsanitize=address,undefined here")
+    fuzzer = build_fuzzer(folder)
     out = {}
     for case in CASES:
-        plant, provenance = _plant_and_provenance(case)
-        fmu = export_fmu(plant, folder / f"{case}.fmu", backend="c", model_name=f"fuzz_{case}",
-                         provenance=provenance)  # fmt: skip
-        extracted = Path(extract(str(fmu), str(folder / case)))
-        binary, fuzzer = build_fuzzer(extracted, folder)
-        out[case] = (binary, fuzzer, read_model_description(str(extracted)).guid)
+        extracted = Path(extract(str(_export(case, folder)), str(folder / case)))
+        spec = fuzz_spec(extracted, folder / f"{case}.spec", INPUT_RANGES)
+        out[case] = Fuzzed(
+            build_sanitized(extracted, folder),
+            fuzzer,
+            spec,
+            read_model_description(str(extracted)).guid,
+            extracted,
+        )
     return out
 
 
-def _fuzz(fuzzers, case: str, seed: int, sequences: int) -> str:
-    binary, fuzzer, _ = fuzzers[case]
-    other_binary, _, other_guid = fuzzers[CASES[(CASES.index(case) + 1) % len(CASES)]]
-    run = subprocess.run(
-        [str(fuzzer), str(binary), str(seed), str(sequences), str(other_binary), other_guid],
+def _run(fuzzers, case: str, seed: int, sequences: int, binary: Path | None = None):
+    this = fuzzers[case]
+    other = fuzzers[CASES[(CASES.index(case) + 1) % len(CASES)]]
+    return subprocess.run(
+        [str(this.fuzzer), str(binary or this.binary), str(this.spec), str(seed), str(sequences),
+         str(other.binary), other.guid],
         capture_output=True,
         text=True,
         timeout=1200,
-    )
+    )  # fmt: skip
+
+
+def _fuzz(fuzzers, case: str, seed: int, sequences: int) -> str:
+    run = _run(fuzzers, case, seed, sequences)
     assert run.returncode == 0, run.stderr[-4000:]
     assert f"fuzz: {sequences} sequences" in run.stdout
     return run.stdout
@@ -92,3 +139,28 @@ def test_random_call_sequences_find_nothing(fuzzers, case):
 @pytest.mark.parametrize("case", CASES)
 def test_long_fuzzing_finds_nothing(fuzzers, case):
     _fuzz(fuzzers, case, seed=1, sequences=SLOW_FACTOR * SEQUENCES[case])
+
+
+def test_the_fuzzer_finds_a_state_check_left_out(fuzzers, tmp_path):
+    """The PI controller rebuilt without one of its state checks is caught (exit 1)."""
+    planted = Path(shutil.copytree(fuzzers["pi_controller"].extracted, tmp_path / "planted"))
+    code = (planted / "sources" / "controller_pi.c").read_text(encoding="utf-8")
+    assert code.count(PLANTED_BUG[0]) == 1
+    (planted / "sources" / "controller_pi.c").write_text(code.replace(*PLANTED_BUG),
+                                                         encoding="utf-8")  # fmt: skip
+    run = _run(fuzzers, "pi_controller", 20261123, SEQUENCES["pi_controller"],
+               build_sanitized(planted, tmp_path))  # fmt: skip
+    assert run.returncode == 1, run.stdout + run.stderr[-2000:]
+    assert "FINDING" in run.stderr and "accepted" in run.stderr
+
+
+def test_a_bad_spec_is_one_line_naming_the_file_and_line(fuzzers, tmp_path):
+    this = fuzzers["pi_controller"]
+    lines = this.spec.read_text(encoding="utf-8").splitlines()
+    bad = tmp_path / "bad.spec"
+    bad.write_text("\n".join([lines[0], lines[2], *lines[1:]]), encoding="utf-8")  # var 1 first
+    run = subprocess.run([str(this.fuzzer), str(this.binary), str(bad), "1", "1"],
+                         capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert run.returncode == 2 and run.stdout == ""
+    assert run.stderr.strip().splitlines() == [run.stderr.strip()]
+    assert run.stderr.startswith(f"{bad}:2: ")

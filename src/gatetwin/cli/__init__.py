@@ -15,7 +15,7 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from gatetwin._io import write_json_atomic
 from gatetwin.cli import diagnose as _diagnose_cmds
@@ -229,7 +229,7 @@ def _run_routine_district(args: argparse.Namespace) -> int:
 
 
 def _add_validate_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("fmu", metavar="FMU", help="FMI 2.0 co-simulation FMU to validate")
+    parser.add_argument("fmu", metavar="FMU", help="FMI 2.0 or 3.0 co-simulation FMU to validate")
     parser.add_argument("records", metavar="RECORD", nargs="+", help="measured record(s) (CSV)")
     parser.add_argument("--gauge", metavar="G", help="compare output level_<G>_mm (default: "
                         "the FMU's only level output)")  # fmt: skip
@@ -258,6 +258,16 @@ def _add_validate_arguments(parser: argparse.ArgumentParser) -> None:
         "process, killed at the limit (default: 10 s + 1 ms per FMU step, e.g. 10.75 s for "
         "a 750-sample record)",
     )  # fmt: skip
+    parser.add_argument(
+        "--workers", metavar="N", type=int, default=1,
+        help="validate the records on N local processes, one record per task (default 1: "
+        "record after record in this process)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--scheduler", metavar="ADDRESS",
+        help="validate one record per task on this dask.distributed scheduler "
+        "(tcp://host:8786); the FMU travels with each task, no shared folder needed",
+    )  # fmt: skip
     parser.add_argument("--json", metavar="OUT.json", required=True, help="findings as JSON")
     parser.add_argument("--junit", metavar="OUT.xml", help="findings as JUnit XML for CI")
     parser.add_argument("--plots", metavar="DIR", help="write measured-vs-FMU plots (PNG)")
@@ -270,6 +280,28 @@ def _add_validate_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _validate(args: argparse.Namespace, thresholds: Any) -> Any:
+    """The validation, here record after record, or one record per task elsewhere."""
+    from gatetwin.errors import GatetwinError
+    from gatetwin.validate import validate_fmu
+
+    options = dict(gauge=args.gauge, thresholds=thresholds, timeout_s=args.timeout,
+                   fail_outside_validity=args.fail_outside_validity)  # fmt: skip
+    if args.workers < 1:
+        raise GatetwinError(f"--workers: expected a whole number >= 1, got {args.workers}")
+    if args.scheduler and args.workers != 1:
+        raise GatetwinError("--workers applies to a local run; the dask workers validate the "
+                            "records when --scheduler is given")  # fmt: skip
+    if not args.scheduler and args.workers == 1:
+        return validate_fmu(args.fmu, args.records, **options)
+    from gatetwin.fleet.execute import FleetSettings
+    from gatetwin.validate.spread import validate_fmu_spread
+
+    settings = FleetSettings(scheduler=args.scheduler, workers=args.workers)
+    return validate_fmu_spread(args.fmu, args.records, settings, progress=print_to_stderr,
+                               **options)  # fmt: skip
+
+
 def _run_validate(args: argparse.Namespace) -> int:
     from gatetwin.validate import (
         EXIT_FAILED,
@@ -278,14 +310,11 @@ def _run_validate(args: argparse.Namespace) -> int:
         matrix_markdown,
         outside_message,
         parse_thresholds,
-        validate_fmu,
         write_outputs,
     )
 
     thresholds = parse_thresholds(args.fail_under, args.fail_over)
-    result = validate_fmu(args.fmu, args.records, gauge=args.gauge, thresholds=thresholds,
-                          fail_outside_validity=args.fail_outside_validity,
-                          timeout_s=args.timeout)  # fmt: skip
+    result = _validate(args, thresholds)
     plots = Path(args.plots) if args.plots else None
     junit = Path(args.junit) if args.junit else None
     written = write_outputs(result, OutputPaths(Path(args.json), junit, plots))
@@ -381,7 +410,7 @@ _COMMANDS: tuple[Command, ...] = (
     ),
     Command(
         "export-controller",
-        "export the level controller of a model file as an FMI 2.0 co-simulation FMU (C)",
+        "export the level controller of a model file as an FMI 2.0 or 3.0 co-simulation FMU (C)",
         _model_cmds.add_export_controller_arguments,
         _model_cmds.run_export_controller,
     ),

@@ -259,6 +259,12 @@ def add_export_controller_arguments(parser: argparse.ArgumentParser) -> None:
         help="controller: pi (default; the MPC controller FMU is not built by this command)",
     )  # fmt: skip
     parser.add_argument("--out", metavar="NAME.fmu", required=True)
+    parser.add_argument(
+        "--fmi",
+        choices=("2", "3"),
+        default="2",
+        help="FMI version of the co-simulation FMU: 2 (default) or 3",
+    )
 
 
 def run_export_controller(args: argparse.Namespace) -> int:
@@ -268,6 +274,6 @@ def run_export_controller(args: argparse.Namespace) -> int:
     check_controller_kind(args.kind)
     model = read_model_file(args.model)
     check_writable(args.out)
-    path = export_controller(model, args.kind, args.out)
+    path = export_controller(model, args.kind, args.out, fmi_version=f"{args.fmi}.0")
     print(f"wrote {path}")
     return 0

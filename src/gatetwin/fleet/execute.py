@@ -1,9 +1,11 @@
-"""Run one task per gate: in this process, on a local process pool, or on a dask cluster.
+"""Run one task per gate (or per record): in this process, on a local process pool, or on a
+dask cluster.
 
 Processes, never threads: the FMU binaries and the numba kernels are not assumed
-thread-safe. Every mode runs the same :func:`~gatetwin.fleet.gate.identify_gate` on the same
-inputs, so every mode gives the same model documents. Results come back in completion
-order (each one reported to ``progress``) and are returned sorted by gate name.
+thread-safe. Every mode runs the same task function (:func:`~gatetwin.fleet.gate.identify_gate`
+for ``gatetwin models``, one record's validation for ``gatetwin validate``) on the same
+inputs, so every mode gives the same results. Results come back in completion order (each
+one reported to ``progress``); :func:`run_tasks` returns them in the jobs' order.
 """
 
 from __future__ import annotations
@@ -69,21 +71,29 @@ def _crashed(job: GateJob, exc: BaseException) -> dict[str, Any]:
     }
 
 
-def _serial(jobs: list[GateJob]) -> Iterator[dict[str, Any]]:
-    for job in jobs:
-        yield identify_gate(job)
+Task = Callable[[Any], Any]
+#: What a task whose process died (or could not run it) returns instead: job, exception.
+Crashed = Callable[[Any, BaseException], Any]
 
 
-def _pool(jobs: list[GateJob], workers: int) -> Iterator[dict[str, Any]]:
+def _serial(task: Task, jobs: list[Any], crashed: Crashed) -> Iterator[tuple[int, Any]]:
+    del crashed  # in this process an exception is the caller's, as in any serial code
+    for k, job in enumerate(jobs):
+        yield k, task(job)
+
+
+def _pool(task: Task, jobs: list[Any], crashed: Crashed,
+          workers: int) -> Iterator[tuple[int, Any]]:  # fmt: skip
     # spawn: a fresh interpreter per worker, no fork of this process's threads or locks
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context) as pool:
-        futures = {pool.submit(identify_gate, job): job for job in jobs}
+        futures = {pool.submit(task, job): k for k, job in enumerate(jobs)}
         for future in as_completed(futures):
+            k = futures[future]
             try:
-                yield future.result()
-            except Exception as exc:  # a dead worker fails its gate only
-                yield _crashed(futures[future], exc)
+                yield k, future.result()
+            except Exception as exc:  # a dead worker fails its job only
+                yield k, crashed(jobs[k], exc)
 
 
 def connect(address: str, timeout_s: float) -> Any:
@@ -112,48 +122,62 @@ def connect(address: str, timeout_s: float) -> Any:
     return client
 
 
-def _dask(jobs: list[GateJob], address: str, timeout_s: float) -> Iterator[dict[str, Any]]:
+def _dask(task: Task, jobs: list[Any], crashed: Crashed, address: str,
+          timeout_s: float) -> Iterator[tuple[int, Any]]:  # fmt: skip
     from distributed import as_completed as dask_completed
 
     client = connect(address, timeout_s)
     try:
         futures = {}
-        for job in jobs:
-            future = client.submit(
-                identify_gate,
-                job,
-                pure=False,
-                key=f"gatetwin-gate-{job.gate}-{os.getpid()}-{id(job)}",
-            )
-            futures[future.key] = (future, job)
+        for k, job in enumerate(jobs):
+            key = f"gatetwin-{task.__name__}-{k}-{os.getpid()}-{id(job)}"
+            future = client.submit(task, job, pure=False, key=key)
+            futures[future.key] = (future, k)
         for future in dask_completed([f for f, _ in futures.values()], loop=client.loop):
-            job = futures[future.key][1]
+            k = futures[future.key][1]
             try:
-                yield future.result()
-            except Exception as exc:  # a lost worker fails its gate only
-                yield _crashed(job, exc)
+                yield k, future.result()
+            except Exception as exc:  # a lost worker fails its job only
+                yield k, crashed(jobs[k], exc)
             future.release()
     finally:
         client.close()
 
 
-def run_gates(jobs: Iterable[GateJob], settings: FleetSettings,
-              progress: Progress | None = None) -> list[dict[str, Any]]:  # fmt: skip
-    """Run every job; the results (see :func:`identify_gate`) sorted by gate name."""
+def run_tasks(task: Task, jobs: Iterable[Any], settings: FleetSettings, crashed: Crashed,
+              progress: Callable[[int, int, Any], None] | None = None) -> list[Any]:  # fmt: skip
+    """``task(job)`` for every job, where ``settings`` says; the results in the jobs' order.
+
+    ``task`` and the jobs must pickle (a module-level function, plain data). A job whose
+    worker dies gives ``crashed(job, exception)`` instead (pool and dask; serially an
+    exception propagates). ``progress(done, total, result)`` follows completion.
+    """
     jobs = list(jobs)
     if not jobs:
         return []
     if settings.scheduler:
-        stream = _dask(jobs, settings.scheduler, settings.connect_timeout_s)
+        stream = _dask(task, jobs, crashed, settings.scheduler, settings.connect_timeout_s)
     elif settings.workers <= 1 or len(jobs) == 1:
-        stream = _serial(jobs)
+        stream = _serial(task, jobs, crashed)
     else:
-        stream = _pool(jobs, settings.workers)
-    results = []
-    for k, res in enumerate(stream, start=1):
+        stream = _pool(task, jobs, crashed, settings.workers)
+    results: list[Any] = [None] * len(jobs)
+    for done, (k, res) in enumerate(stream, start=1):
         if progress:
-            progress(_progress_line(k, len(jobs), res))
-        results.append(res)
+            progress(done, len(jobs), res)
+        results[k] = res
+    return results
+
+
+def run_gates(jobs: Iterable[GateJob], settings: FleetSettings,
+              progress: Progress | None = None) -> list[dict[str, Any]]:  # fmt: skip
+    """Run every job; the results (see :func:`identify_gate`) sorted by gate name."""
+
+    def report(k: int, n: int, res: dict[str, Any]) -> None:
+        if progress:
+            progress(_progress_line(k, n, res))
+
+    results = run_tasks(identify_gate, jobs, settings, _crashed, report)
     return sorted(results, key=lambda r: r["gate"])
 
 

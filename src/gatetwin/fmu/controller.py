@@ -1,12 +1,14 @@
-"""Export a level controller as an FMI 2.0 co-simulation FMU (C), next to the plant's FMU.
+"""Export a level controller as an FMI 2.0 or 3.0 co-simulation FMU (C), next to the plant's.
 
 The PI of :class:`gatetwin.mpc.pi.PiController` becomes a C FMU built from the plant FMU's
-unchanged glue (``fmi2_glue.c``, ``component.h``, ``component.c``) around its own component:
+unchanged glue (``fmi2_glue.c`` or ``fmi3_glue.c``, ``component.h``, ``component.c``) around
+its own component:
 ``controller_data.h`` (its ModelData) and ``controller_pi.c`` (checks, state, sampling),
 which calls ``gt_pi_step``, generated from :func:`gatetwin.mpc.pi_law.pi_step` by
 :mod:`gatetwin.plant.ast_render`. The interface is one :class:`ControllerDescription`,
 rendered into ``model_config.h`` and ``modelDescription.xml`` by the same functions as the
-plant's (:mod:`gatetwin.fmu.description`).
+plant's (:mod:`gatetwin.fmu.description`, and :mod:`gatetwin.fmu.description3` for FMI 3.0,
+which adds the independent variable ``time`` one past the last value reference).
 
 Variables (value references in this order):
 
@@ -54,6 +56,7 @@ from gatetwin.fmu.description import (
     output_name,
     variable_table_lines,
 )
+from gatetwin.fmu.description3 import model_description_xml3
 from gatetwin.plant.model import FopdtPlant, Plant
 from gatetwin.plant.simulate import ARX_MAX_SUBSTEPS, ARX_STEP_RTOL
 
@@ -63,11 +66,17 @@ if TYPE_CHECKING:
 
 #: Controllers a model can be exported with; ``mpc`` is refused (:func:`check_controller_kind`).
 CONTROLLER_KINDS = ("pi", "mpc")
-#: The FMI API the controller FMU carries.
+#: The FMI API a controller FMU carries by default (FMI 3.0: ``fmi_version="3.0"``).
 FMI_API = FMI_APIS["2.0"]
-#: The C files of the PI controller FMU, in compile order (``pi_law.c`` is generated).
-PI_SOURCES = (FMI_API.glue, "component.c", "controller_pi.c", "pi_law.c")
-PI_HEADERS = (*FMI_API.headers, "component.h", "controller_data.h", "pi_law.h")
+#: The component's C files and headers, the same under either FMI API (``pi_law.*`` are
+#: generated).
+PI_COMPONENT_SOURCES = ("component.c", "controller_pi.c", "pi_law.c")
+PI_COMPONENT_HEADERS = ("component.h", "controller_data.h", "pi_law.h")
+#: The files :func:`generated_pi_law` writes.
+PI_GENERATED = ("pi_law.c", "pi_law.h")
+#: The C files of the FMI 2.0 PI controller FMU, in compile order, and its headers.
+PI_SOURCES = (FMI_API.glue, *PI_COMPONENT_SOURCES)
+PI_HEADERS = (*FMI_API.headers, *PI_COMPONENT_HEADERS)
 #: Prefix of the generated C functions (as blocks.c's).
 PREFIX = "gt_"
 #: A communication step may be this far (relative) from a whole number of samples (the ARX's
@@ -117,6 +126,16 @@ class ControllerDescription:
 
     def start(self, name: str) -> float:
         return float(next(v.start for v in self.variables if v.name == name) or 0.0)
+
+
+def pi_files(fmi_version: str = "2.0") -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The C files (in compile order) and the headers of the PI controller FMU that carries
+    ``fmi_version``'s API; raises :class:`ExportError` for a version no glue exists for."""
+    api = FMI_APIS.get(fmi_version) if isinstance(fmi_version, str) else None
+    if api is None:
+        raise ExportError(f"fmi_version must be one of {', '.join(FMI_APIS)} (got "
+                          f"{str(fmi_version)[:20]!r})")  # fmt: skip
+    return (api.glue, *PI_COMPONENT_SOURCES), (*api.headers, *PI_COMPONENT_HEADERS)
 
 
 def check_controller_kind(kind: str) -> None:
@@ -272,29 +291,34 @@ def generated_pi_law() -> dict[str, str]:
 
 
 def _code_digest() -> str:
-    """sha256 (first 16 hex digits) of the code the controller FMU is built from."""
+    """sha256 (first 16 hex digits) of the code the controller FMU is built from (either FMI
+    API: one GUID for both, as the plant FMUs')."""
     templates = templates_dir()
     law = Path(__file__).resolve().parents[1] / "mpc" / "pi_law.py"
+    names = {n for version in FMI_APIS for files in pi_files(version) for n in files}
     digest = hashlib.sha256()
-    for path in [*(templates / n for n in (*PI_SOURCES, *PI_HEADERS) if n != "pi_law.c"
-                   and n != "pi_law.h"), law]:  # fmt: skip
+    for path in [*(templates / n for n in sorted(names - set(PI_GENERATED))), law]:
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()[:16]
 
 
-def write_controller_sources(desc: ControllerDescription, sources_dir: Path) -> None:
+def write_controller_sources(
+    desc: ControllerDescription, sources_dir: Path, fmi_version: str = "2.0"
+) -> tuple[str, ...]:
     """The templates, the generated ``pi_law.c``/``.h`` and ``model_config.h`` in
-    ``sources_dir``, with ``BUILD.txt`` and ``buildDescription.xml``."""
+    ``sources_dir``, with ``BUILD.txt`` and ``buildDescription.xml``; returns the C files in
+    compile order."""
+    c_files, headers = pi_files(fmi_version)
     templates = templates_dir()
     sources_dir.mkdir(parents=True, exist_ok=True)
     generated = generated_pi_law()
-    for name in (*PI_SOURCES, *PI_HEADERS, FMI_API.license):
+    for name in (*c_files, *headers, FMI_APIS[fmi_version].license):
         if name not in generated:
             shutil.copyfile(templates / name, sources_dir / name)
     for name, text in generated.items():
         (sources_dir / name).write_text(text, encoding="utf-8")
     (sources_dir / "model_config.h").write_text(controller_config_header(desc), encoding="utf-8")
-    line = " ".join(["cc", *CFLAGS, "-o", f"{desc.model_identifier}.so", *PI_SOURCES, "-lm"])
+    line = " ".join(["cc", *CFLAGS, "-o", f"{desc.model_identifier}.so", *c_files, "-lm"])
     (sources_dir / "BUILD.txt").write_text(
         "Build the FMU binary from this folder (any C99 compiler with the same flags):\n\n"
         f"    {line}\n\nmodel_config.h is generated by gatetwin (gatetwin.fmu.controller), "
@@ -302,24 +326,27 @@ def write_controller_sources(desc: ControllerDescription, sources_dir: Path) -> 
         "FMU templates.\n",
         encoding="utf-8",
     )
-    (sources_dir / "buildDescription.xml").write_bytes(build_description_xml(desc, PI_SOURCES))
+    (sources_dir / "buildDescription.xml").write_bytes(build_description_xml(desc, c_files))
+    return c_files
 
 
-def build_controller_fmu(desc: ControllerDescription, work: Path, out: Path) -> None:
+def build_controller_fmu(
+    desc: ControllerDescription, work: Path, out: Path, fmi_version: str = "2.0"
+) -> None:
     """Lay out the controller FMU in ``work/fmu`` (sources, the host's binary, resources,
-    modelDescription.xml) and zip it into ``out``."""
-    from fmpy import platform, sharedLibraryExtension
+    modelDescription.xml) in ``fmi_version``'s layout and zip it into ``out``."""
+    from fmpy import platform, platform_tuple, sharedLibraryExtension
 
     fmu_dir = work / "fmu"
     sources = fmu_dir / "sources"
-    write_controller_sources(desc, sources)
-    binary = fmu_dir / "binaries" / platform / f"{desc.model_identifier}{sharedLibraryExtension}"
+    c_files = write_controller_sources(desc, sources, fmi_version)
+    folder = platform if fmi_version == "2.0" else platform_tuple
+    binary = fmu_dir / "binaries" / folder / f"{desc.model_identifier}{sharedLibraryExtension}"
     binary.parent.mkdir(parents=True)
-    compile_shared(sources, PI_SOURCES, binary)
-    flags = dataclasses.replace(FLAGS, source_files=PI_SOURCES)
-    (fmu_dir / "modelDescription.xml").write_bytes(
-        model_description_xml(desc, flags, tool="gatetwin (C backend)")
-    )
+    compile_shared(sources, c_files, binary)
+    flags = dataclasses.replace(FLAGS, source_files=c_files)
+    render = model_description_xml if fmi_version == "2.0" else model_description_xml3
+    (fmu_dir / "modelDescription.xml").write_bytes(render(desc, flags, tool="gatetwin (C backend)"))
     (fmu_dir / "resources").mkdir()
     text = json.dumps(desc.provenance, indent=2, sort_keys=True, allow_nan=False)
     (fmu_dir / "resources" / "provenance.json").write_text(text + "\n", encoding="utf-8")
@@ -333,6 +360,7 @@ def export_controller(
     *,
     settings: DemoSettings | None = None,
     model_name: str | None = None,
+    fmi_version: str = "2.0",
 ) -> Path:
     """Build the ``kind`` controller FMU of ``model`` at ``out_path``; return its path.
 
@@ -348,15 +376,20 @@ def export_controller(
         Operating point, start opening and PI limits (default: the demo's).
     model_name : str, optional
         modelIdentifier (default ``<model name>_pi``).
+    fmi_version : {"2.0", "3.0"}
+        FMI co-simulation API of the FMU: same variables, value references and outputs
+        (FMI 3.0 adds ``time``).
 
     Raises
     ------
     ExportError
-        Unknown or unbuilt kind, a model that is not an FOPDT, no C compiler, build failure.
+        Unknown or unbuilt kind or FMI version, a model that is not an FOPDT, no C compiler,
+        build failure.
     OutputError
         The FMU cannot be written where asked.
     """
     check_controller_kind(kind)
+    pi_files(fmi_version)
     target = Path(out_path)
     if target.suffix.lower() != ".fmu":
         raise ExportError(f"output {target} must end in .fmu")
@@ -367,7 +400,7 @@ def export_controller(
         target.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
             built = Path(tmp) / target.name
-            build_controller_fmu(desc, Path(tmp), built)
+            build_controller_fmu(desc, Path(tmp), built, fmi_version)
             os.replace(built, target)
     except OSError as exc:
         raise OutputError(f"{target}: cannot write the FMU ({exc.strerror or exc})") from None
@@ -382,4 +415,5 @@ __all__ = [
     "describe_pi_controller",
     "export_controller",
     "generated_pi_law",
+    "pi_files",
 ]

@@ -692,7 +692,7 @@ def model_description_xml(desc: ComponentInterface, flags: CoSimulationFlags, to
     return finished_xml(root, f"{desc.model_identifier}: modelDescription.xml")
 
 
-def shared_elements(root: ET.Element, desc: FmuDescription) -> None:
+def shared_elements(root: ET.Element, desc: ComponentInterface) -> None:
     """What both FMI versions write alike: units, log categories, default experiment."""
     _unit_definitions(root)
     categories = ET.SubElement(root, "LogCategories")

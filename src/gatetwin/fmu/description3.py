@@ -1,8 +1,11 @@
 """``modelDescription.xml`` of the FMI 3.0 co-simulation FMU, from the same description.
 
-The FMI 3.0 FMU renders the :class:`~gatetwin.fmu.description.FmuDescription` the FMI 2.0
-one renders: same variables, value references, units, start values, causality and
-variability, log categories, default experiment and provenance summary. What FMI 3.0 writes
+The FMI 3.0 FMU renders the description the FMI 2.0 one renders, of any component
+(:class:`~gatetwin.fmu.description.ComponentInterface`: a plant's
+:class:`~gatetwin.fmu.description.FmuDescription` or a controller's
+:class:`~gatetwin.fmu.controller.ControllerDescription`): same variables, value references,
+units, start values, causality and variability, log categories, default experiment and
+provenance summary. What FMI 3.0 writes
 differently:
 
 * the root carries ``instantiationToken`` (the FMI 2.0 ``guid``);
@@ -18,8 +21,8 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 
 from gatetwin.fmu.description import (
+    ComponentInterface,
     CoSimulationFlags,
-    FmuDescription,
     finished_xml,
     initial_dependencies,
     shared_elements,
@@ -30,13 +33,14 @@ from gatetwin.fmu.description import (
 TIME_NAME = "time"
 
 
-def time_vr(desc: FmuDescription) -> int:
+def time_vr(desc: ComponentInterface) -> int:
     """Value reference of ``time``: one past the component's Real variables."""
     return len(desc.variables)
 
 
-def model_description_xml3(desc: FmuDescription, flags: CoSimulationFlags, tool: str) -> bytes:
-    """``modelDescription.xml`` (FMI 3.0, co-simulation) of the C backend.
+def model_description_xml3(desc: ComponentInterface, flags: CoSimulationFlags, tool: str) -> bytes:
+    """``modelDescription.xml`` (FMI 3.0, co-simulation) of the C backend, of a plant or of a
+    controller.
 
     Every attribute passes through :func:`~gatetwin.fmu.checks.xml_text` and the result is
     parsed back, so the file is well-formed XML whatever text the model carried.
@@ -78,7 +82,7 @@ def model_description_xml3(desc: FmuDescription, flags: CoSimulationFlags, tool:
     return finished_xml(root, f"{desc.model_identifier}: modelDescription.xml (FMI 3.0)")
 
 
-def _model_variables(root: ET.Element, desc: FmuDescription) -> None:
+def _model_variables(root: ET.Element, desc: ComponentInterface) -> None:
     variables = ET.SubElement(root, "ModelVariables")
     ET.SubElement(
         variables,
@@ -108,8 +112,10 @@ def _model_variables(root: ET.Element, desc: FmuDescription) -> None:
         ET.SubElement(variables, "Float64", attrs)
 
 
-def _model_structure(root: ET.Element, desc: FmuDescription) -> None:
-    """As FMI 2.0's: no direct feedthrough; initially the output is the inputs' equilibrium."""
+def _model_structure(root: ET.Element, desc: ComponentInterface) -> None:
+    """As FMI 2.0's: no direct feedthrough; initially the output depends on
+    :func:`~gatetwin.fmu.description.initial_dependencies` (a plant: the inputs' equilibrium;
+    the PI: its start opening)."""
     structure = ET.SubElement(root, "ModelStructure")
     out = str(desc.output.vr)
     ET.SubElement(structure, "Output", {"valueReference": out, "dependencies": ""})

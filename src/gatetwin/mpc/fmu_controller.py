@@ -1,7 +1,7 @@
 """A controller FMU in the closed loop: the same ``reset``/``step`` as the Python controllers.
 
-:class:`FmuController` drives a controller FMU (:mod:`gatetwin.fmu.controller`: inputs
-``level_<gauge>_mm``, ``flow_m3h``, ``setpoint_mm``, output ``opening_mm``) through fmpy, so
+:class:`FmuController` drives a controller FMU, FMI 2.0 or 3.0 (:mod:`gatetwin.fmu.controller`:
+inputs ``level_<gauge>_mm``, ``flow_m3h``, ``setpoint_mm``, output ``opening_mm``) through fmpy, so
 :func:`gatetwin.mpc.loop.run_closed_loop` runs it exactly as it runs
 :class:`~gatetwin.mpc.pi.PiController`. ``reset`` instantiates the FMU at rest
 (``start_opening_mm`` = the start opening); ``step`` sets the inputs, takes one
@@ -53,6 +53,7 @@ class FmuController:
             )
         self._inputs = [self._vr[levels[0]], self._vr["flow_m3h"], self._vr["setpoint_mm"]]
         self.sample_period_s = float(variables["sample_period_s"].start)
+        self._fmi3 = md.fmiVersion.startswith("3.")
         self._slave: Any = None
         self.time_s = 0.0
 
@@ -60,9 +61,10 @@ class FmuController:
         """Instantiate at rest at ``opening_mm`` with the set-point at ``level_mm``."""
         from fmpy.fmi1 import FMICallException
         from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi3 import FMU3Slave
 
         self.close()
-        slave = FMU2Slave(
+        slave = (FMU3Slave if self._fmi3 else FMU2Slave)(
             guid=self._md.guid,
             unzipDirectory=self._unzipped,
             modelIdentifier=self._md.coSimulation.modelIdentifier,
@@ -72,13 +74,26 @@ class FmuController:
         self._slave = slave
         self.time_s = 0.0
         try:
-            slave.setupExperiment(startTime=0.0)
-            slave.enterInitializationMode()
-            slave.setReal([self._vr["start_opening_mm"]], [float(opening_mm)])
-            slave.setReal(self._inputs, [float(level_mm), float(flow_m3h), float(level_mm)])
+            if self._fmi3:
+                slave.enterInitializationMode(startTime=0.0)
+            else:
+                slave.setupExperiment(startTime=0.0)
+                slave.enterInitializationMode()
+            self._set([self._vr["start_opening_mm"]], [float(opening_mm)])
+            self._set(self._inputs, [float(level_mm), float(flow_m3h), float(level_mm)])
             slave.exitInitializationMode()
         except FMICallException as exc:
             raise ControlError(f"{self.path.name}: reset refused ({exc})") from None
+
+    def _set(self, vrs: list[int], values: list[float]) -> None:
+        if self._fmi3:
+            self._slave.setFloat64(vrs, values)
+        else:
+            self._slave.setReal(vrs, values)
+
+    def _get(self, vr: int) -> float:
+        get = self._slave.getFloat64 if self._fmi3 else self._slave.getReal
+        return float(get([vr])[0])
 
     def step(self, level_mm: float, flow_m3h: float, setpoint_mm: float) -> float:
         """Opening (mm) the FMU computes from these inputs, held over the next sample."""
@@ -88,11 +103,10 @@ class FmuController:
 
         start = time.perf_counter()
         try:
-            self._slave.setReal(self._inputs, [float(level_mm), float(flow_m3h),
-                                               float(setpoint_mm)])  # fmt: skip
+            self._set(self._inputs, [float(level_mm), float(flow_m3h), float(setpoint_mm)])
             self._slave.doStep(currentCommunicationPoint=self.time_s,
                                communicationStepSize=self.sample_period_s)  # fmt: skip
-            opening = float(self._slave.getReal([self._vr["opening_mm"]])[0])
+            opening = self._get(self._vr["opening_mm"])
         except FMICallException as exc:
             raise ControlError(
                 f"{self.path.name}: step at t = {self.time_s} s refused ({exc})"

@@ -1,0 +1,74 @@
+"""``gatetwin validate`` with one record per task: a local process pool and a real dask
+cluster give the serial run's findings, and what cannot be validated still fails in one
+line before any task is sent."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from dask_support import dask_cluster
+from gatetwin.bundled import bundled_records_dir
+from gatetwin.cli import main
+from gatetwin.fmu import export_fmu
+from gatetwin.modelfile import read_model_file
+
+MODEL = Path(__file__).resolve().parents[1] / "models" / "fopdt_3F.json"
+RECORDS = [bundled_records_dir() / f"{name}.csv" for name in ("A", "Q55", "Eboth", "C")]
+#: Per-record keys that say how long a run took: they differ between runs by nature.
+TIMINGS = {"run_time_s"}
+
+
+@pytest.fixture(scope="module")
+def fmu(tmp_path_factory) -> Path:
+    model = read_model_file(MODEL)
+    return export_fmu(model.plant, tmp_path_factory.mktemp("spread") / "fopdt_3F.fmu",
+                      backend="c", model_name=model.name, provenance={})  # fmt: skip
+
+
+def _validate(fmu: Path, out: Path, *extra: str) -> dict:
+    args = ["validate", str(fmu), *map(str, RECORDS), "--json", str(out),
+            "--fail-under", "fit_percent=70", *extra]  # fmt: skip
+    assert main(args) in (0, 1)
+    doc = json.loads(out.read_text(encoding="utf-8"))
+    for rec in doc["records"]:
+        for key in TIMINGS:
+            rec.pop(key, None)
+    return doc
+
+
+@pytest.fixture(scope="module")
+def serial(fmu, tmp_path_factory) -> dict:
+    return _validate(fmu, tmp_path_factory.mktemp("serial") / "v.json")
+
+
+def test_a_process_pool_gives_the_serial_findings(fmu, serial, tmp_path):
+    pooled = _validate(fmu, tmp_path / "v.json", "--workers", "2")
+    assert [r["record"] for r in pooled["records"]] == [p.name for p in RECORDS]
+    assert pooled["records"] == serial["records"]
+    assert pooled["passed"] == serial["passed"]
+
+
+def test_a_dask_cluster_gives_the_serial_findings(fmu, serial, tmp_path):
+    with dask_cluster(tmp_path) as address:
+        spread = _validate(fmu, tmp_path / "v.json", "--scheduler", address)
+    assert spread["records"] == serial["records"]
+    assert spread["static_validation"] == serial["static_validation"]
+
+
+def test_a_record_that_cannot_be_validated_fails_in_one_line_without_output(fmu, tmp_path,
+                                                                            capsys):  # fmt: skip
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time_s,opening_mm\nnot,a,record\n")
+    out = tmp_path / "v.json"
+    code = main(["validate", str(fmu), str(RECORDS[0]), str(bad), "--json", str(out),
+                 "--workers", "2"])  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "bad.csv" in err[0]
+    assert not out.exists()
+    assert main(["validate", str(fmu), str(RECORDS[0]), "--json", str(out), "--workers", "0"]) == 2
+    assert main(["validate", str(fmu), str(RECORDS[0]), "--json", str(out), "--workers", "2",
+                 "--scheduler", "tcp://127.0.0.1:1"]) == 2  # fmt: skip
+    assert not out.exists()
