@@ -255,6 +255,7 @@ def _setpoints(settings: RoutineSettings, duration_s: float, target_mm: float,
 
 def _concat_runs(parts: list[FlumeRun], first: FlumeRun, dt: float) -> FlumeRun:
     """Stitch chunk runs (each starting at the previous one's last sample) into one."""
+
     def cat(get: Any) -> np.ndarray:
         return np.concatenate([get(first)[:1]] + [get(p)[1:] for p in parts])
 
@@ -276,8 +277,9 @@ def run_pi_loop(cfg: FlumeConfig, settings: RoutineSettings, flow: np.ndarray,
                 opening_mm: float) -> FlumeRun:  # fmt: skip
     """The flume under PI level control, one controller period per :func:`run_flume` call."""
     dt = cfg.sample_period_s
-    loop = _pi_tuning(cfg, float(flow[0]), opening_mm, gauge, settings.pi_period_s,
-                      settings.pi_deadband_mm)
+    loop = _pi_tuning(
+        cfg, float(flow[0]), opening_mm, gauge, settings.pi_period_s, settings.pi_deadband_mm
+    )
     m = max(1, round(loop.period_s / dt))
     sp_t = np.array([p[0] for p in setpoints])
     sp_v = np.array([p[1] for p in setpoints])

@@ -235,8 +235,8 @@ def _screen(record: Record, cand: _Candidate, gauge: str, crit: WindowCriteria) 
     noise = float(np.std(yp - np.polyval(coef, tp - tp[0]), ddof=2))
     span = float(tp[-1] - tp[0])
     drift, drift_se = float(coef[0]) * span, float(np.sqrt(cov[0, 0])) * span
-    end_level = np.nanmedian(level[tail][-max(10, round(60.0 / record.sample_period_s)):])
-    response = float(end_level - np.nanmedian(yp[-max(10, yp.size // 3):]))
+    end_level = np.nanmedian(level[tail][-max(10, round(60.0 / record.sample_period_s)) :])
+    response = float(end_level - np.nanmedian(yp[-max(10, yp.size // 3) :]))
     if not abs(response) >= crit.min_response_snr * max(noise, 1e-9):
         return "level response too small"
     if abs(drift) > crit.steady_fraction * abs(response):
@@ -247,8 +247,9 @@ def _screen(record: Record, cand: _Candidate, gauge: str, crit: WindowCriteria) 
 def _closed_loop(scr: _Screen, crit: WindowCriteria, controller: bool) -> bool:
     """A controller's move answers a trend: significant drift against the move's effect."""
     against = np.sign(scr.drift_mm) != np.sign(scr.response_mm)
-    significant = abs(scr.drift_mm) > max(3.0 * scr.drift_se_mm,
-                                          crit.closed_loop_fraction * abs(scr.response_mm))
+    significant = abs(scr.drift_mm) > max(
+        3.0 * scr.drift_se_mm, crit.closed_loop_fraction * abs(scr.response_mm)
+    )
     return controller or bool(against and significant)
 
 
@@ -264,8 +265,10 @@ def _fit_window(record: Record, cand: _Candidate, scr: _Screen, crit: WindowCrit
     except (IdentificationError, ValueError, np.linalg.LinAlgError):
         return "fit failed"
     k_rse = fit.gain_se_mm_per_mm / abs(fit.gain_mm_per_mm) if fit.gain_mm_per_mm else np.inf
-    if not (k_rse <= crit.max_gain_rse
-            and fit.time_constant_se_s <= crit.max_time_constant_rse * fit.time_constant_s):
+    if not (
+        k_rse <= crit.max_gain_rse
+        and fit.time_constant_se_s <= crit.max_time_constant_rse * fit.time_constant_s
+    ):
         return "fit too uncertain"  # fmt: skip
     return RoutineWindow(
         start_time_s=float(t[0]), onset_time_s=float(cand.first.time_s),
@@ -336,8 +339,10 @@ def _no_window_message(record: Record, rejected: dict[str, int]) -> str:
                   if record.unobserved_steps else "")  # fmt: skip
         return f"{where}: no informative window: the gate never moves while logged{hidden}"
     why = ", ".join(f"{reason} {count}" for reason, count in sorted(rejected.items()))
-    return (f"{where}: no informative window among {n} observed gate move(s) "
-            f"(rejected: {why}); no model is estimated")
+    return (
+        f"{where}: no informative window among {n} observed gate move(s) "
+        f"(rejected: {why}); no model is estimated"
+    )
 
 
 def identify_routine(record: Record, gauge: str | None = None,
@@ -395,8 +400,11 @@ def _assemble(record: Record, gauge: str, windows: list[RoutineWindow],
                         "is a closed-loop move; K and T may be biased by the disturbances "
                         "the controller answered")  # fmt: skip
     elif n_closed:
-        use = ("left out of the overall estimate" if open_loop
-               else "the overall estimate uses them and may be biased")
+        use = (
+            "left out of the overall estimate"
+            if open_loop
+            else "the overall estimate uses them and may be biased"
+        )
         warnings.append(f"{n_closed} of {len(windows)} windows move against a level trend "
                         f"before the move (closed-loop moves): {use}")  # fmt: skip
     return RoutineIdentification(
