@@ -699,7 +699,8 @@ def _model_variables(root: ET.Element, desc: FmuDescription) -> None:
 
 
 def _model_structure(root: ET.Element, desc: FmuDescription) -> None:
-    """The output has no direct feedthrough; initially it is the equilibrium of the inputs."""
+    """The outputs have no direct feedthrough; initially they follow from the inputs and
+    parameters (a plant's output is the equilibrium of its inputs)."""
     index = {v.name: i for i, v in enumerate(desc.variables, start=1)}
     dynamic_only = {"time_constant_s", "dead_time_s", "sample_period_s"}
     initial_deps = [
@@ -710,15 +711,18 @@ def _model_structure(root: ET.Element, desc: FmuDescription) -> None:
         and not any(v.name.startswith(f"schedule.{c}[") or v.name == c for c in dynamic_only)
     ]
     structure = ET.SubElement(root, "ModelStructure")
-    out = index[desc.output.name]
+    # every output (a plant has one; a controller FMU has its command and diagnostics)
+    outs = [index[v.name] for v in desc.variables if v.causality == "output"]
     outputs = ET.SubElement(structure, "Outputs")
-    ET.SubElement(outputs, "Unknown", {"index": str(out), "dependencies": ""})
+    for out in outs:
+        ET.SubElement(outputs, "Unknown", {"index": str(out), "dependencies": ""})
     initial = ET.SubElement(structure, "InitialUnknowns")
-    ET.SubElement(
-        initial,
-        "Unknown",
-        {
-            "index": str(out),
-            "dependencies": " ".join(map(str, initial_deps)),
-        },
-    )
+    for out in outs:
+        ET.SubElement(
+            initial,
+            "Unknown",
+            {
+                "index": str(out),
+                "dependencies": " ".join(map(str, initial_deps)),
+            },
+        )
