@@ -22,6 +22,9 @@ ARX ``x(k) = Σ a_i x(k − i) + Σ b_j u(k − nk − j + 1)`` (the paper's con
 being the input in force over the step that ends at sample ``k``) is already discrete;
 its state holds ``na`` past outputs and the register of past inputs.
 
+The FOPDT rendering also runs on casadi symbols (:mod:`gatetwin.mpc.symbolic`), from which
+the C controller FMU's arithmetic is generated (:mod:`gatetwin.mpc.codegen`).
+
 This module renders models; it does not simulate plants (:mod:`gatetwin.plant.simulate`)
 or pose optimisation problems (:mod:`gatetwin.mpc.qp`).
 """

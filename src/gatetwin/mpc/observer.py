@@ -18,6 +18,9 @@ the level state's variance at such a sample: it is unsure how much of the jump h
 happened, takes the level it then measures as the truth, and lets the model (not the
 disturbance) predict the rest of the rise. On a plant that does jump (the FMU) the
 innovation is zero and nothing changes.
+
+:meth:`DisturbanceObserver.start`, ``correct`` and ``predict`` also run on casadi symbols
+(:mod:`gatetwin.mpc.symbolic`): the C controller FMU's observer is generated from them.
 """
 
 from __future__ import annotations
