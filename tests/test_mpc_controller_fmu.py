@@ -141,18 +141,23 @@ def _assert_equal_runs(python, on_fmu, upto=None):
     assert np.max(np.abs(python.command_mm[:stop] - on_fmu.command_mm[:stop])) <= LOOP_TOL_MM
 
 
-@pytest.mark.parametrize("index", [0, 1], ids=["setpoint_steps", "inflow_step"])
-def test_closed_loop_on_the_fmu_equals_the_python_loop(plant, fmu, index):
-    scenario = demo_scenarios(4.0, SHORT)[index]
-    like = replace(SHORT, mpc=replace(SHORT.mpc, qp_solver="qrqp"))
+def _check_loops(plant, fmu, scenario, settings):
+    """Like with like (qrqp in both, fallbacks included), then against the default
+    controller (qpOASES) until qrqp first gives up; returns the FMU's fallback count."""
+    like = replace(settings, mpc=replace(settings.mpc, qp_solver="qrqp"))
     python, on_fmu, statuses = _loops(plant, fmu, scenario, like)
-    _assert_equal_runs(python, on_fmu)  # like with like: qrqp in both, fallbacks included
+    _assert_equal_runs(python, on_fmu)
     assert python.extra["solver_failures"] == int(np.sum(statuses == 1.0))
-    # against the default controller (qpOASES): the same until qrqp first gives up
-    python, on_fmu, statuses = _loops(plant, fmu, scenario, SHORT)
+    python, on_fmu, statuses = _loops(plant, fmu, scenario, settings)
     failed = np.flatnonzero(statuses == 1.0)
     _assert_equal_runs(python, on_fmu, upto=int(failed[0]) if failed.size else None)
     assert np.ptp(on_fmu.command_mm) > 1.0  # the controller did move the gate
+    return failed.size
+
+
+@pytest.mark.parametrize("index", [0, 1], ids=["setpoint_steps", "inflow_step"])
+def test_closed_loop_on_the_fmu_equals_the_python_loop(plant, fmu, index):
+    _check_loops(plant, fmu, demo_scenarios(4.0, SHORT)[index], SHORT)
 
 
 @pytest.mark.slow
@@ -161,10 +166,8 @@ def test_closed_loop_equals_the_python_loop_at_the_demos_horizon(plant, tmp_path
 
     demo = DemoSettings()
     path = export_mpc_controller(plant, tmp_path / "mpc100.fmu", settings=demo.mpc)
-    like = replace(demo, mpc=replace(demo.mpc, qp_solver="qrqp"))
     for scenario in demo_scenarios(2.5, demo):
-        python, on_fmu, _ = _loops(plant, path, scenario, like)
-        _assert_equal_runs(python, on_fmu)
+        _check_loops(plant, path, scenario, demo)
 
 
 def _start(fmu, opening=25.0, level=190.0, flow=40.0):
