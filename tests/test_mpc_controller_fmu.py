@@ -231,3 +231,56 @@ def test_what_the_controller_fmu_does_not_cover_is_refused(plant, tmp_path):
         export_mpc_controller(plant, tmp_path / "x.fmu",
                               settings=replace(SHORT.mpc, level_band_mm=None))  # fmt: skip
     assert not list(tmp_path.iterdir())  # no partial output
+
+
+def test_a_restored_state_repeats_the_same_steps(fmu):
+    slave, vr, _, folder = _start(fmu)
+    ts = SHORT.mpc.sample_period_s
+    outputs = [vr[n] for n in ("opening_mm", "predicted_level_mm", "solver_iterations")]
+
+    def run(t0, n):
+        rows = []
+        for k in range(n):
+            slave.setReal([vr["level_3F_mm"], vr["setpoint_mm"]], [190.0 + 0.4 * k, 205.0])
+            slave.doStep(currentCommunicationPoint=t0 + k * ts, communicationStepSize=ts)
+            rows.append(slave.getReal(outputs))
+        return np.array(rows)
+
+    try:
+        run(0.0, 3)
+        state = slave.getFMUstate()
+        serialized = slave.serializeFMUstate(state)
+        first = run(3 * ts, 5)
+        slave.setFMUstate(state)
+        again = run(3 * ts, 5)
+        slave.setFMUstate(slave.deSerializeFMUstate(serialized))
+        restored = run(3 * ts, 5)
+        slave.freeFMUstate(state)
+        # the same instance from the same state: the same arithmetic, bit for bit
+        assert np.array_equal(first, again) and np.array_equal(first, restored)
+        assert np.ptp(first[:, 0]) > 0.0  # the opening moved
+    finally:
+        slave.terminate()
+        slave.freeInstance()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_a_dead_time_beyond_the_generated_register_is_refused_at_initialisation(fmu):
+    from fmpy import extract
+    from fmpy.fmi1 import FMICallException
+
+    from fmu_support import open_fmu
+
+    folder = extract(str(fmu))
+    driver = open_fmu(folder)
+    slave, vr = driver.slave, driver.vr
+    try:
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.setReal([vr["schedule.dead_time_s[2]"]], [60.0])  # the register holds ~3.6 s
+        with pytest.raises(FMICallException):
+            slave.exitInitializationMode()
+        assert any("schedule.dead_time_s[2]" in m for _, m in driver.messages), driver.messages
+    finally:
+        slave.freeInstance()
+        shutil.rmtree(folder, ignore_errors=True)
