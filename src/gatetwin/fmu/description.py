@@ -762,20 +762,23 @@ def initial_dependencies(desc: ComponentInterface) -> list[VariableSpec]:
 
 
 def _model_structure(root: ET.Element, desc: ComponentInterface) -> None:
-    """The output has no direct feedthrough; initially it depends on
-    :func:`initial_dependencies` (a plant: the equilibrium of the inputs)."""
+    """The outputs have no direct feedthrough; initially they depend on
+    :func:`initial_dependencies` (a plant's output: the equilibrium of the inputs)."""
     index = {v.name: i for i, v in enumerate(desc.variables, start=1)}
     initial_deps = [index[v.name] for v in initial_dependencies(desc)]
     structure = ET.SubElement(root, "ModelStructure")
-    out = index[desc.output.name]
+    # every output (a plant has one; a controller FMU has its command and diagnostics)
+    outs = [index[v.name] for v in desc.variables if v.causality == "output"]
     outputs = ET.SubElement(structure, "Outputs")
-    ET.SubElement(outputs, "Unknown", {"index": str(out), "dependencies": ""})
+    for out in outs:
+        ET.SubElement(outputs, "Unknown", {"index": str(out), "dependencies": ""})
     initial = ET.SubElement(structure, "InitialUnknowns")
-    ET.SubElement(
-        initial,
-        "Unknown",
-        {
-            "index": str(out),
-            "dependencies": " ".join(map(str, initial_deps)),
-        },
-    )
+    for out in outs:
+        ET.SubElement(
+            initial,
+            "Unknown",
+            {
+                "index": str(out),
+                "dependencies": " ".join(map(str, initial_deps)),
+            },
+        )

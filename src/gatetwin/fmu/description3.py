@@ -113,11 +113,13 @@ def _model_variables(root: ET.Element, desc: ComponentInterface) -> None:
 
 
 def _model_structure(root: ET.Element, desc: ComponentInterface) -> None:
-    """As FMI 2.0's: no direct feedthrough; initially the output depends on
+    """As FMI 2.0's: no direct feedthrough; initially the outputs depend on
     :func:`~gatetwin.fmu.description.initial_dependencies` (a plant: the inputs' equilibrium;
     the PI: its start opening)."""
     structure = ET.SubElement(root, "ModelStructure")
-    out = str(desc.output.vr)
-    ET.SubElement(structure, "Output", {"valueReference": out, "dependencies": ""})
+    outs = [str(v.vr) for v in desc.variables if v.causality == "output"]
+    for out in outs:
+        ET.SubElement(structure, "Output", {"valueReference": out, "dependencies": ""})
     deps = " ".join(str(v.vr) for v in initial_dependencies(desc))
-    ET.SubElement(structure, "InitialUnknown", {"valueReference": out, "dependencies": deps})
+    for out in outs:
+        ET.SubElement(structure, "InitialUnknown", {"valueReference": out, "dependencies": deps})

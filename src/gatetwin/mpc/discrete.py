@@ -22,6 +22,9 @@ ARX ``x(k) = Σ a_i x(k − i) + Σ b_j u(k − nk − j + 1)`` (the paper's con
 being the input in force over the step that ends at sample ``k``) is already discrete;
 its state holds ``na`` past outputs and the register of past inputs.
 
+The FOPDT rendering also runs on casadi symbols (:mod:`gatetwin.mpc.symbolic`), from which
+the C controller FMU's arithmetic is generated (:mod:`gatetwin.mpc.codegen`).
+
 This module renders models; it does not simulate plants (:mod:`gatetwin.plant.simulate`)
 or pose optimisation problems (:mod:`gatetwin.mpc.qp`).
 """
@@ -34,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
+from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.augment import append_output_blocks
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.statespace import DiscreteModel
@@ -61,24 +65,25 @@ def fopdt_split(
     b1, b2 : float
         Weights of ``u(k − n)`` and ``u(k − n − 1)``; ``b1 + b2 = K (1 − a)``.
     """
-    if not (time_constant_s > 0 and dead_time_s >= 0 and sample_period_s > 0):
+    symbolic = sym.is_symbolic(gain_mm_per_mm, time_constant_s, dead_time_s)
+    if not symbolic and not (time_constant_s > 0 and dead_time_s >= 0 and sample_period_s > 0):
         raise ControlError(
             f"fopdt: need T > 0, L >= 0, Ts > 0 (got T = {time_constant_s}, "
             f"L = {dead_time_s}, Ts = {sample_period_s})"
         )
     n_whole, theta = _split_delay(dead_time_s, sample_period_s)
-    a = math.exp(-sample_period_s / time_constant_s)
-    late = math.exp(-(sample_period_s - theta) / time_constant_s)
+    a = sym.exp(-sample_period_s / time_constant_s)
+    late = sym.exp(-(sample_period_s - theta) / time_constant_s)
     b1 = gain_mm_per_mm * (1.0 - late)
-    b2 = gain_mm_per_mm * late * (1.0 - math.exp(-theta / time_constant_s))
+    b2 = gain_mm_per_mm * late * (1.0 - sym.exp(-theta / time_constant_s))
     return a, n_whole, b1, b2
 
 
 def _split_delay(dead_time_s: float, sample_period_s: float) -> tuple[int, float]:
     """``L = n Ts + θ``: whole samples ``n`` and the fraction ``0 <= θ < Ts``, s."""
     ratio = dead_time_s / sample_period_s
-    n_whole = math.floor(ratio + DELAY_SPLIT_RTOL * max(1.0, ratio))
-    return n_whole, max(0.0, dead_time_s - n_whole * sample_period_s)
+    n_whole = sym.floor_int(ratio + DELAY_SPLIT_RTOL * sym.fmax(1.0, ratio))
+    return n_whole, sym.fmax(0.0, dead_time_s - n_whole * sample_period_s)
 
 
 def register_length(plant: Plant, sample_period_s: float = SAMPLE_PERIOD_S) -> int:
@@ -119,22 +124,51 @@ def discretise(
 def _fopdt_model(plant: FopdtPlant, fx: EffectSet, q: float, ts: float) -> DiscreteModel:
     gain, tau, delay = fopdt_parameters(plant, fx, q)
     level_ref = plant.schedule.at("level_ref_mm", q)
+    return fopdt_model(
+        gain, tau, delay, level_ref, plant.opening_ref_mm, q, ts, register_length(plant, ts), fx
+    )
+
+
+def fopdt_model(
+    gain: float,
+    tau: float,
+    delay: float,
+    level_ref: float,
+    opening_ref_mm: float,
+    q: float,
+    ts: float,
+    m: int,
+    fx: EffectSet | None = None,
+) -> DiscreteModel:
+    """The FOPDT's discrete model from its parameters at ``q`` (``K``, ``T``, ``L``,
+    ``level_ref_mm``), with a register of ``m`` past inputs.
+
+    The parameters may be casadi symbols (:mod:`gatetwin.mpc.symbolic`): the whole
+    samples of dead time are then a symbol too, and the delayed input's weights are
+    placed in the register by comparing it with each position.
+    """
+    fx = fx or EffectSet()
     if fx.lag:
         core = _lagged_fopdt(gain, tau, delay, fx.lag.time_constant_s, ts)
         n = _split_delay(delay, ts)[0]
     else:
         a, n, b1, b2 = fopdt_split(gain, tau, delay, ts)
-        core = _Core(np.array([[a]]), np.array([b1]), np.array([b2]), np.array([b1 + b2]),
+        dt = sym.dtype_of(a, b1, b2)
+        core = _Core(np.array([[a]], dtype=dt), np.array([b1], dtype=dt),
+                     np.array([b2], dtype=dt), np.array([b1 + b2], dtype=dt),
                      np.zeros(1))  # fmt: skip
     nc = core.phi.shape[0]
-    m = register_length(plant, ts)
     nz = nc + m
-    a_mat = np.zeros((nz, nz))
-    b_vec, b_dist, affine = np.zeros(nz), np.zeros(nz), np.zeros(nz)
+    a_mat = sym.zeros((nz, nz), core.phi, level_ref)
+    b_vec, b_dist, affine = (sym.zeros(nz, core.phi, level_ref) for _ in range(3))
     a_mat[:nc, :nc] = core.phi
     # u(k - j) is state nc + (j - 1) for j >= 1; u(k) itself enters through B
     for lag_samples, weight in ((n, core.late), (n + 1, core.early)):
-        if lag_samples == 0:
+        if sym.is_symbolic(lag_samples):  # a symbol: compare with every position
+            b_vec[:nc] += weight * (lag_samples == 0)
+            for j in range(1, m + 1):
+                a_mat[:nc, nc + j - 1] += weight * (lag_samples == j)
+        elif lag_samples == 0:
             b_vec[:nc] += weight
         else:
             a_mat[:nc, nc + lag_samples - 1] += weight
@@ -148,7 +182,7 @@ def _fopdt_model(plant: FopdtPlant, fx: EffectSet, q: float, ts: float) -> Discr
         c_vec = np.zeros(nz)
         c_vec[1] = 1.0
     return DiscreteModel(
-        a_mat, b_vec, c_vec, b_dist, level_ref, plant.opening_ref_mm, q, ts, nc,
+        a_mat, b_vec, c_vec, b_dist, level_ref, opening_ref_mm, q, ts, nc,
         affine=affine, c_level=c_level, output_offset_mm=0.0 if fx.lag else level_ref,
     )  # fmt: skip
 
@@ -256,6 +290,7 @@ __all__ = [
     "ControlError",
     "DiscreteModel",
     "discretise",
+    "fopdt_model",
     "fopdt_split",
     "register_length",
 ]

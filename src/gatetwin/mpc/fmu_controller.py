@@ -1,23 +1,37 @@
 """A controller FMU in the closed loop: the same ``reset``/``step`` as the Python controllers.
 
-:class:`FmuController` drives a controller FMU, FMI 2.0 or 3.0 (:mod:`gatetwin.fmu.controller`:
-inputs ``level_<gauge>_mm``, ``flow_m3h``, ``setpoint_mm``, output ``opening_mm``) through fmpy, so
-:func:`gatetwin.mpc.loop.run_closed_loop` runs it exactly as it runs
+:class:`FmuController` drives a controller FMU — the PI (:mod:`gatetwin.fmu.controller`,
+FMI 2.0 or 3.0) or the MPC (:mod:`gatetwin.fmu.mpc_controller`): inputs
+``level_<gauge>_mm``, ``flow_m3h``, ``setpoint_mm``, output ``opening_mm`` — through fmpy,
+so :func:`gatetwin.mpc.loop.run_closed_loop` runs it exactly as it runs
 :class:`~gatetwin.mpc.pi.PiController`. ``reset`` instantiates the FMU at rest
-(``start_opening_mm`` = the start opening); ``step`` sets the inputs, takes one
-communication step of one sample period and returns the opening of that sample.
+(``start_opening_mm`` = the start opening, the level and discharge measured at the start);
+``step`` sets the inputs, takes one communication step of one sample period and returns the
+opening of that sample. This module drives an FMU; it computes nothing of the controller's.
 """
 
 from __future__ import annotations
 
+import contextlib
+import math
 import re
 import shutil
 import time
 from pathlib import Path
 from typing import Any
 
+from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
 from gatetwin.mpc.errors import ControlError
 
+#: Outputs a controller FMU may have, read after every step (``diagnostics``): the command,
+#: and the MPC's predicted level, active constraints, solver status and iterations.
+OUTPUTS = (
+    "opening_mm",
+    "predicted_level_mm",
+    "active_constraints",
+    "solver_status",
+    "solver_iterations",
+)
 _LEVEL = re.compile(r"level_.+_mm")
 
 
@@ -28,23 +42,37 @@ class FmuController:
     ----------
     fmu_path : path
         The controller FMU.
-    name : str
-        Name in the loop's results (default ``"pi_fmu"``).
+    sample_period_s : float, optional
+        Communication step; default the FMU's ``sample_period_s`` parameter, else the
+        controllers' sample period.
+    name : str, optional
+        Name in the loop's results (default ``"mpc_fmu"`` for an FMU with a solver status,
+        else ``"pi_fmu"``).
+
+    Attributes
+    ----------
+    last_solve_s : float
+        Wall time of the last ``doStep`` (the whole controller step), s.
+    diagnostics : dict[str, float]
+        The outputs of :data:`OUTPUTS` the FMU has, after the last step.
+    failures : int
+        Steps whose ``solver_status`` was not 0 (the MPC held the opening).
+    statuses : list[float]
+        ``solver_status`` of every step since the last :meth:`reset` (MPC).
     """
 
-    def __init__(self, fmu_path: str | Path, name: str = "pi_fmu") -> None:
+    def __init__(self, fmu_path: str | Path, sample_period_s: float | None = None,
+                 name: str | None = None) -> None:  # fmt: skip
         from fmpy import extract, read_model_description
 
         self.path = Path(fmu_path)
-        self.name = name
-        self.last_solve_s = 0.0
         self._unzipped = extract(str(self.path))
         md = read_model_description(self._unzipped)
         self._md = md
         variables = {v.name: v for v in md.modelVariables}
         self._vr = {n: v.valueReference for n, v in variables.items()}
         levels = [n for n, v in variables.items() if v.causality == "input" and _LEVEL.fullmatch(n)]
-        needed = {"flow_m3h", "setpoint_mm", "opening_mm", "start_opening_mm", "sample_period_s"}
+        needed = {"flow_m3h", "setpoint_mm", "opening_mm", "start_opening_mm"}
         if len(levels) != 1 or not needed <= set(self._vr):
             shutil.rmtree(self._unzipped, ignore_errors=True)
             raise ControlError(
@@ -52,10 +80,18 @@ class FmuController:
                 "level_<gauge>_mm, flow_m3h, setpoint_mm, output opening_mm)"
             )
         self._inputs = [self._vr[levels[0]], self._vr["flow_m3h"], self._vr["setpoint_mm"]]
-        self.sample_period_s = float(variables["sample_period_s"].start)
+        self._outputs = [n for n in OUTPUTS if n in self._vr]
+        own = variables.get("sample_period_s")
+        default = float(own.start) if own is not None and own.start is not None else None
+        self.sample_period_s = sample_period_s or default or SAMPLE_PERIOD_S
+        self.name = name or ("mpc_fmu" if "solver_status" in self._vr else "pi_fmu")
         self._fmi3 = md.fmiVersion.startswith("3.")
         self._slave: Any = None
         self.time_s = 0.0
+        self.last_solve_s = 0.0
+        self.failures = 0
+        self.statuses: list[float] = []
+        self.diagnostics: dict[str, float] = {}
 
     def reset(self, opening_mm: float, level_mm: float, flow_m3h: float) -> None:
         """Instantiate at rest at ``opening_mm`` with the set-point at ``level_mm``."""
@@ -73,6 +109,8 @@ class FmuController:
         slave.instantiate(loggingOn=False)
         self._slave = slave
         self.time_s = 0.0
+        self.failures = 0
+        self.statuses = []
         try:
             if self._fmi3:
                 slave.enterInitializationMode(startTime=0.0)
@@ -91,9 +129,9 @@ class FmuController:
         else:
             self._slave.setReal(vrs, values)
 
-    def _get(self, vr: int) -> float:
+    def _get(self, vrs: list[int]) -> list[float]:
         get = self._slave.getFloat64 if self._fmi3 else self._slave.getReal
-        return float(get([vr])[0])
+        return [float(v) for v in get(vrs)]
 
     def step(self, level_mm: float, flow_m3h: float, setpoint_mm: float) -> float:
         """Opening (mm) the FMU computes from these inputs, held over the next sample."""
@@ -106,13 +144,20 @@ class FmuController:
             self._set(self._inputs, [float(level_mm), float(flow_m3h), float(setpoint_mm)])
             self._slave.doStep(currentCommunicationPoint=self.time_s,
                                communicationStepSize=self.sample_period_s)  # fmt: skip
-            opening = self._get(self._vr["opening_mm"])
+            values = self._get([self._vr[n] for n in self._outputs])
         except FMICallException as exc:
             raise ControlError(
                 f"{self.path.name}: step at t = {self.time_s} s refused ({exc})"
             ) from None
-        self.time_s += self.sample_period_s
         self.last_solve_s = time.perf_counter() - start
+        self.time_s += self.sample_period_s
+        self.diagnostics = dict(zip(self._outputs, values, strict=True))
+        if "solver_status" in self.diagnostics:
+            self.statuses.append(self.diagnostics["solver_status"])
+            self.failures += self.diagnostics["solver_status"] != 0.0
+        opening = self.diagnostics["opening_mm"]
+        if not math.isfinite(opening):
+            raise ControlError(f"{self.path.name}: opening {opening} is not finite")
         return opening
 
     def close(self) -> None:
@@ -120,17 +165,15 @@ class FmuController:
         from fmpy.fmi1 import FMICallException
 
         if self._slave is not None:
-            try:
+            with contextlib.suppress(FMICallException):  # an instance in error: just free it
                 self._slave.terminate()
-            except FMICallException:
-                pass  # the instance is in the error state; freeing it is all that is left
             self._slave.freeInstance()
             self._slave = None
 
     def cleanup(self) -> None:
-        """Close and delete the extracted FMU."""
+        """Close the instance and delete the extracted FMU."""
         self.close()
         shutil.rmtree(self._unzipped, ignore_errors=True)
 
 
-__all__ = ["FmuController"]
+__all__ = ["OUTPUTS", "FmuController"]

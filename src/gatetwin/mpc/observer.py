@@ -18,6 +18,9 @@ the level state's variance at such a sample: it is unsure how much of the jump h
 happened, takes the level it then measures as the truth, and lets the model (not the
 disturbance) predict the rest of the rise. On a plant that does jump (the FMU) the
 innovation is zero and nothing changes.
+
+:meth:`DisturbanceObserver.start`, ``correct`` and ``predict`` also run on casadi symbols
+(:mod:`gatetwin.mpc.symbolic`): the C controller FMU's observer is generated from them.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import LinAlgError, solve_discrete_are
 
+from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import DiscreteModel
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.settings import ObserverSettings
@@ -32,7 +36,7 @@ from gatetwin.mpc.settings import ObserverSettings
 
 def _augmented(model: DiscreteModel) -> tuple[np.ndarray, np.ndarray]:
     nz = model.n_states
-    a_aug = np.zeros((nz + 1, nz + 1))
+    a_aug = sym.zeros((nz + 1, nz + 1), model.a, model.b_dist)
     a_aug[:nz, :nz] = model.a
     a_aug[:nz, nz] = model.b_dist
     a_aug[nz, nz] = 1.0
@@ -91,14 +95,30 @@ class DisturbanceObserver:
 
     def reset(self, model: DiscreteModel, opening_mm: float, level_mm: float) -> None:
         """Steady state at ``opening_mm``; the level's offset from the model becomes ``d``."""
-        dc = model.dc_gain_mm_per_mm()
-        self.disturbance_mm = 0.0
-        if dc != 0.0:
-            steady = model.level_mm(model.steady_state(opening_mm))
-            self.disturbance_mm = (level_mm - steady) / dc
-        self.state = model.steady_state(opening_mm, self.disturbance_mm)
+        self.start(model, opening_mm, level_mm)
         self.covariance = steady_prior_covariance(model, self.settings)
+
+    def start(self, model: DiscreteModel, opening_mm: float, level_mm: float) -> None:
+        """:meth:`reset` without the covariance (which the caller sets)."""
+        dc = model.dc_gain_mm_per_mm()
+        steady = model.level_mm(model.steady_state(opening_mm))
+        if sym.is_symbolic(dc, steady, level_mm):  # both branches are formed, one is taken
+            self.disturbance_mm = sym.where(dc != 0.0, (level_mm - steady) / dc, 0.0)
+        else:
+            self.disturbance_mm = (level_mm - steady) / dc if dc != 0.0 else 0.0
+        self.state = model.steady_state(opening_mm, self.disturbance_mm)
         self._level_ref_mm = model.level_ref_mm
+
+    def set_estimate(
+        self,
+        state: np.ndarray,
+        disturbance_mm: float,
+        covariance: np.ndarray,
+        level_ref_mm: float,
+    ) -> None:
+        """Take an estimate as it stands (``level_ref_mm``: the last prediction model's)."""
+        self.state, self.disturbance_mm, self.covariance = state, disturbance_mm, covariance
+        self._level_ref_mm = level_ref_mm
 
     def correct(self, model: DiscreteModel, level_mm: float) -> float:
         """Update with the level measured now; ``model`` is the one of the last prediction.
@@ -111,9 +131,9 @@ class DisturbanceObserver:
         gain = pc / (c @ pc + self.settings.measurement_sd_mm**2)
         innovation = level_mm - model.level_mm(self.state)
         self.state = self.state + gain[:-1] * innovation
-        self.disturbance_mm += float(gain[-1]) * innovation
+        self.disturbance_mm += sym.scalar(gain[-1]) * innovation
         self.covariance = p - np.outer(gain, pc)
-        return float(innovation)
+        return sym.scalar(innovation)
 
     def rescale_disturbance(self, old_gain: float, new_gain: float) -> None:
         """Keep the disturbance's steady effect on the level when the model's gain changes.

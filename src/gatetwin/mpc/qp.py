@@ -34,6 +34,7 @@ import casadi
 import numpy as np
 from scipy.linalg import toeplitz
 
+from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import DiscreteModel
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.settings import MpcSettings
@@ -118,7 +119,7 @@ class MpcSolution:
 
 def prediction_matrix(model: DiscreteModel, horizon: int) -> np.ndarray:
     """``G`` with ``G[j, i] = C_level A^(j−i) B``: level at ``k+1+j`` per mm of ``e_i``."""
-    markov = np.empty(horizon)
+    markov = sym.zeros(horizon, model.a, model.b)
     v = model.b.copy()
     for m in range(horizon):
         markov[m] = model.c_level @ v
@@ -135,8 +136,8 @@ def free_response(
     observer's business.
     """
     drive = model.b_dist * disturbance_mm + model.affine
-    z = np.asarray(state, dtype=float)
-    out = np.empty(horizon)
+    z = sym.asarray(state)
+    out = sym.zeros(horizon, model.a, z, drive)
     for j in range(horizon):
         z = model.a @ z + drive
         out[j] = model.c_level @ z
@@ -176,7 +177,9 @@ class CondensedQp:
     Openings are ``e = e_prev + S Δe`` with ``S`` the lower-triangular matrix of ones.
     """
 
-    def __init__(self, model: DiscreteModel, settings: MpcSettings) -> None:
+    def __init__(
+        self, model: DiscreteModel, settings: MpcSettings, *, matrices: bool = True
+    ) -> None:
         n = settings.horizon
         self.model = model
         self.settings = settings
@@ -185,24 +188,9 @@ class CondensedQp:
         self.gain = prediction_matrix(model, n)
         self.cumulative = np.tril(np.ones((n, n)))
         self.move_gain = np.cumsum(self.gain[:, ::-1], axis=1)[:, ::-1]  # G @ S
-        h_move = 2.0 * (
-            settings.level_weight * self.move_gain.T @ self.move_gain
-            + settings.move_weight * np.eye(n)
-        )
-        if not self.has_band:
-            self.h, self.a = h_move, self.cumulative
-            return
-        self.h = np.zeros((n + 1, n + 1))
-        self.h[:n, :n] = h_move
-        self.h[n, n] = 2.0 * settings.slack_weight_quadratic
-        one = np.ones((n, 1))
-        self.a = np.block(
-            [
-                [self.cumulative, np.zeros((n, 1))],
-                [self.move_gain, one],
-                [self.move_gain, -one],
-            ]
-        )
+        # with matrices=False (the code generator's symbolic model) H and A are formed from
+        # move_gain as casadi matrices instead: qp_matrices on an MX
+        self.h, self.a = qp_matrices(self.move_gain, settings) if matrices else (None, None)
 
     def serves(self, model: DiscreteModel, settings: MpcSettings) -> bool:
         """Whether these matrices are ``model``'s under ``settings``: they depend on ``A``,
@@ -262,6 +250,29 @@ class CondensedQp:
         return free + self.gain @ (openings_mm - model.opening_ref_mm)
 
 
+def qp_matrices(move_gain: Any, settings: MpcSettings) -> tuple[Any, Any]:
+    """``H`` and ``A`` of the QP from ``G S`` (``move_gain``): numpy arrays, or casadi
+    matrices for a casadi ``move_gain`` (the generated controller's)."""
+    n = settings.horizon
+    h_move = 2.0 * (
+        settings.level_weight * move_gain.T @ move_gain + settings.move_weight * np.eye(n)
+    )
+    cumulative = np.tril(np.ones((n, n)))
+    if settings.level_band_mm is None:
+        return h_move, cumulative
+    corner = np.array([[2.0 * settings.slack_weight_quadratic]])
+    one = np.ones((n, 1))
+    if isinstance(move_gain, (casadi.SX, casadi.MX)):
+        zero = np.zeros((n, 1))
+        h = casadi.blockcat([[h_move, zero], [zero.T, corner]])
+        return h, casadi.blockcat([[cumulative, zero], [move_gain, one], [move_gain, -one]])
+    h = np.zeros((n + 1, n + 1))
+    h[:n, :n] = h_move
+    h[n, n] = corner[0, 0]
+    a = np.block([[cumulative, np.zeros((n, 1))], [move_gain, one], [move_gain, -one]])
+    return h, a
+
+
 def _solver_options(name: str) -> dict[str, Any]:
     if name == "qpoases":
         return {
@@ -282,7 +293,26 @@ def _solver_options(name: str) -> dict[str, Any]:
                 "polish": True,
             },
         }
+    if name == "qrqp":
+        return qrqp_options(QRQP_MAX_ITER)
     return {"error_on_fail": False}
+
+
+#: Iterations qrqp may take on one QP (each adds or drops one constraint; a warm start
+#: from the last solution's multipliers needs a few, a cold one about as many as there are
+#: active constraints).
+QRQP_MAX_ITER = 200
+
+
+def qrqp_options(max_iter: int) -> dict[str, Any]:
+    """Options of casadi's ``qrqp`` (the QP solver casadi generates C for), silent."""
+    return {
+        "max_iter": int(max_iter),
+        "print_iter": False,
+        "print_header": False,
+        "print_info": False,
+        "error_on_fail": False,
+    }
 
 
 def set_casadi_blas_threads(threads: int) -> bool:
@@ -406,5 +436,7 @@ __all__ = [
     "QpData",
     "free_response",
     "prediction_matrix",
+    "qp_matrices",
+    "qrqp_options",
     "set_casadi_blas_threads",
 ]

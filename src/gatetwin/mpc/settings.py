@@ -9,7 +9,7 @@ from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
 from gatetwin.mpc.errors import ControlError
 
 #: QP solvers reachable from PyPI's casadi that the MPC accepts (casadi ``conic`` plugins).
-QP_SOLVERS = ("qpoases", "daqp", "osqp")
+QP_SOLVERS = ("qpoases", "daqp", "osqp", "qrqp")
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,9 @@ class MpcSettings:
         Penalties of the band slack, 1/mm² and 1/mm.
     qp_solver : str
         casadi conic plugin: ``"qpoases"`` (default: fastest measured, hot-started),
-        ``"daqp"`` or ``"osqp"``; see ``benchmarks/bench_mpc.py``.
+        ``"daqp"``, ``"osqp"`` or ``"qrqp"`` (casadi's own active-set solver, the one the
+        C controller FMU carries, :mod:`gatetwin.fmu.mpc_controller`); see
+        ``benchmarks/bench_mpc.py``.
     blas_threads : int or None
         Threads of the OpenBLAS bundled with casadi, which qpOASES' dense algebra uses
         (process-wide; ``None`` leaves it alone). 1: at N = 100–200 the matrices are too

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gatetwin.mpc import symbolic as sym
+
 
 @dataclass(frozen=True, eq=False)
 class DiscreteModel:
@@ -92,30 +94,30 @@ class DiscreteModel:
 
     def level_mm(self, z: np.ndarray) -> float:
         """What the gauge reads in state ``z``, mm."""
-        return float(self.output_offset_mm + self.c @ z)
+        return sym.scalar(self.output_offset_mm + self.c @ z)
 
     def process_level_mm(self, z: np.ndarray) -> float:
         """The water level in state ``z`` (without the sensor blocks), mm."""
-        return float(self.level_ref_mm + self.c_level @ z)
+        return sym.scalar(self.level_ref_mm + self.c_level @ z)
 
     def steady_state(self, opening_mm: float, disturbance_mm: float = 0.0) -> np.ndarray:
         """Equilibrium state for a constant opening (the plants' initial state); the
         ``fixed_states`` take their start values."""
         u = opening_mm - self.opening_ref_mm
-        z = np.zeros(self.n_states)
+        z = sym.zeros(self.n_states, self.a, opening_mm, disturbance_mm)
         fixed = np.asarray(self.fixed_states, dtype=int)
         z[fixed] = self.fixed_values
         free = self.free_states
         rhs = self.b * u + self.b_dist * disturbance_mm + self.affine + self.a @ z
         lhs = np.eye(free.size) - self.a[np.ix_(free, free)]
-        z[free] = np.linalg.solve(lhs, rhs[free])
+        z[free] = sym.solve(lhs, rhs[free])
         return z
 
     def dc_gain_mm_per_mm(self) -> float:
         """Steady change of the reading per mm of opening."""
         free = self.free_states
         lhs = np.eye(free.size) - self.a[np.ix_(free, free)]
-        return float(self.c[free] @ np.linalg.solve(lhs, self.b[free]))
+        return sym.scalar(self.c[free] @ sym.solve(lhs, self.b[free]))
 
 
 __all__ = ["DiscreteModel"]
