@@ -1,4 +1,5 @@
-"""Argument parsing and printing of ``identify``, ``models`` and ``export`` (no logic)."""
+"""Argument parsing and printing of ``identify``, ``models``, ``export`` and
+``export-observer`` (no logic)."""
 
 from __future__ import annotations
 
@@ -191,4 +192,37 @@ def run_export(args: argparse.Namespace) -> int:
         folder = Path(args.cross_check) / model.name
         write_cross_check(model, Path(path), record, folder)
         print(f"wrote the cross-check package {folder}")
+    return 0
+
+
+def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
+    from gatetwin.mpc.online import ANOMALY_BAND_SIGMA, ANOMALY_RUN_SAMPLES, DEFAULT_HORIZON_S
+
+    parser.add_argument("model", metavar="MODEL.json")
+    parser.add_argument("--out", metavar="NAME.fmu", required=True)
+    parser.add_argument("--horizon", metavar="S", type=float, default=DEFAULT_HORIZON_S,
+                        help="how far ahead predicted_level_mm looks, s: a whole multiple of "
+                        f"the 1.2 s sample period (default {DEFAULT_HORIZON_S:g})")  # fmt: skip
+    parser.add_argument("--band", metavar="SIGMA", type=float, default=ANOMALY_BAND_SIGMA,
+                        help="band of the normalised innovation, standard deviations "
+                        f"(default {ANOMALY_BAND_SIGMA:g})")  # fmt: skip
+    parser.add_argument("--run-samples", metavar="N", type=int, default=ANOMALY_RUN_SAMPLES,
+                        help="consecutive samples outside the band that raise the anomaly "
+                        f"flag (default {ANOMALY_RUN_SAMPLES})")  # fmt: skip
+    parser.add_argument("--without-effects", action="store_true",
+                        help="observe with the model's FOPDT alone, its effect blocks dropped "
+                        "(a model with effect blocks is refused otherwise)")  # fmt: skip
+
+
+def run_export_observer(args: argparse.Namespace) -> int:
+    from gatetwin.fmu.observer_fmu import export_observer
+    from gatetwin.modelfile import read_model_file
+    from gatetwin.mpc.online import AnomalySettings
+
+    anomaly = AnomalySettings(band_sigma=args.band, run_samples=args.run_samples)
+    model = read_model_file(args.model)
+    check_writable(args.out)
+    path = export_observer(model.plant, args.out, horizon_s=args.horizon, anomaly=anomaly,
+                           without_effects=args.without_effects)  # fmt: skip
+    print(f"wrote {path}")
     return 0

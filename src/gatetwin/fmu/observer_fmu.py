@@ -119,11 +119,12 @@ def export_observer(
     """
     plant = _load(model_or_path, without_effects)
     try:
+        plant = checked_plant(plant, "observer FMU")
         forecast_samples(horizon_s, SAMPLE_PERIOD_S)
-        cfg = _Config(checked_plant(plant), float(horizon_s), settings or ObserverSettings(),
-                      anomaly or AnomalySettings(), model_name)  # fmt: skip
     except ControlError as exc:
-        raise ExportError(f"observer FMU: {exc}") from None
+        raise ExportError(str(exc)) from None
+    cfg = _Config(plant, float(horizon_s), settings or ObserverSettings(),
+                  anomaly or AnomalySettings(), model_name)  # fmt: skip
     target = Path(out_path)
     if target.suffix.lower() != ".fmu":
         raise ExportError(f"output {target} must end in .fmu")

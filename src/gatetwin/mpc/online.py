@@ -164,15 +164,16 @@ def forecast_samples(horizon_s: float, sample_period_s: float) -> int:
     return int(n)
 
 
-def checked_plant(plant: Any) -> FopdtPlant:
+def checked_plant(plant: Any, who: str = "online observer") -> FopdtPlant:
     """``plant`` if the observer covers it (a scheduled FOPDT without effect blocks)."""
     if not isinstance(plant, FopdtPlant):
         kind = getattr(plant, "kind", type(plant).__name__)
-        raise ControlError(f"online observer: needs a scheduled FOPDT plant (got {kind})")
+        raise ControlError(f"{who}: needs a scheduled FOPDT plant (got {kind})")
     if plant.effects:
         kinds = ", ".join(e["kind"] for e in plant.effects)
-        raise ControlError(f"online observer: effect blocks are not covered (plant has {kinds}); "
-                           "observe with the plant without them")  # fmt: skip
+        raise ControlError(f"{who}: effect blocks are not covered (plant has {kinds}); observe "
+                           "with the plant without them (without_effects, "
+                           "gatetwin export-observer --without-effects)")  # fmt: skip
     return plant
 
 
