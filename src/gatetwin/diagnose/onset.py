@@ -121,6 +121,17 @@ def _received(
     return gate, q
 
 
+def first_move_after(time_s: np.ndarray, opening_mm: np.ndarray, fraction: float = 0.4) -> int:
+    """Index of the first opening change at or after ``fraction`` of the record's span: an
+    onset at a gate move, so that a gate fault appears at once."""
+    t, e = np.asarray(time_s, dtype=float), np.asarray(opening_mm, dtype=float)
+    start = t[0] + fraction * (t[-1] - t[0])
+    moves = np.flatnonzero((t[1:] >= start) & (np.diff(e) != 0.0)) + 1
+    if moves.size == 0:
+        raise OnsetError(f"no gate move after {start:g} s")
+    return int(moves[0])
+
+
 @dataclass(frozen=True)
 class Detection:
     """An anomaly flag read against a known onset.
@@ -153,4 +164,5 @@ def detection(time_s: np.ndarray, anomaly: np.ndarray, onset: int | None) -> Det
     return Detection(delay, len(rises))
 
 
-__all__ = ["ONSET_EFFECTS", "Detection", "OnsetError", "detection", "with_onset"]
+__all__ = ["ONSET_EFFECTS", "Detection", "OnsetError", "detection", "first_move_after",
+           "with_onset"]  # fmt: skip

@@ -50,6 +50,7 @@ from gatetwin.mpc.observer_codegen import ESTIMATE, build_observer_functions, ge
 from gatetwin.mpc.online import (
     DEFAULT_HORIZON_S,
     MAX_HORIZON_S,
+    MONITORING,
     AnomalySettings,
     checked_plant,
     forecast_samples,
@@ -101,7 +102,8 @@ def export_observer(
         Start value of the fixed parameter ``horizon_s``: how far ahead
         ``predicted_level_mm`` looks, s (a whole multiple of the 1.2 s sample period).
     settings : ObserverSettings, optional
-        Noise levels of the Kalman filter (the MPC's by default).
+        Noise levels of the Kalman filter (:data:`gatetwin.mpc.online.MONITORING` by
+        default).
     anomaly : AnomalySettings, optional
         Start values of ``anomaly_band_sigma`` and ``anomaly_run_samples``.
     without_effects : bool
@@ -123,7 +125,7 @@ def export_observer(
         forecast_samples(horizon_s, SAMPLE_PERIOD_S)
     except ControlError as exc:
         raise ExportError(str(exc)) from None
-    cfg = _Config(plant, float(horizon_s), settings or ObserverSettings(),
+    cfg = _Config(plant, float(horizon_s), settings or MONITORING,
                   anomaly or AnomalySettings(), model_name)  # fmt: skip
     target = Path(out_path)
     if target.suffix.lower() != ".fmu":
