@@ -7,7 +7,7 @@
  * correct, matrices, vectors, qp, plan, predict. Per sample, as MpcController.step: correct
  * the observer with the measured level (model of the last prediction), form the QP at the
  * measured discharge (its matrices only when the discharge changed), solve it (qrqp, bounded
- * iterations, warm-started from the last solution), take the plan's first opening, predict.
+ * iterations, from the last solution), take the plan's first opening, predict.
  * When the solver does not converge the opening is held and solver_status is 1.
  *
  * Timing: doStep(t, h) reads the inputs at t and sets opening_mm for [t, t + h) (the sample
@@ -179,8 +179,10 @@ static void form_matrices(ModelData *m, double q)
     m->have_matrices = 1;
 }
 
-/* Solve this sample's QP from the observer's estimate; returns 1 when qrqp converged to a
- * finite solution (kept as the next warm start), else 0. */
+/* Solve this sample's QP from the observer's estimate; returns 1 when qrqp converged, else 0.
+ * A finite solution is the next call's initial guess (as the Python controller's backend
+ * keeps it); the multipliers start at zero, as there (warm-started multipliers made qrqp
+ * cycle to its iteration limit on the demo's transients). */
 static int solve(ModelData *m, double q, double setpoint_mm, double *x, double *iterations,
                  double *active)
 {
@@ -193,10 +195,9 @@ static int solve(ModelData *m, double q, double setpoint_mm, double *x, double *
         call(m, gt_mpc_vectors, in, 6, out, 5);
     }
     {
-        const double *in[10] = {m->h,   m->g,   m->a, m->lba,   m->uba,
-                                m->lbx, m->ubx, m->x, m->lam_x, m->lam_a};
+        const double *in[8] = {m->h, m->g, m->a, m->lba, m->uba, m->lbx, m->ubx, m->x};
         double *out[4] = {x, cost, lam_a, lam_x};
-        flag = call(m, gt_mpc_qp, in, 10, out, 4);
+        flag = call(m, gt_mpc_qp, in, 8, out, 4);
     }
     *iterations = cost[1];
     for (i = 0; i < GT_MPC_NV; i++) {
@@ -210,10 +211,6 @@ static int solve(ModelData *m, double q, double setpoint_mm, double *x, double *
         return 0;
     }
     memcpy(m->x, x, sizeof m->x);
-    if (all_finite(lam_x, GT_MPC_NV) && all_finite(lam_a, GT_MPC_NC)) {
-        memcpy(m->lam_x, lam_x, sizeof m->lam_x);
-        memcpy(m->lam_a, lam_a, sizeof m->lam_a);
-    }
     return flag == 0;
 }
 
@@ -291,8 +288,6 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
     m->flow_model_m3h = q;
     m->have_matrices = 0;
     memset(m->x, 0, sizeof m->x);
-    memset(m->lam_x, 0, sizeof m->lam_x);
-    memset(m->lam_a, 0, sizeof m->lam_a);
     solve(m, q, y, x, &iterations, &active);
     memset(zero, 0, sizeof zero);
     plan(m, q, zero, &opening, &level);
@@ -377,7 +372,6 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
                                    m->flow_matrices_m3h};
         if (!all_finite(scalars, 4) || !all_finite(m->z, GT_MPC_NZ) ||
             !all_finite(m->p, GT_MPC_NP) || !all_finite(m->x, GT_MPC_NV) ||
-            !all_finite(m->lam_x, GT_MPC_NV) || !all_finite(m->lam_a, GT_MPC_NC) ||
             !all_finite(m->h, GT_MPC_NV * GT_MPC_NV) ||
             !all_finite(m->a, GT_MPC_NC * GT_MPC_NV)) {
             plant_message(msg, "state of the observer or of the QP is not finite");

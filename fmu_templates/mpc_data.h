@@ -24,12 +24,10 @@ typedef struct {
     double opening_mm;        /* opening held since the last sample (the rate limit's anchor) */
     double flow_model_m3h;    /* discharge of the observer's model (the last prediction's) */
     double flow_matrices_m3h; /* discharge h and a were formed at */
-    /* the last QP: matrices (column-major, dense), solution and multipliers (warm start) */
+    /* the last QP: matrices (column-major, dense) and solution (the next initial guess) */
     double h[GT_MPC_NV * GT_MPC_NV];
     double a[GT_MPC_NC * GT_MPC_NV];
     double x[GT_MPC_NV];
-    double lam_x[GT_MPC_NV];
-    double lam_a[GT_MPC_NC];
     /* scratch of one sample: the QP's vectors and the generated code's work arrays */
     double g[GT_MPC_NV], lba[GT_MPC_NC], uba[GT_MPC_NC], lbx[GT_MPC_NV], ubx[GT_MPC_NV];
     casadi_int iw[GT_MPC_SZ_IW];

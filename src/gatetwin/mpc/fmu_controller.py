@@ -40,6 +40,8 @@ class FmuController:
         The outputs after the last step (:data:`OUTPUTS`).
     failures : int
         Steps whose ``solver_status`` was 1 (the opening held).
+    statuses : list[float]
+        ``solver_status`` of every step since the last :meth:`reset`.
     """
 
     name = "mpc_fmu"
@@ -61,6 +63,7 @@ class FmuController:
         self.time_s = 0.0
         self.last_solve_s = 0.0
         self.failures = 0
+        self.statuses: list[float] = []
         self.diagnostics: dict[str, float] = {}
 
     def reset(self, opening_mm: float, level_mm: float, flow_m3h: float) -> None:
@@ -78,6 +81,7 @@ class FmuController:
         self._slave = slave
         self.time_s = 0.0
         self.failures = 0
+        self.statuses = []
         slave.setupExperiment(startTime=0.0)
         slave.enterInitializationMode()
         slave.setReal([self._vr["start_opening_mm"]], [float(opening_mm)])
@@ -108,6 +112,7 @@ class FmuController:
         self.last_solve_s = time.perf_counter() - start
         self.time_s += self.sample_period_s
         self.diagnostics = dict(zip(OUTPUTS, values, strict=True))
+        self.statuses.append(self.diagnostics["solver_status"])
         if self.diagnostics["solver_status"] != 0.0:
             self.failures += 1
         opening = float(self.diagnostics["opening_mm"])

@@ -1,0 +1,230 @@
+"""The MPC controller FMU (C, casadi-generated arithmetic): FMI validity, the generated
+functions against the numpy controller they are built from, the closed loop against the
+Python loop, refusals and the solver fallback.
+
+The default tests use the demo's settings with a 30-sample horizon (the generated qrqp
+factorises the dense QP's KKT matrix at every iteration: ~1 ms at N = 30, ~30 ms at the
+demo's N = 100); the demo's horizon itself is the slow test.
+"""
+
+from __future__ import annotations
+
+import shutil
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from gatetwin.errors import ExportError
+from gatetwin.mpc import DemoSettings, demo_plant, demo_scenarios
+from gatetwin.mpc.codegen import COLUMNS, build_functions
+from gatetwin.mpc.demo import _controller, _PlantFactory, _run_one
+from gatetwin.mpc.discrete import discretise, register_length
+from gatetwin.mpc.fmu_controller import FmuController
+from gatetwin.mpc.observer import DisturbanceObserver, steady_prior_covariance
+from gatetwin.mpc.qp import CondensedQp, MpcProblem
+from gatetwin.mpc.settings import MpcSettings
+from gatetwin.plant.model import FopdtPlant
+
+pytestmark = pytest.mark.skipif(
+    shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler"
+)
+
+#: Equality of the two loops, mm. Both solve the same strictly convex QP from the same data
+#: to its unique solution, so each sample's opening agrees to the QP's round-off (measured:
+#: ~1e-13 mm); the loop is stable, so that does not grow. 1e-9 mm leaves four orders of
+#: margin and is still far below anything physical (the actuator's resolution is 1 mm).
+LOOP_TOL_MM = 1e-9
+#: The generated functions against the numpy code: the same operations in (mostly) the same
+#: order; sums of up to N terms reordered by BLAS give round-off of N·eps relative to the
+#: largest term, well inside 1e-12.
+FUNCTION_RTOL = 1e-12
+SHORT = DemoSettings(mpc=MpcSettings(horizon=30))
+
+
+@pytest.fixture(scope="module")
+def plant() -> FopdtPlant:
+    return demo_plant()
+
+
+@pytest.fixture(scope="module")
+def fmu(plant, tmp_path_factory):
+    from gatetwin.fmu.mpc_controller import export_mpc_controller
+
+    path = tmp_path_factory.mktemp("mpc_fmu") / "gatetwin_mpc.fmu"
+    return export_mpc_controller(plant, path, settings=SHORT.mpc)
+
+
+@pytest.fixture(scope="module")
+def functions(plant):
+    s = SHORT.mpc
+    fns, _ = build_functions(len(plant.schedule.flow_m3h), register_length(plant), s, 50)
+    values = [*plant.schedule.flow_m3h, *(v for c in COLUMNS for v in plant.schedule.values[c])]
+    return fns, np.array([*values, plant.opening_ref_mm])
+
+
+def test_the_fmu_passes_fmpy_validation(fmu):
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(fmu)) == []
+
+
+def _close(actual, expected, rtol=FUNCTION_RTOL):
+    actual = np.asarray(actual, dtype=float).ravel()
+    expected = np.asarray(expected, dtype=float).ravel()
+    finite = np.isfinite(expected)
+    assert np.array_equal(finite, np.isfinite(actual))
+    assert np.array_equal(actual[~finite], expected[~finite])
+    scale = np.max(np.abs(expected[finite]), initial=1.0)
+    assert np.max(np.abs(actual[finite] - expected[finite]), initial=0.0) <= rtol * scale
+
+
+# knots, between knots, a knot's neighbourhood and both clamped ends
+@pytest.mark.parametrize("q", [29.5, 40.0, 47.3, 60.0 + 1e-9, 84.9, 10.0, 120.0])
+def test_generated_functions_equal_the_numpy_controller(plant, functions, q):
+    fns, theta = functions
+    s = SHORT.mpc
+    model = discretise(plant, q, s.sample_period_s)
+    qp = CondensedQp(model, s)
+    h, a = fns["matrices"](theta, q)
+    _close(h, qp.h)
+    _close(a, qp.a)
+    obs = DisturbanceObserver(s.observer)
+    obs.reset(model, 31.0, 205.0)
+    z, d = fns["start"](theta, q, 31.0, 205.0)
+    _close(z, obs.state)
+    _close(d, obs.disturbance_mm)
+    data = qp.data(MpcProblem(model, obs.state, obs.disturbance_mm, 215.0, 31.0, s))
+    got = fns["vectors"](theta, q, obs.state, obs.disturbance_mm, 31.0, 215.0)
+    for vector, want in zip(got, (data.g, data.lba, data.uba, data.lbx, data.ubx), strict=True):
+        _close(vector, want)
+    p0 = obs.covariance.copy()
+    z1, d1, p1 = fns["correct"](theta, q, obs.state, obs.disturbance_mm, p0, 207.5)
+    obs.correct(model, 207.5)
+    _close(z1, obs.state)
+    _close(d1, obs.disturbance_mm)
+    _close(p1, obs.covariance)
+
+
+def test_the_riccati_iteration_settles_on_scipys_steady_covariance(plant, functions):
+    fns, theta = functions
+    s = SHORT.mpc
+    model = discretise(plant, 47.3, s.sample_period_s)
+    p = np.zeros((model.n_states + 1,) * 2)
+    for _ in range(10_000):  # the FMU's loop: until a step moves nothing by 1e-14 relative
+        nxt = np.array(fns["riccati"](theta, 47.3, p))
+        done = np.max(np.abs(nxt - p)) <= 1e-14 * np.max(np.abs(nxt))
+        p = nxt
+        if done:
+            break
+    # scipy's solver and the fixed point agree to the Riccati map's round-off
+    _close(p, steady_prior_covariance(model, s.observer), rtol=1e-12)
+
+
+def _loops(plant, fmu, scenario, settings):
+    """Python MPC (settings' QP solver) and the FMU, each on a fresh plant FMU."""
+    controller = FmuController(fmu, settings.mpc.sample_period_s)
+    try:
+        with _PlantFactory(plant, "fmu", settings) as factory:
+            python = _run_one(factory.make(), _controller("mpc", plant, settings), scenario,
+                              settings)  # fmt: skip
+            on_fmu = _run_one(factory.make(), controller, scenario, settings)
+    finally:
+        controller.cleanup()
+    return python, on_fmu, np.asarray(controller.statuses)
+
+
+def _assert_equal_runs(python, on_fmu, upto=None):
+    stop = python.level_mm.size if upto is None else upto
+    assert stop > 0
+    assert np.max(np.abs(python.level_mm[:stop] - on_fmu.level_mm[:stop])) <= LOOP_TOL_MM
+    assert np.max(np.abs(python.command_mm[:stop] - on_fmu.command_mm[:stop])) <= LOOP_TOL_MM
+
+
+@pytest.mark.parametrize("index", [0, 1], ids=["setpoint_steps", "inflow_step"])
+def test_closed_loop_on_the_fmu_equals_the_python_loop(plant, fmu, index):
+    scenario = demo_scenarios(4.0, SHORT)[index]
+    like = replace(SHORT, mpc=replace(SHORT.mpc, qp_solver="qrqp"))
+    python, on_fmu, statuses = _loops(plant, fmu, scenario, like)
+    _assert_equal_runs(python, on_fmu)  # like with like: qrqp in both, fallbacks included
+    assert python.extra["solver_failures"] == int(np.sum(statuses == 1.0))
+    # against the default controller (qpOASES): the same until qrqp first gives up
+    python, on_fmu, statuses = _loops(plant, fmu, scenario, SHORT)
+    failed = np.flatnonzero(statuses == 1.0)
+    _assert_equal_runs(python, on_fmu, upto=int(failed[0]) if failed.size else None)
+    assert np.ptp(on_fmu.command_mm) > 1.0  # the controller did move the gate
+
+
+@pytest.mark.slow
+def test_closed_loop_equals_the_python_loop_at_the_demos_horizon(plant, tmp_path):
+    from gatetwin.fmu.mpc_controller import export_mpc_controller
+
+    demo = DemoSettings()
+    path = export_mpc_controller(plant, tmp_path / "mpc100.fmu", settings=demo.mpc)
+    like = replace(demo, mpc=replace(demo.mpc, qp_solver="qrqp"))
+    for scenario in demo_scenarios(2.5, demo):
+        python, on_fmu, _ = _loops(plant, path, scenario, like)
+        _assert_equal_runs(python, on_fmu)
+
+
+def _start(fmu, opening=25.0, level=190.0, flow=40.0):
+    """The FMU initialised at rest, with a logger that keeps every message."""
+    from fmpy import extract
+
+    from fmu_support import open_fmu
+
+    folder = extract(str(fmu))
+    driver = open_fmu(folder)
+    slave, vr = driver.slave, driver.vr
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.setReal([vr["start_opening_mm"], vr["level_3F_mm"], vr["flow_m3h"], vr["setpoint_mm"]],
+                  [opening, level, flow, level])  # fmt: skip
+    slave.exitInitializationMode()
+    return slave, vr, driver.messages, folder
+
+
+def test_a_nan_level_is_refused_with_a_logged_reason(fmu):
+    from fmpy.fmi1 import FMICallException
+
+    slave, vr, logged, folder = _start(fmu)
+    try:
+        with pytest.raises(FMICallException):
+            slave.setReal([vr["level_3F_mm"]], [float("nan")])
+        assert any("level_3F_mm" in m and "not finite" in m for _, m in logged), logged
+    finally:
+        slave.freeInstance()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_a_solver_that_does_not_converge_holds_the_opening_and_says_so(plant, tmp_path):
+    from gatetwin.fmu.mpc_controller import export_mpc_controller
+
+    fmu = export_mpc_controller(plant, tmp_path / "one_iteration.fmu", settings=SHORT.mpc,
+                                max_iter=1)  # fmt: skip
+    slave, vr, _, folder = _start(fmu, opening=25.0, level=190.0)
+    try:
+        # a 20 mm set-point step: the plan runs into the rate limit at many samples, i.e.
+        # many active bounds, each one qrqp iteration from the cold start
+        slave.setReal([vr["setpoint_mm"]], [210.0])
+        slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=SHORT.mpc.sample_period_s)
+        names = ["opening_mm", "solver_status", "solver_iterations"]
+        opening, status, iterations = slave.getReal([vr[n] for n in names])
+        assert (opening, status, iterations) == (25.0, 1.0, 1.0)
+    finally:
+        slave.terminate()
+        slave.freeInstance()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_what_the_controller_fmu_does_not_cover_is_refused(plant, tmp_path):
+    from gatetwin.fmu.mpc_controller import export_mpc_controller
+
+    rate = {"kind": "actuator_rate_limit", "rate_mm_per_s": 1.0}
+    with_block = replace(plant, effects=(rate,))
+    with pytest.raises(ExportError, match="effect blocks"):
+        export_mpc_controller(with_block, tmp_path / "x.fmu", settings=SHORT.mpc)
+    with pytest.raises(ExportError, match="level band"):
+        export_mpc_controller(plant, tmp_path / "x.fmu",
+                              settings=replace(SHORT.mpc, level_band_mm=None))  # fmt: skip
+    assert not list(tmp_path.iterdir())  # no partial output
