@@ -186,7 +186,7 @@ def test_cli_exports_and_refuses_in_one_line(tmp_path, capsys):
 
 def test_the_flag_stays_down_on_the_records_the_model_comes_from(fmu):
     """White unit innovations leave the 3-sigma band 4 times in a row with probability
-    0.0027**4 = 5e-11 per sample: none of the ~9000 samples may raise the flag."""
+    0.0027**4 = 5e-11 per sample: none of the ~7600 samples may raise the flag."""
     for name in FIT_RECORDS:
         t, y, e, q = _inputs(name)
         with warnings.catch_warnings():

@@ -12,7 +12,8 @@ against a ``casadi.Opti`` + IPOPT formulation (:mod:`~gatetwin.mpc.opti`). The P
 baseline is tuned by SIMC with python-control margins (:mod:`~gatetwin.mpc.pi`). Plants
 in the loop (FMU, flume, Python model) share one step interface
 (:mod:`~gatetwin.mpc.plants`); runs and metrics are in :mod:`~gatetwin.mpc.loop`, the demo
-in :mod:`~gatetwin.mpc.demo`.
+in :mod:`~gatetwin.mpc.demo`. The observer run online on measured data, with an anomaly
+flag, is :class:`~gatetwin.mpc.online.OnlineObserver`.
 
 This package controls plants; it does not identify or export them.
 """
@@ -33,6 +34,7 @@ from gatetwin.mpc.envelope import linearised_model
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.loop import ClosedLoopRun, LoopSettings, Scenario, loop_metrics, run_closed_loop
 from gatetwin.mpc.observer import DisturbanceObserver
+from gatetwin.mpc.online import AnomalySettings, OnlineEstimate, OnlineObserver
 from gatetwin.mpc.opti import OptiBackend
 from gatetwin.mpc.pi import (
     LoopMargins,
@@ -48,6 +50,7 @@ from gatetwin.mpc.qp import MpcProblem, MpcSolution, QpBackend
 from gatetwin.mpc.settings import MpcSettings, ObserverSettings
 
 __all__ = [
+    "AnomalySettings",
     "ClosedLoopRun",
     "ControlError",
     "DemoSettings",
@@ -65,6 +68,8 @@ __all__ = [
     "MpcSettings",
     "MpcSolution",
     "ObserverSettings",
+    "OnlineEstimate",
+    "OnlineObserver",
     "OptiBackend",
     "PiController",
     "PiSettings",
