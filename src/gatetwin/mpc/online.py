@@ -207,10 +207,17 @@ class OnlineObserver:
 
     Examples
     --------
-    >>> obs = OnlineObserver(plant, horizon_s=60.0)          # doctest: +SKIP
-    >>> obs.reset(opening_mm=30.0, level_mm=250.0, flow_m3h=55.0)  # doctest: +SKIP
-    >>> obs.step(level_mm=250.4, opening_mm=30.0, flow_m3h=55.0).anomaly  # doctest: +SKIP
-    0.0
+    >>> from gatetwin.plant.model import FopdtPlant, Schedule
+    >>> plant = FopdtPlant("3F", 25.0, Schedule((55.0,), {
+    ...     "gain_mm_per_mm": (-12.0,), "time_constant_s": (55.0,), "dead_time_s": (0.0,),
+    ...     "level_ref_mm": (300.0,)}))
+    >>> obs = OnlineObserver(plant, horizon_s=60.0)
+    >>> rest = obs.reset(opening_mm=25.0, level_mm=300.0, flow_m3h=55.0)
+    >>> round(rest.predicted_level_mm, 6)
+    300.0
+    >>> now = obs.step(level_mm=300.0, opening_mm=30.0, flow_m3h=55.0)  # gate opened 5 mm
+    >>> now.anomaly, round(now.predicted_level_mm - now.filtered_level_mm, 1)  # K·5·(1−e^-60/55)
+    (0.0, -39.8)
     """
 
     plant: FopdtPlant
