@@ -68,6 +68,63 @@ def test_fmu_equals_the_python_observer_on_a_bundled_record(plant, fmu, name):
     assert np.ptp(ref["innovation_mm"]) > 1.0  # the record moves the observer
 
 
+def test_a_scheduled_dead_time_is_followed_across_discharges(plant, tmp_path):
+    """Dead times of 0.5-3.6 s (0-3 whole samples plus a fraction), re-rendered at every
+    measured discharge of Eboth (45-75 m3/h): the register's symbolic placement in C."""
+    from gatetwin.plant.model import Schedule
+
+    s = plant.schedule
+    delays = (0.5, 1.0, 1.5, 2.4, 3.0, 3.6)
+    slow = dataclasses.replace(plant, schedule=Schedule(s.flow_m3h, {**s.values,
+                                                                     "dead_time_s": delays}))
+    fmu = export_observer(slow, tmp_path / "delayed.fmu")
+    _, y, e, q = _inputs("Eboth")
+    got = run_observer_fmu(fmu, y, e, q)
+    ref = OnlineObserver(slow).run(y, e, q)
+    for key in OUTPUTS:
+        np.testing.assert_allclose(got[key], ref[key], rtol=0, atol=TOL, err_msg=key)
+
+
+def test_a_saved_state_replays_the_same_samples(fmu):
+    _, y, e, q = _inputs("C")
+    slave, vr = _slave(fmu)
+    slave.exitInitializationMode()
+    inputs = [vr["level_3F_mm"], vr["opening_mm"], vr["flow_m3h"]]
+    outs = [vr[n] for n in OUTPUTS]
+
+    def run(first: int) -> list[list[float]]:
+        rows = []
+        for k in range(first, first + 20):
+            slave.setReal(inputs, [float(y[k]), float(e[k]), float(q[k])])
+            slave.doStep(currentCommunicationPoint=k * 1.2, communicationStepSize=1.2)
+            rows.append(slave.getReal(outs))
+        return rows
+
+    run(0)
+    state = slave.getFMUstate()
+    first = run(20)
+    slave.setFMUstate(state)
+    again = run(20)
+    slave.freeFMUstate(state)
+    slave.freeInstance()
+    assert first == again and first[0] != first[-1]
+
+
+@pytest.mark.parametrize(("name", "value"), [("level_3F_mm", float("nan")),
+                                             ("flow_m3h", 1e5)])  # fmt: skip
+def test_a_bad_measurement_is_refused(fmu, name, value):
+    """By the glue when it is set (not finite) or by the observer at the step (a discharge
+    outside the plants' range)."""
+    from fmpy.fmi1 import FMICallException
+
+    slave, vr = _slave(fmu)
+    slave.exitInitializationMode()
+    with pytest.raises(FMICallException):
+        slave.setReal([vr[name]], [value])
+        slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=1.2)
+    slave.freeInstance()
+
+
 def test_fmu_passes_fmpy_validation_and_carries_its_sources(fmu):
     assert validate_fmu(str(fmu)) == []
     names = zipfile.ZipFile(fmu).namelist()
