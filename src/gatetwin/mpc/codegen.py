@@ -112,8 +112,7 @@ class SymbolicController:
 
     def observer(self, model: DiscreteModel, z: np.ndarray, d: Any, p: np.ndarray) -> Any:
         obs = DisturbanceObserver(self.settings.observer)
-        obs.state, obs.disturbance_mm, obs.covariance = z, d, p
-        obs._level_ref_mm = model.level_ref_mm
+        obs.set_estimate(z, d, p, model.level_ref_mm)
         return obs
 
     def problem(self, q: Any, z: np.ndarray, d: Any, e: Any, r: Any) -> MpcProblem:

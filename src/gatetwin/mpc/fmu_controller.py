@@ -9,6 +9,7 @@ FMU; it computes nothing of the controller's.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import shutil
 import time
@@ -121,8 +122,11 @@ class FmuController:
         return opening
 
     def close(self) -> None:
+        from fmpy.fmi1 import FMICallException
+
         if self._slave is not None:
-            self._slave.terminate()
+            with contextlib.suppress(FMICallException):  # an instance in error: just free it
+                self._slave.terminate()
             self._slave.freeInstance()
             self._slave = None
 

@@ -106,6 +106,14 @@ class DisturbanceObserver:
         self.state = model.steady_state(opening_mm, self.disturbance_mm)
         self._level_ref_mm = model.level_ref_mm
 
+    def set_estimate(
+        self, state: np.ndarray, disturbance_mm: float, covariance: np.ndarray,
+        level_ref_mm: float,
+    ) -> None:
+        """Take an estimate as it stands (``level_ref_mm``: the last prediction model's)."""
+        self.state, self.disturbance_mm, self.covariance = state, disturbance_mm, covariance
+        self._level_ref_mm = level_ref_mm
+
     def correct(self, model: DiscreteModel, level_mm: float) -> float:
         """Update with the level measured now; ``model`` is the one of the last prediction.
 
