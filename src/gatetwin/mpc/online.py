@@ -11,8 +11,8 @@ The anomaly flag rises when the normalised innovation has stayed outside ``±ban
 for ``run_samples`` consecutive samples (:class:`AnomalySettings`). A model that explains
 the record leaves white innovations of unit variance: one sample beyond 3 σ happens with
 probability 0.27 % (a logger spike does it too), four in a row practically never. A fault
-that changes the level faster than the filter expects (a stuck or slowed gate, a sensor lag
-on a move, a seiche) holds the innovation outside the band for as long as the observer's
+that changes the level faster than the filter expects (a stuck or slowed gate on a large
+move, a sensor lag on a fast move, a seiche of several noise SDs) holds the innovation outside the band for as long as the observer's
 disturbance has not absorbed it; a slow one (a drift, an unseen inflow) is absorbed into
 ``disturbance_mm`` without leaving the band.
 
@@ -53,7 +53,8 @@ ANOMALY_RUN_SAMPLES = 4
 #: deviation on the step records the bundled models are identified from (0.91-1.06 on
 #: Q40-Q85 with fopdt_3F); level and disturbance noise at half and a third of the MPC's, so a
 #: fault shows in the innovation for several samples before the disturbance takes it up (the
-#: MPC's tuning absorbs a stuck gate within a sample or two).
+#: MPC's tuning takes a fault into the disturbance so fast that its innovation rarely leaves
+#: the band).
 MONITORING = ObserverSettings(measurement_sd_mm=1.0, level_sd_mm=0.5, disturbance_sd_mm=0.1)
 
 
