@@ -12,9 +12,9 @@ for ``run_samples`` consecutive samples (:class:`AnomalySettings`). A model that
 the record leaves white innovations of unit variance: one sample beyond 3 σ happens with
 probability 0.27 % (a logger spike does it too), four in a row practically never. A fault
 that changes the level faster than the filter expects (a stuck or slowed gate on a large
-move, a sensor lag on a fast move, a seiche of several noise SDs) holds the innovation outside the band for as long as the observer's
-disturbance has not absorbed it; a slow one (a drift, an unseen inflow) is absorbed into
-``disturbance_mm`` without leaving the band.
+move, a sensor lag on a fast move, a seiche of several noise SDs) holds the innovation
+outside the band for as long as the observer's disturbance has not absorbed it; a slow one
+(a drift, an unseen inflow) is absorbed into ``disturbance_mm`` without leaving the band.
 
 The per-sample arithmetic (:func:`correct_sample`, :func:`forecast_level`) runs on numbers
 and on casadi symbols alike; :mod:`gatetwin.mpc.observer_codegen` builds the observer
