@@ -22,6 +22,7 @@ MODULES = (
     "gatetwin.api._diagnosis",
     "gatetwin.bundled",
     "gatetwin.fmu.provenance",
+    "gatetwin.mpc.online",
 )
 #: Examples that take longer than the default run should (identify_folder fits a physical
 #: model per gauge: ~12 s on two shared cores).

@@ -123,15 +123,19 @@ _DEFINITION = re.compile(r"^(?!static\b)[A-Za-z_][\w \t\*]*?\b([A-Za-z_]\w*)\s*\
 _CALL = re.compile(r"\b([A-Za-z_]\w*)\s*\(")
 
 
+#: The components of the FMUs other than the plant's (controllers, the observer).
+COMPONENTS = ("controller_", "observer")
+
+
 def _c_units(component: str | None = None) -> dict[str, str]:
-    """The plant FMU's translation units, or a controller FMU's (the glue and
-    ``controller_<component>.c``): each is its own program."""
+    """The plant FMU's translation units, or another FMU's (the glue and its component
+    ``<component>.c``, e.g. ``controller_mpc``): each is its own program."""
     from gatetwin.fmu.c_build import generated_blocks, generated_kernel
 
     units = {p.name: p.read_text("utf-8") for p in TEMPLATES.glob("*.c")}
     if component is not None:
-        return {k: v for k, v in units.items() if k in ("fmi2_glue.c", f"controller_{component}.c")}
-    units = {k: v for k, v in units.items() if not k.startswith("controller_")}
+        return {k: v for k, v in units.items() if k in ("fmi2_glue.c", f"{component}.c")}
+    units = {k: v for k, v in units.items() if not k.startswith(COMPONENTS)}
     units.update({k: v for k, v in {**generated_blocks(), **generated_kernel()}.items()
                   if k.endswith(".c")})  # fmt: skip
     return units
@@ -157,8 +161,9 @@ def test_no_call_circles_between_c_translation_units():
     graph = _c_graph(_c_units())
     assert "component.c" in graph["effects.c"]  # the walker sees the real calls
     assert _cycles(graph) == []
-    controllers = [p.stem.removeprefix("controller_") for p in TEMPLATES.glob("controller_*.c")]
-    for name in controllers:
+    components = [p.stem for p in TEMPLATES.glob("*.c") if p.name.startswith(COMPONENTS)]
+    assert {"controller_mpc", "observer"} <= set(components)
+    for name in components:
         graph = _c_graph(_c_units(name))
-        assert f"controller_{name}.c" in graph["fmi2_glue.c"]  # the glue calls the component
+        assert f"{name}.c" in graph["fmi2_glue.c"]  # the glue calls the component
         assert _cycles(graph) == []

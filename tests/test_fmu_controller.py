@@ -205,9 +205,10 @@ def test_the_c_pi_law_is_the_python_one_to_the_bit(tmp_path):
         assert (out[0].value, out[1].value) == pi_step(*args)
 
 
-def test_export_controller_refuses_mpc_and_non_fopdt_models_without_output(tmp_path, capsys):
+def test_export_controller_refuses_what_it_does_not_build_without_output(tmp_path, capsys):
     for argv in (
-        ["--kind", "mpc", str(MODEL)],
+        ["--kind", "mpc", "--fmi", "3", str(MODEL)],
+        ["--kind", "pi", "--horizon", "30", str(MODEL)],
         ["--kind", "pi", str(MODELS / "arx_3F.json")],
         ["--fmi", "3", str(MODELS / "arx_3F.json")],
     ):
@@ -221,8 +222,9 @@ def test_export_controller_refuses_mpc_and_non_fopdt_models_without_output(tmp_p
     assert main(["export-controller", str(bad), "--out", str(tmp_path / "c.fmu")]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
-    with pytest.raises(ExportError, match="MPC controller FMU is not built"):
-        export_controller(read_model_file(MODEL), "mpc", tmp_path / "c.fmu")
+    with pytest.raises(ExportError, match="FMI 2.0 only"):
+        export_controller(read_model_file(MODEL), "mpc", tmp_path / "c.fmu", fmi_version="3.0")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
 
 
 def test_export_controller_cli_writes_the_fmu(tmp_path, capsys):

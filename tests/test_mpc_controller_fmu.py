@@ -284,3 +284,27 @@ def test_a_dead_time_beyond_the_generated_register_is_refused_at_initialisation(
     finally:
         slave.freeInstance()
         shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_export_controller_builds_the_mpc_from_a_model_file(tmp_path, capsys):
+    """The command line's ``--kind mpc`` (at a short horizon, to keep the build quick) writes
+    the same kind of FMU: valid, with the MPC's diagnostic outputs; the bundled model's
+    seiche block is refused unless dropped on purpose."""
+    from pathlib import Path
+
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+
+    from gatetwin.cli import main
+
+    model = Path(__file__).resolve().parents[1] / "models" / "fopdt_3F.json"
+    out = tmp_path / "mpc.fmu"
+    args = ["export-controller", str(model), "--kind", "mpc", "--horizon", "20", "--out", str(out)]
+    assert main(args) == 2
+    assert "effect blocks are not covered" in capsys.readouterr().err and not out.exists()
+    assert main([*args, "--without-effects"]) == 0
+    assert str(out) in capsys.readouterr().out
+    assert validate_fmu(str(out)) == []
+    outputs = {v.name for v in read_model_description(str(out)).modelVariables
+               if v.causality == "output"}  # fmt: skip
+    assert {"opening_mm", "solver_status", "solver_iterations"} <= outputs

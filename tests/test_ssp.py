@@ -120,7 +120,7 @@ def test_bad_packages_and_requests_are_one_line_without_output(package, tmp_path
         assert len(err) == 1 and err[0].startswith("gatetwin: error:") and str(bad) in err[0]
         assert not out.exists()
     assert main(["ssp", str(MODEL), "--out", str(tmp_path / "m.ssp"), "--controller", "mpc"]) == 2
-    assert "MPC controller FMU is not built" in capsys.readouterr().err
+    assert "not packed into one yet" in capsys.readouterr().err
     assert not (tmp_path / "m.ssp").exists()
     with pytest.raises(ExportError, match="must end in .ssp"):
         write_ssp(read_model_file(MODEL), tmp_path / "loop.zip")

@@ -415,6 +415,13 @@ _COMMANDS: tuple[Command, ...] = (
         _model_cmds.run_export_controller,
     ),
     Command(
+        "export-observer",
+        "export the observer of a model file as an FMI 2.0 co-simulation FMU (C): filtered "
+        "level, disturbance, innovation, forecast and an anomaly flag from measurements",
+        _model_cmds.add_export_observer_arguments,
+        _model_cmds.run_export_observer,
+    ),
+    Command(
         "validate",
         "simulate an FMU on measured records with fmpy and score it (JSON, JUnit, plots)",
         _add_validate_arguments,

@@ -1,9 +1,11 @@
-"""Argument parsing and printing of ``identify``, ``models`` and ``export`` (no logic)."""
+"""Argument parsing and printing of ``identify``, ``models``, ``export`` and
+``export-observer`` (no logic)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from gatetwin._io import check_writable, write_json_atomic
@@ -256,7 +258,17 @@ def add_export_controller_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("model", metavar="MODEL.json", help="FOPDT model file (SIMC tuning)")
     parser.add_argument(
         "--kind", choices=("pi", "mpc"), default="pi",
-        help="controller: pi (default; the MPC controller FMU is not built by this command)",
+        help="controller: pi (default), or mpc (the demo's single-point MPC; FMI 2.0)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--horizon", metavar="N", type=int,
+        help="mpc: prediction horizon in samples (default: the demo's 100; the step's cost "
+        "grows about as N^3, see README)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--without-effects", action="store_true",
+        help="mpc: control the model's FOPDT with its effect blocks dropped (the MPC FMU does "
+        "not cover them; a model with effect blocks is refused otherwise)",
     )  # fmt: skip
     parser.add_argument("--out", metavar="NAME.fmu", required=True)
     parser.add_argument(
@@ -272,8 +284,53 @@ def run_export_controller(args: argparse.Namespace) -> int:
     from gatetwin.modelfile import read_model_file
 
     check_controller_kind(args.kind)
+    settings = None
+    if args.horizon is not None:
+        if args.kind != "mpc":
+            raise GatetwinError("--horizon applies to --kind mpc")
+        from gatetwin.mpc.demo import DemoSettings
+
+        demo = DemoSettings()
+        settings = replace(demo, mpc=replace(demo.mpc, horizon=args.horizon))
     model = read_model_file(args.model)
     check_writable(args.out)
-    path = export_controller(model, args.kind, args.out, fmi_version=f"{args.fmi}.0")
+    if args.without_effects and args.kind != "mpc":
+        raise GatetwinError("--without-effects applies to --kind mpc")
+    path = export_controller(model, args.kind, args.out, settings=settings,
+                             fmi_version=f"{args.fmi}.0",
+                             without_effects=args.without_effects)  # fmt: skip
+    print(f"wrote {path}")
+    return 0
+
+
+def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
+    from gatetwin.mpc.online import ANOMALY_BAND_SIGMA, ANOMALY_RUN_SAMPLES, DEFAULT_HORIZON_S
+
+    parser.add_argument("model", metavar="MODEL.json")
+    parser.add_argument("--out", metavar="NAME.fmu", required=True)
+    parser.add_argument("--horizon", metavar="S", type=float, default=DEFAULT_HORIZON_S,
+                        help="how far ahead predicted_level_mm looks, s: a whole multiple of "
+                        f"the 1.2 s sample period (default {DEFAULT_HORIZON_S:g})")  # fmt: skip
+    parser.add_argument("--band", metavar="SIGMA", type=float, default=ANOMALY_BAND_SIGMA,
+                        help="band of the normalised innovation, standard deviations "
+                        f"(default {ANOMALY_BAND_SIGMA:g})")  # fmt: skip
+    parser.add_argument("--run-samples", metavar="N", type=int, default=ANOMALY_RUN_SAMPLES,
+                        help="consecutive samples outside the band that raise the anomaly "
+                        f"flag (default {ANOMALY_RUN_SAMPLES})")  # fmt: skip
+    parser.add_argument("--without-effects", action="store_true",
+                        help="observe with the model's FOPDT alone, its effect blocks dropped "
+                        "(a model with effect blocks is refused otherwise)")  # fmt: skip
+
+
+def run_export_observer(args: argparse.Namespace) -> int:
+    from gatetwin.fmu.observer_fmu import export_observer
+    from gatetwin.modelfile import read_model_file
+    from gatetwin.mpc.online import AnomalySettings
+
+    anomaly = AnomalySettings(band_sigma=args.band, run_samples=args.run_samples)
+    model = read_model_file(args.model)
+    check_writable(args.out)
+    path = export_observer(model.plant, args.out, horizon_s=args.horizon, anomaly=anomaly,
+                           without_effects=args.without_effects)  # fmt: skip
     print(f"wrote {path}")
     return 0

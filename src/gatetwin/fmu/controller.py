@@ -64,7 +64,7 @@ if TYPE_CHECKING:
     from gatetwin.modelfile import ModelFile
     from gatetwin.mpc.demo import DemoSettings
 
-#: Controllers a model can be exported with; ``mpc`` is refused (:func:`check_controller_kind`).
+#: Controllers a model can be exported with (``mpc``: :mod:`gatetwin.fmu.mpc_controller`).
 CONTROLLER_KINDS = ("pi", "mpc")
 #: The FMI API a controller FMU carries by default (FMI 3.0: ``fmi_version="3.0"``).
 FMI_API = FMI_APIS["2.0"]
@@ -138,11 +138,26 @@ def pi_files(fmi_version: str = "2.0") -> tuple[tuple[str, ...], tuple[str, ...]
     return (api.glue, *PI_COMPONENT_SOURCES), (*api.headers, *PI_COMPONENT_HEADERS)
 
 
+def _export_mpc(model: ModelFile, out_path: str | os.PathLike[str],
+                settings: DemoSettings | None, model_name: str | None,
+                fmi_version: str, without_effects: bool) -> Path:  # fmt: skip
+    """The MPC controller FMU (:func:`gatetwin.fmu.mpc_controller.export_mpc_controller`)."""
+    from dataclasses import replace
+
+    from gatetwin.fmu.mpc_controller import export_mpc_controller
+
+    if fmi_version != "2.0":
+        raise ExportError("the MPC controller FMU is built as FMI 2.0 only (--fmi 2)")
+    plant = model.plant
+    if without_effects and isinstance(plant, FopdtPlant):
+        plant = replace(plant, effects=())
+    return export_mpc_controller(plant, out_path,
+                                 settings=settings.mpc if settings else None,
+                                 model_name=model_name or f"{model.name}_mpc")  # fmt: skip
+
+
 def check_controller_kind(kind: str) -> None:
     """Raise :class:`ExportError` unless ``kind`` is a controller this package builds."""
-    if kind == "mpc":
-        raise ExportError("the MPC controller FMU is not built by this command yet; only the "
-                          "PI controller (pi) is")  # fmt: skip
     if kind not in CONTROLLER_KINDS:
         raise ExportError(f"controller kind must be one of {', '.join(CONTROLLER_KINDS)} "
                           f"(got {kind!r})")  # fmt: skip
@@ -361,6 +376,7 @@ def export_controller(
     settings: DemoSettings | None = None,
     model_name: str | None = None,
     fmi_version: str = "2.0",
+    without_effects: bool = False,
 ) -> Path:
     """Build the ``kind`` controller FMU of ``model`` at ``out_path``; return its path.
 
@@ -369,7 +385,9 @@ def export_controller(
     model : ModelFile
         A read model file (:func:`gatetwin.modelfile.read_model_file`) of an FOPDT plant.
     kind : {"pi", "mpc"}
-        ``"pi"``; ``"mpc"`` raises :class:`ExportError` (not built by this function yet).
+        ``"pi"``: the SIMC PI; ``"mpc"``: the demo's single-point MPC
+        (:func:`gatetwin.fmu.mpc_controller.export_mpc_controller`, FMI 2.0, with
+        ``settings.mpc``).
     out_path : path
         Target ``.fmu``, written atomically (built next to it, moved into place on success).
     settings : DemoSettings, optional
@@ -379,6 +397,9 @@ def export_controller(
     fmi_version : {"2.0", "3.0"}
         FMI co-simulation API of the FMU: same variables, value references and outputs
         (FMI 3.0 adds ``time``).
+    without_effects : bool
+        ``mpc``: control the model's FOPDT with its effect blocks dropped (the MPC controller
+        FMU does not cover them; a model with effect blocks is refused otherwise).
 
     Raises
     ------
@@ -390,6 +411,8 @@ def export_controller(
     """
     check_controller_kind(kind)
     pi_files(fmi_version)
+    if kind == "mpc":
+        return _export_mpc(model, out_path, settings, model_name, fmi_version, without_effects)
     target = Path(out_path)
     if target.suffix.lower() != ".fmu":
         raise ExportError(f"output {target} must end in .fmu")

@@ -14,7 +14,8 @@ arithmetic of its sample is written once (:mod:`~gatetwin.mpc.pi_law`) and also 
 C controller FMU, which :mod:`~gatetwin.mpc.fmu_controller` puts in the loop. Plants
 in the loop (FMU, flume, Python model) share one step interface
 (:mod:`~gatetwin.mpc.plants`); runs and metrics are in :mod:`~gatetwin.mpc.loop`, the demo
-in :mod:`~gatetwin.mpc.demo`.
+in :mod:`~gatetwin.mpc.demo`. The observer run online on measured data, with an anomaly
+flag, is :class:`~gatetwin.mpc.online.OnlineObserver`.
 
 This package controls plants; it does not identify or export them.
 """
@@ -35,6 +36,7 @@ from gatetwin.mpc.envelope import linearised_model
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.loop import ClosedLoopRun, LoopSettings, Scenario, loop_metrics, run_closed_loop
 from gatetwin.mpc.observer import DisturbanceObserver
+from gatetwin.mpc.online import AnomalySettings, OnlineEstimate, OnlineObserver
 from gatetwin.mpc.opti import OptiBackend
 from gatetwin.mpc.pi import (
     LoopMargins,
@@ -50,6 +52,7 @@ from gatetwin.mpc.qp import MpcProblem, MpcSolution, QpBackend
 from gatetwin.mpc.settings import MpcSettings, ObserverSettings
 
 __all__ = [
+    "AnomalySettings",
     "ClosedLoopRun",
     "ControlError",
     "DemoSettings",
@@ -67,6 +70,8 @@ __all__ = [
     "MpcSettings",
     "MpcSolution",
     "ObserverSettings",
+    "OnlineEstimate",
+    "OnlineObserver",
     "OptiBackend",
     "PiController",
     "PiSettings",

@@ -124,6 +124,8 @@ def _unary(fn: Any, numeric: Any) -> Any:
 exp = _unary(casadi.exp, math.exp)
 #: ``math.floor`` (an int), or casadi's ``floor`` (a symbol holding a whole number).
 floor_int = _unary(casadi.floor, math.floor)
+sqrt = _unary(casadi.sqrt, math.sqrt)
+fabs = _unary(casadi.fabs, abs)
 
 
 def fmax(a: Any, b: Any) -> Any:
@@ -185,12 +187,14 @@ __all__ = [
     "clip",
     "dtype_of",
     "exp",
+    "fabs",
     "floor_int",
     "fmax",
     "from_casadi",
     "is_symbolic",
     "scalar",
     "solve",
+    "sqrt",
     "symbols",
     "to_casadi",
     "where",

@@ -182,7 +182,7 @@ def write_ssp(
     out_path : path
         Target ``.ssp``, written atomically.
     controller : {"pi", "mpc"}
-        ``"mpc"`` raises :class:`~gatetwin.errors.ExportError` (not built yet).
+        ``"mpc"`` raises :class:`~gatetwin.errors.ExportError` (not packed yet).
     scenario : Scenario, optional
         Default: the demo's ``setpoint_steps`` over 30 minutes
         (:func:`gatetwin.mpc.demo.demo_scenarios`).
@@ -200,6 +200,11 @@ def write_ssp(
     from gatetwin.mpc.demo import DemoSettings, demo_scenarios
 
     check_controller_kind(controller)
+    if controller != "pi":
+        raise ExportError(
+            "the SSP packs the PI controller FMU; the MPC controller FMU "
+            "(gatetwin export-controller --kind mpc) is not packed into one yet"
+        )
     target = Path(out_path)
     if target.suffix.lower() != ".ssp":
         raise ExportError(f"output {target} must end in .ssp")

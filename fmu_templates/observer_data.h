@@ -1,0 +1,30 @@
+/* ModelData of the observer FMU (the component of component.h): every Real variable, the
+ * observer's estimate and the generated code's work arrays. Fixed size and pointer-free
+ * (copied and serialised as bytes by the FMU-state functions); the sizes come from the
+ * generated model_config.h.
+ */
+#ifndef GATETWIN_OBSERVER_DATA_H
+#define GATETWIN_OBSERVER_DATA_H
+
+#include "model_config.h"
+#include "observer_generated.h" /* casadi_int, casadi_real and the generated functions */
+
+#define GT_OBS_NP ((GT_OBS_NZ + 1) * (GT_OBS_NZ + 1))
+
+typedef struct {
+    double time_s;          /* time of the state, s */
+    double real[GT_N_REAL]; /* every Real variable, indexed by value reference */
+    int initialized;        /* plant_initialize succeeded */
+    int parameters_changed; /* parameters were set since they were last checked */
+    /* the observer: state, input disturbance (mm of opening), prior covariance of [z, d] */
+    double z[GT_OBS_NZ];
+    double d;
+    double p[GT_OBS_NP];
+    double flow_model_m3h; /* discharge of the observer's model (the last prediction's) */
+    double run;            /* consecutive samples with the innovation outside the band */
+    /* scratch of one call: the generated code's work arrays */
+    casadi_int iw[GT_OBS_SZ_IW];
+    casadi_real w[GT_OBS_SZ_W];
+} ModelData;
+
+#endif

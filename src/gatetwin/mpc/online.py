@@ -1,0 +1,333 @@
+"""The twin beside the gate: the MPC's disturbance observer run online on measured data.
+
+:class:`OnlineObserver` feeds the measured level, opening and discharge of every sample to
+:class:`~gatetwin.mpc.observer.DisturbanceObserver` on the scheduled FOPDT (no effect
+blocks; the envelope, if any, is not used: the schedule's ``K``, ``T``, ``L`` are) and
+reports per sample (:class:`OnlineEstimate`): the filtered level, the estimated input
+disturbance, the innovation and the innovation over its predicted standard deviation, the
+level predicted ``horizon_s`` ahead with the inputs held, and an anomaly flag.
+
+The anomaly flag rises when the normalised innovation has stayed outside ``±band_sigma``
+for ``run_samples`` consecutive samples (:class:`AnomalySettings`). A model that explains
+the record leaves white innovations of unit variance: one sample beyond 3 σ happens with
+probability 0.27 % (a logger spike does it too), four in a row practically never. A fault
+that changes the level faster than the filter expects (a stuck or slowed gate on a large
+move, a sensor lag on a fast move, a seiche of several noise SDs) holds the innovation
+outside the band for as long as the observer's disturbance has not absorbed it; a slow one
+(a drift, an unseen inflow) is absorbed into ``disturbance_mm`` without leaving the band.
+
+The per-sample arithmetic (:func:`correct_sample`, :func:`forecast_level`) runs on numbers
+and on casadi symbols alike; :mod:`gatetwin.mpc.observer_codegen` builds the observer
+FMU's C from it. This module does not identify, control or diagnose.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from gatetwin.mpc import symbolic as sym
+from gatetwin.mpc.discrete import DELAY_SPLIT_RTOL, SAMPLE_PERIOD_S, discretise
+from gatetwin.mpc.errors import ControlError
+from gatetwin.mpc.observer import DisturbanceObserver
+from gatetwin.mpc.settings import ObserverSettings
+from gatetwin.mpc.statespace import DiscreteModel
+from gatetwin.plant.model import FLOW_RANGE_M3H, FopdtPlant
+
+#: Default forecast horizon, s: about one time constant of the flume's pools (40-75 s).
+DEFAULT_HORIZON_S = 60.0
+#: Longest forecast horizon, s (one hour of samples, each a step of the model).
+MAX_HORIZON_S = 3600.0
+#: Default band of the normalised innovation: 3 σ (0.27 % of white Gaussian innovations).
+ANOMALY_BAND_SIGMA = 3.0
+#: Default run length: 4 samples (4.8 s at 1.2 s). Longer than a logger spike; shorter than
+#: half the period of the flume's seiche (11.5 s / 2 = 4.8 samples), so an oscillation beyond
+#: the band can raise the flag between its zero crossings; four white exceedances in a row
+#: have probability 0.0027⁴ ≈ 5e-11 per sample.
+ANOMALY_RUN_SAMPLES = 4
+#: The observer's noise levels for monitoring (the MPC's, :class:`ObserverSettings`' defaults,
+#: track faster). ``measurement_sd_mm = 1.0`` makes the normalised innovation of unit standard
+#: deviation on the step records the bundled models are identified from (0.91-1.06 on
+#: Q40-Q85 with fopdt_3F); level and disturbance noise at half and a third of the MPC's, so a
+#: fault shows in the innovation for several samples before the disturbance takes it up (the
+#: MPC's tuning takes a fault into the disturbance so fast that its innovation rarely leaves
+#: the band).
+MONITORING = ObserverSettings(measurement_sd_mm=1.0, level_sd_mm=0.5, disturbance_sd_mm=0.1)
+
+
+@dataclass(frozen=True)
+class AnomalySettings:
+    """When the observer calls a run of innovations an anomaly.
+
+    Attributes
+    ----------
+    band_sigma : float
+        Band of the normalised innovation (> 0), in its standard deviations.
+    run_samples : int
+        Consecutive samples outside the band that raise the flag (>= 1).
+    """
+
+    band_sigma: float = ANOMALY_BAND_SIGMA
+    run_samples: int = ANOMALY_RUN_SAMPLES
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.band_sigma, (int, float)) and 0 < self.band_sigma < math.inf):
+            raise ControlError(f"anomaly band_sigma must be finite and > 0 (got "
+                               f"{self.band_sigma!r})")  # fmt: skip
+        if not (isinstance(self.run_samples, int) and 1 <= self.run_samples <= 1_000_000):
+            raise ControlError(f"anomaly run_samples must be an integer in [1, 1000000] (got "
+                               f"{self.run_samples!r})")  # fmt: skip
+
+
+@dataclass(frozen=True)
+class OnlineEstimate:
+    """What the observer says after one sample (the observer FMU's outputs, same names).
+
+    Attributes
+    ----------
+    filtered_level_mm : float
+        Estimate of the level now, mm.
+    disturbance_mm : float
+        Estimated input disturbance, mm of opening.
+    innovation_mm : float
+        Measured minus predicted level, mm (0 at the start).
+    innovation_normalised : float
+        The innovation over its predicted standard deviation.
+    predicted_level_mm : float
+        Level predicted ``horizon_s`` ahead with opening, discharge and disturbance held, mm.
+    anomaly : float
+        1 while the normalised innovation has been outside the band for ``run_samples``
+        consecutive samples or more, else 0.
+    anomaly_samples : float
+        The present run of samples outside the band.
+    """
+
+    filtered_level_mm: float
+    disturbance_mm: float
+    innovation_mm: float
+    innovation_normalised: float
+    predicted_level_mm: float
+    anomaly: float
+    anomaly_samples: float
+
+    def values(self) -> tuple[float, ...]:
+        return tuple(getattr(self, f.name) for f in fields(self))
+
+
+#: Output names, in :class:`OnlineEstimate`'s order.
+OUTPUTS = tuple(f.name for f in fields(OnlineEstimate))
+
+
+def innovation_variance(observer: DisturbanceObserver, model: DiscreteModel) -> Any:
+    """Predicted variance of the next innovation, ``c P cᵀ + σ²``, mm²."""
+    c = np.append(model.c, 0.0)
+    return sym.scalar(c @ (observer.covariance @ c) + observer.settings.measurement_sd_mm**2)
+
+
+def correct_sample(
+    observer: DisturbanceObserver,
+    model: DiscreteModel,
+    level_mm: Any,
+    previous_run: Any,
+    band_sigma: Any,
+    run_samples: Any,
+) -> tuple[Any, ...]:
+    """Correct ``observer`` with the level measured now; ``model`` is the last prediction's.
+
+    Returns ``(filtered_level_mm, disturbance_mm, innovation_mm, innovation_normalised,
+    anomaly_samples, anomaly)``; numbers or casadi symbols.
+    """
+    variance = innovation_variance(observer, model)
+    innovation = observer.correct(model, level_mm)
+    normalised = innovation / sym.sqrt(variance)
+    outside = sym.fabs(normalised) > band_sigma
+    run = sym.where(outside, previous_run + 1.0, 0.0)
+    anomaly = sym.where(run >= run_samples, 1.0, 0.0)
+    filtered = model.level_mm(observer.state)
+    return filtered, observer.disturbance_mm, innovation, normalised, run, anomaly
+
+
+def forecast_level(
+    model: DiscreteModel, state: np.ndarray, disturbance_mm: Any, opening_mm: Any, samples: int
+) -> Any:
+    """Level ``samples`` samples ahead from ``state`` with the opening and ``d`` held, mm."""
+    z = state
+    for _ in range(samples):
+        z = advance(model, z, disturbance_mm, opening_mm)
+    return model.level_mm(z)
+
+
+def advance(model: DiscreteModel, state: np.ndarray, disturbance_mm: Any, opening_mm: Any) -> Any:
+    """One sample of the model with the opening and the disturbance held."""
+    return model.step(state, opening_mm, disturbance_mm)
+
+
+def forecast_samples(horizon_s: float, sample_period_s: float) -> int:
+    """``horizon_s`` in samples; refused unless a whole multiple in ``[0, MAX_HORIZON_S]``."""
+    if not (isinstance(horizon_s, (int, float)) and 0.0 <= horizon_s <= MAX_HORIZON_S):
+        raise ControlError(f"forecast horizon {horizon_s!r} s must lie in [0, {MAX_HORIZON_S:g}] s")
+    n = round(horizon_s / sample_period_s)
+    if abs(n * sample_period_s - horizon_s) > DELAY_SPLIT_RTOL * max(1.0, horizon_s):
+        raise ControlError(f"forecast horizon {horizon_s:g} s must be a whole multiple of the "
+                           f"sample period {sample_period_s:g} s")  # fmt: skip
+    return int(n)
+
+
+def checked_plant(plant: Any, who: str = "online observer") -> FopdtPlant:
+    """``plant`` if the observer covers it (a scheduled FOPDT without effect blocks)."""
+    if not isinstance(plant, FopdtPlant):
+        kind = getattr(plant, "kind", type(plant).__name__)
+        raise ControlError(f"{who}: needs a scheduled FOPDT plant (got {kind})")
+    if plant.effects:
+        kinds = ", ".join(e["kind"] for e in plant.effects)
+        raise ControlError(f"{who}: effect blocks are not covered (plant has {kinds}); observe "
+                           "with the plant without them (without_effects, "
+                           "gatetwin export-observer --without-effects)")  # fmt: skip
+    return plant
+
+
+@dataclass
+class OnlineObserver:
+    """The observer on measured data, one sample at a time (the observer FMU in Python).
+
+    Parameters
+    ----------
+    plant : FopdtPlant
+        Scheduled FOPDT without effect blocks (see :func:`checked_plant`).
+    horizon_s : float
+        Forecast horizon of ``predicted_level_mm``, s: a whole multiple of the sample period.
+    settings : ObserverSettings
+        Noise levels of the Kalman filter (:data:`MONITORING` by default).
+    anomaly : AnomalySettings
+        Band and run length of the anomaly flag.
+    sample_period_s : float
+        The observer's sample period, s.
+
+    Examples
+    --------
+    >>> from gatetwin.plant.model import FopdtPlant, Schedule
+    >>> plant = FopdtPlant("3F", 25.0, Schedule((55.0,), {
+    ...     "gain_mm_per_mm": (-12.0,), "time_constant_s": (55.0,), "dead_time_s": (0.0,),
+    ...     "level_ref_mm": (300.0,)}))
+    >>> obs = OnlineObserver(plant, horizon_s=60.0)
+    >>> rest = obs.reset(opening_mm=25.0, level_mm=300.0, flow_m3h=55.0)
+    >>> round(rest.predicted_level_mm, 6)
+    300.0
+    >>> now = obs.step(level_mm=300.0, opening_mm=30.0, flow_m3h=55.0)  # gate opened 5 mm
+    >>> now.anomaly, round(now.predicted_level_mm - now.filtered_level_mm, 1)  # K·5·(1−e^-60/55)
+    (0.0, -39.8)
+    """
+
+    plant: FopdtPlant
+    horizon_s: float = DEFAULT_HORIZON_S
+    settings: ObserverSettings = MONITORING
+    anomaly: AnomalySettings = field(default_factory=AnomalySettings)
+    sample_period_s: float = SAMPLE_PERIOD_S
+
+    def __post_init__(self) -> None:
+        self.plant = checked_plant(self.plant)
+        if not (isinstance(self.sample_period_s, (int, float)) and self.sample_period_s > 0
+                and math.isfinite(self.sample_period_s)):  # fmt: skip
+            raise ControlError(f"sample period {self.sample_period_s!r} s must be finite, > 0")
+        self.samples_ahead = forecast_samples(self.horizon_s, self.sample_period_s)
+        self.observer = DisturbanceObserver(self.settings)
+        self._model: DiscreteModel | None = None
+        self._run = 0.0
+
+    def model_at(self, flow_m3h: float) -> DiscreteModel:
+        """The plant's discrete model at ``flow_m3h``."""
+        return discretise(self.plant, flow_m3h, self.sample_period_s)
+
+    def reset(self, opening_mm: float, level_mm: float, flow_m3h: float) -> OnlineEstimate:
+        """At rest: ``opening_mm`` held, ``level_mm`` measured at ``flow_m3h``."""
+        _check_inputs(level_mm, opening_mm, flow_m3h)
+        model = self.model_at(flow_m3h)
+        self.observer.reset(model, opening_mm, level_mm)
+        self._model, self._run = model, 0.0
+        obs = self.observer
+        ahead = forecast_level(model, obs.state, obs.disturbance_mm, opening_mm,
+                               self.samples_ahead)  # fmt: skip
+        return OnlineEstimate(model.level_mm(obs.state), obs.disturbance_mm, 0.0, 0.0, ahead,
+                              0.0, 0.0)  # fmt: skip
+
+    def step(self, level_mm: float, opening_mm: float, flow_m3h: float) -> OnlineEstimate:
+        """Take the sample measured now; ``opening_mm`` and ``flow_m3h`` hold over the next.
+
+        The first call after construction starts at rest on this sample (:meth:`reset`).
+        """
+        if self._model is None:
+            self.reset(opening_mm, level_mm, flow_m3h)
+        _check_inputs(level_mm, opening_mm, flow_m3h)
+        obs, model = self.observer, self.model_at(flow_m3h)
+        a = self.anomaly
+        filtered, d, innovation, normalised, run, flag = correct_sample(
+            obs, self._model, level_mm, self._run, a.band_sigma, a.run_samples
+        )
+        ahead = forecast_level(model, obs.state, d, opening_mm, self.samples_ahead)
+        obs.predict(model, opening_mm)
+        self._model, self._run = model, run
+        return OnlineEstimate(filtered, d, innovation, normalised, ahead, flag, run)
+
+    def run(
+        self, level_mm: np.ndarray, opening_mm: np.ndarray, flow_m3h: np.ndarray
+    ) -> dict[str, np.ndarray]:
+        """:meth:`reset` at the first sample, then :meth:`step` on every sample; the
+        estimates as arrays named as :data:`OUTPUTS`."""
+        y, e, q = (np.asarray(v, dtype=float) for v in (level_mm, opening_mm, flow_m3h))
+        if not (y.ndim == 1 and y.shape == e.shape == q.shape and y.size >= 1):
+            raise ControlError("online observer: level, opening and flow must be 1-D arrays of "
+                               "one length")  # fmt: skip
+        self.reset(e[0], y[0], q[0])
+        rows = np.array([self.step(y[i], e[i], q[i]).values() for i in range(y.size)])
+        return {name: rows[:, k] for k, name in enumerate(OUTPUTS)}
+
+
+def measured_inputs(record: Any, gauge: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A record's level at ``gauge``, opening and discharge, as the observer takes them.
+
+    The logger leaves the opening empty while the gate moves; such a sample gets the opening
+    of the next sample that has one (the command the gate is moving to, reached within the
+    sample), and empty ones at the end the last known opening.
+    """
+    if gauge not in record.levels_mm:
+        raise ControlError(f"{record.path or 'record'}: no level column for gauge {gauge}")
+    opening = np.array(record.opening_mm, dtype=float)
+    known = np.flatnonzero(np.isfinite(opening))
+    if known.size == 0:
+        raise ControlError(f"{record.path or 'record'}: no opening is logged")
+    after = np.searchsorted(known, np.arange(opening.size))
+    opening = opening[known[np.minimum(after, known.size - 1)]]
+    return (np.array(record.levels_mm[gauge], dtype=float), opening,
+            np.array(record.flow_m3h, dtype=float))  # fmt: skip
+
+
+def _check_inputs(level_mm: float, opening_mm: float, flow_m3h: float) -> None:
+    if not (math.isfinite(level_mm) and math.isfinite(opening_mm)):
+        raise ControlError(f"online observer: level {level_mm} mm and opening {opening_mm} mm "
+                           "must be finite")  # fmt: skip
+    lo, hi = FLOW_RANGE_M3H
+    if not lo <= flow_m3h <= hi:
+        raise ControlError(f"online observer: flow_m3h = {flow_m3h} is outside [{lo:g}, {hi:g}]")
+
+
+__all__ = [
+    "ANOMALY_BAND_SIGMA",
+    "ANOMALY_RUN_SAMPLES",
+    "DEFAULT_HORIZON_S",
+    "MAX_HORIZON_S",
+    "MONITORING",
+    "OUTPUTS",
+    "AnomalySettings",
+    "OnlineEstimate",
+    "OnlineObserver",
+    "advance",
+    "checked_plant",
+    "correct_sample",
+    "forecast_level",
+    "forecast_samples",
+    "innovation_variance",
+    "measured_inputs",
+]
