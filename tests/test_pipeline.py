@@ -127,12 +127,17 @@ def test_run_writes_models_fmus_figures_and_summary(tmp_path):
 
 
 def _check_closed_loop(out: Path) -> None:
-    """controllers/ and loop.ssp: the FMUs pass fmpy's validation, and the SSP master's IAE is
-    the Python loop's (the same arithmetic both ways: 1e-9 relative, rounding only)."""
+    """controllers/, observers/ and loop.ssp: the FMUs pass fmpy's validation, and the SSP
+    master's IAE is the Python loop's (the same arithmetic both ways: 1e-9 relative, rounding
+    only)."""
     from fmpy.validation import validate_fmu
 
-    assert [p.name for p in sorted((out / "controllers").glob("*.fmu"))] == ["fopdt_3F_pi.fmu"]
-    assert validate_fmu(str(out / "controllers" / "fopdt_3F_pi.fmu")) == []
+    built = [out / "controllers" / "fopdt_3F_mpc.fmu", out / "controllers" / "fopdt_3F_pi.fmu",
+             out / "observers" / "fopdt_3F_observer.fmu"]  # fmt: skip
+    found = [*(out / "controllers").glob("*.fmu"), *(out / "observers").glob("*.fmu")]
+    assert sorted(found) == built
+    for fmu in built:
+        assert validate_fmu(str(fmu)) == [], fmu.name
     loop = json.loads((out / "mpc.json").read_text(encoding="utf-8"))["closed_loop_ssp"]
     assert (out / loop["package"]).is_file() and (out / loop["result"]).is_file()
     assert loop["iae_ssp"] > 0 and abs(loop["iae_ssp"] - loop["iae_python_loop"]) <= 1e-9 * loop[

@@ -203,15 +203,18 @@ def mpc_demo(ctx: Any) -> None:
 
 
 #: Controller FMUs ``gatetwin run`` builds for the MPC demo's model (``controllers/``).
-CONTROLLER_KINDS = ("pi",)
+CONTROLLER_KINDS = ("pi", "mpc")
 
 
 def closed_loop_artefacts(ctx: Any) -> None:
-    """``controllers/<model>_<kind>.fmu`` for the MPC demo's model, and ``loop.ssp`` (plant
-    FMU + PI FMU, the demo's set-point scenario), run by gatetwin's SSP master next to the
-    Python loop it packs; both IAEs go into ``mpc.json`` (``closed_loop_ssp``)."""
+    """``controllers/<model>_<kind>.fmu`` and ``observers/<model>_observer.fmu`` for the MPC
+    demo's model (the MPC and the observer on its FOPDT without the effect blocks they do not
+    cover), and ``loop.ssp`` (plant FMU + PI FMU, the demo's set-point scenario), run by
+    gatetwin's SSP master next to the Python loop it packs; both IAEs go into ``mpc.json``
+    (``closed_loop_ssp``)."""
     from gatetwin._io import write_json_atomic
     from gatetwin.fmu.controller import export_controller
+    from gatetwin.fmu.observer_fmu import export_observer
     from gatetwin.modelfile import read_model_file
     from gatetwin.mpc.demo import DemoSettings, demo_scenarios
     from gatetwin.mpc.loop import loop_metrics
@@ -220,9 +223,12 @@ def closed_loop_artefacts(ctx: Any) -> None:
 
     model = read_model_file(ctx.out_dir / "models" / f"fopdt_{FAMILY_GAUGE}.json")
     folder = ctx.out_dir / "controllers"
-    built = [export_controller(model, kind, folder / f"{model.name}_{kind}.fmu")
+    built = [export_controller(model, kind, folder / f"{model.name}_{kind}.fmu",
+                               without_effects=kind == "mpc")
              for kind in CONTROLLER_KINDS]  # fmt: skip
-    ctx.progress(f"      controllers/: {', '.join(p.name for p in built)}")
+    built.append(export_observer(model.plant, ctx.out_dir / "observers" /
+                                 f"{model.name}_observer.fmu", without_effects=True))  # fmt: skip
+    ctx.progress(f"      controllers/, observers/: {', '.join(p.name for p in built)}")
     settings = DemoSettings()
     scenario = demo_scenarios(MPC_MINUTES, settings)[0]
     package = write_ssp(model, ctx.out_dir / "loop.ssp", controller="pi", scenario=scenario,
