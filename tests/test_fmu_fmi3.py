@@ -183,3 +183,28 @@ def test_export_command_writes_fmi3_and_validate_runs_it(tmp_path, capsys):
                  "--out", str(tmp_path / "p.fmu")]) == 2  # fmt: skip
     assert "C backend" in capsys.readouterr().err
     assert not (tmp_path / "p.fmu").exists()
+
+
+def test_fmi3_warns_once_outside_the_schedule_as_the_fmi2_fmu_does(extracted):
+    """The status contract's first row in FMI 3.0: a discharge beyond the knots is a warning
+    (status 1, logged once per instance), and the step goes on."""
+    from ctypes import byref
+
+    from fmpy.fmi3 import fmi3Boolean, fmi3Float64
+
+    driver = open_fmu(extracted["fopdt_local", "3.0"], "warn")
+    try:
+        driver.start(20.0, 50.0)
+        driver.set_inputs(20.0, 100.0)  # the knots end at 85 m3/h
+        flags = [fmi3Boolean() for _ in range(3)]
+        last = fmi3Float64()
+        status = driver.slave.fmi3DoStep(driver.slave.component, 0.0, 1.0, fmi3Boolean(True),
+                                         *(byref(f) for f in flags), byref(last))  # fmt: skip
+        assert status == 1 and last.value == 1.0
+        warnings = [text for level, text in driver.messages if level == 1]
+        assert len(warnings) == 1 and "outside the schedule" in warnings[0]
+        status = driver.slave.fmi3DoStep(driver.slave.component, 1.0, 1.0, fmi3Boolean(True),
+                                         *(byref(f) for f in flags), byref(last))  # fmt: skip
+        assert status == 0  # warned once per instance
+    finally:
+        driver.close()
