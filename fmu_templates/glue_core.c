@@ -65,36 +65,42 @@ void glue_log(const GlueSink *sink, int status, const char *text)
     v->emit(sink, status, category, text);
 }
 
-void glue_log_format(const GlueSink *sink, int status, const char *format, ...)
+#if defined(__GNUC__)
+static void log_formatted(const GlueSink *sink, int status, const char *format, va_list args)
+    __attribute__((format(printf, 3, 0)));
+#endif
+
+static void log_formatted(const GlueSink *sink, int status, const char *format, va_list args)
 {
     char text[768];
+    vsnprintf(text, sizeof text, format, args);
+    glue_log(sink, status, text);
+}
+
+void glue_log_format(const GlueSink *sink, int status, const char *format, ...)
+{
     va_list args;
     va_start(args, format);
-    vsnprintf(text, sizeof text, format, args);
+    log_formatted(sink, status, format, args);
     va_end(args);
-    glue_log(sink, status, text);
 }
 
 int glue_fail(Instance *inst, const char *format, ...)
 {
-    char text[768];
     va_list args;
     va_start(args, format);
-    vsnprintf(text, sizeof text, format, args);
+    log_formatted(&inst->sink, inst->sink.version->error, format, args);
     va_end(args);
-    glue_log(&inst->sink, inst->sink.version->error, text);
     inst->mode = MODE_ERROR;
     return inst->sink.version->error;
 }
 
 int glue_refuse(Instance *inst, const char *format, ...)
 {
-    char text[768];
     va_list args;
     va_start(args, format);
-    vsnprintf(text, sizeof text, format, args);
+    log_formatted(&inst->sink, inst->sink.version->error, format, args);
     va_end(args);
-    glue_log(&inst->sink, inst->sink.version->error, text);
     return inst->sink.version->error;
 }
 
