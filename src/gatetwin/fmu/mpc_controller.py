@@ -232,7 +232,8 @@ def describe_controller(
 
 
 def _code_digest() -> str:
-    names = ("fmi2_glue.c", "controller_mpc.c", "mpc_data.h", "component.h")
+    names = ("fmi2_glue.c", "glue_core.c", "glue_core.h", "controller_mpc.c", "mpc_data.h",
+             "component.h")  # fmt: skip
     digest = hashlib.sha256()
     for n in names:
         digest.update((templates_dir() / n).read_bytes())

@@ -273,7 +273,8 @@ def describe_observer(cfg: _Config) -> FmuDescription:
 
 def _code_digest() -> str:
     digest = hashlib.sha256()
-    for n in ("fmi2_glue.c", "observer.c", "observer_data.h", "component.h"):
+    for n in ("fmi2_glue.c", "glue_core.c", "glue_core.h", "observer.c", "observer_data.h",
+              "component.h"):  # fmt: skip
         digest.update((templates_dir() / n).read_bytes())
     mpc = Path(__file__).resolve().parents[1] / "mpc"
     for n in ("codegen.py", "observer_codegen.py", "online.py", "discrete.py", "observer.py",
