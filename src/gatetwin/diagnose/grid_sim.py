@@ -90,7 +90,9 @@ _seiche_equilibrium = njit(cache=True)(blocks.seiche_equilibrium)
 _seiche_output = njit(cache=True)(blocks.seiche_output)
 _gain_map = njit(cache=True)(blocks.gain_map)
 _flow_scaled = njit(cache=True)(blocks.flow_scaled)
-_arx_sample = njit(cache=True)(blocks.arx_sample)
+# inlined: a call per sample would pass the coefficient rows as array views, which costs more
+# than the sample itself (benchmarks/bench_arx.py)
+_arx_sample = njit(cache=True, inline="always")(blocks.arx_sample)
 
 
 @njit(cache=True)
