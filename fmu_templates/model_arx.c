@@ -7,8 +7,7 @@
  *
  * Envelope ARX (GT_ENVELOPE): the input is the gate law's steady level at the gate and the
  * step's discharge, the pole a1 scaled by the pool's time constant there and the b rescaled to
- * unit gain (blocks.c: gt_arx_pole_scaled, gt_arx_gain_rescaled); mirrors
- * PlantSimulator._arx_envelope.
+ * unit gain (blocks.c: gt_arx_envelope_coefficients); mirrors PlantSimulator._arx_envelope.
  */
 #include <math.h>
 
@@ -140,14 +139,10 @@ void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPos
         {
             const double tau_ref = plant_interp(at, &m->real[VR_COL_TIME_CONSTANT_REF_S]);
             double level_mm, tau_s, a_now[GT_NA], b_now[GT_NB];
-            int j;
             kernel_envelope_point(KERNEL(m),
                                   effects_input(m, m->fx.gate_mm) + m->real[VR_OPENING_REF_MM],
                                   m->real[VR_FLOW_M3H], &level_mm, &tau_s);
-            a_now[0] = gt_arx_pole_scaled(a[0], tau_ref, tau_s);
-            for (j = 0; j < GT_NB; j++) {
-                b_now[j] = gt_arx_gain_rescaled(b[j], a[0], a_now[0]);
-            }
+            gt_arx_envelope_coefficients(a, b, a_now, b_now, GT_NB, tau_ref, tau_s);
             x_new = sample_step(&m->dyn, a_now, b_now, level_mm);
         }
 #else

@@ -68,7 +68,7 @@ RANGES = {
 
 
 #: The blocks over arrays, exercised by their own tests below.
-ARRAY_BLOCKS = ("arx_sample", "arx_equilibrium")
+ARRAY_BLOCKS = ("arx_sample", "arx_equilibrium", "arx_envelope_coefficients")
 
 
 def test_every_rendered_block_is_exercised():
@@ -165,6 +165,27 @@ def test_arx_equilibrium_in_c_equals_python_to_the_bit(library):
             assert expected[0] == 1.0 and math.isnan(expected[1])
 
 
+def test_arx_envelope_coefficients_in_c_equal_python_to_the_bit(library):
+    """Poles and time constants over the ranges of RANGES["arx_pole_scaled"]; the pole scaled
+    as that block scales it, every b as arx_gain_rescaled rescales it."""
+    f = library.gt_arx_envelope_coefficients
+    f.restype = ctypes.c_double
+    rng = np.random.default_rng(19)
+    for _ in range(500):
+        nb = int(rng.integers(1, 12))
+        a, b = [float(rng.uniform(0.5, 0.999))], rng.uniform(-5, 5, nb).tolist()
+        tau_ref, tau = (float(v) for v in rng.uniform(5, 120, 2))
+        a_now, b_now = [0.0], [0.0] * nb
+        expected = blocks.arx_envelope_coefficients(a, b, a_now, b_now, nb, tau_ref, tau)
+        c_a_now, c_b_now = _doubles([0.0]), _doubles([0.0] * nb)
+        got = f(_doubles(a), _doubles(b), c_a_now, c_b_now, nb, ctypes.c_double(tau_ref),
+                ctypes.c_double(tau))  # fmt: skip
+        assert got == expected == a_now[0] == c_a_now[0], nb
+        assert list(c_b_now) == b_now, nb
+        assert a_now[0] == blocks.arx_pole_scaled(a[0], tau_ref, tau)
+        assert b_now == [blocks.arx_gain_rescaled(bj, a[0], a_now[0]) for bj in b]
+
+
 def test_arx_equilibrium_is_a_rest_point():
     """A held input from the rest state stays there, to round-off: ``|x - x0|`` within a few
     ulps of the largest term of the sums (float64, 2**-52 relative), times the terms summed."""
@@ -218,12 +239,14 @@ REFUSED = {
     "def f(a: list[float], n: int) -> float:\n    for i in range(n):\n"
     "        for i in range(n):\n            a[i] = 0.0\n    return 0.0\n": "f: loop variable i",
     "def f(a: dict) -> float:\n    return 0.0\n": "f: argument a",
+    "def g(x: float) -> tuple[float, float]:\n    return x, x\n\n"
+    "def f(x: float) -> float:\n    return g(x)\n": "f: call",
     "def f(a: list[float], n: int) -> float:\n    for i in range(n):\n        a[i] = 0.0\n"
     "    else:\n        return 1.0\n    return 0.0\n": "f: loop",
 }  # fmt: skip
 
 
-def _render(source: str, name: str) -> str:
+def _render(source: str, *names: str) -> str:
     module = types.ModuleType("gatetwin.plant.fake_blocks")
     exec(compile(source, "<fake>", "exec"), module.__dict__)  # noqa: S102 - a test module
     import inspect as _inspect
@@ -231,15 +254,16 @@ def _render(source: str, name: str) -> str:
     original = _inspect.getsource
     try:
         _inspect.getsource = lambda m: source  # type: ignore[assignment]
-        return c_module(module, (name,), "gt_")[0]
+        return c_module(module, names, "gt_")[0]
     finally:
         _inspect.getsource = original  # type: ignore[assignment]
 
 
 @pytest.mark.parametrize("source", REFUSED)
 def test_renderer_refuses_loops_and_arrays_outside_the_subset(source):
+    names = ("g", "f") if source.startswith("def g") else ("f",)  # g rendered along with f
     with pytest.raises(ValueError, match=REFUSED[source]):
-        _render(source, "f")
+        _render(source, *names)
 
 
 def test_renderer_writes_counted_loops_over_arrays():

@@ -36,9 +36,8 @@ from gatetwin.plant import physical_kernel  # replaced at export by the module's
 # END gatetwin.plant.physical_kernel
 # BEGIN gatetwin.plant.blocks
 from gatetwin.plant.blocks import (  # replaced by the module's source at export
+    arx_envelope_coefficients,
     arx_equilibrium,
-    arx_gain_rescaled,
-    arx_pole_scaled,
     arx_sample,
     first_order,
     flow_scaled,
@@ -632,8 +631,10 @@ class GatetwinPlant(GuardedSlave):
                       ) -> tuple[float, list[float], list[float]]:  # fmt: skip
         """The gate law's steady level and the coefficients scaled there (model_arx.c)."""
         level, tau = self._envelope_point(u, q)
-        a1 = arx_pole_scaled(a[0], self._at("time_constant_ref_s", q), tau)
-        return level, [a1], [arx_gain_rescaled(b_j, a[0], a1) for b_j in b]
+        a_now, b_now = [0.0], [0.0] * len(b)
+        arx_envelope_coefficients(a, b, a_now, b_now, len(b), self._at("time_constant_ref_s", q),
+                                  tau)  # fmt: skip
+        return level, a_now, b_now
 
     def _arx_samples(self, h: float) -> int:
         period = self.real[self._vr("sample_period_s")]

@@ -7,11 +7,13 @@ FMU's ``blocks.c`` is generated from their syntax tree (:mod:`gatetwin.plant.ast
 the Python reference (:mod:`gatetwin.plant.simulate`), both FMUs and the fast simulator run the
 very same operations. Keep to the subset ``ast_render`` translates (scalar arithmetic,
 ``math`` functions, ``if``/``while``, early returns, ``for i in range(n)`` over arrays passed
-in: ``list[float]`` arguments, written in place, with ``int`` counts).
+in: ``list[float]`` arguments, written in place, with ``int`` counts; calls of the other
+rendered functions of numbers).
 
 What the blocks mean (inputs, outputs, parameters, state) is documented in
 :mod:`gatetwin.plant.effects`; this module only advances them. The ARX family's sample
-(:func:`arx_sample`, :func:`arx_equilibrium`) lives here too, for the same renderings.
+(:func:`arx_sample`, :func:`arx_equilibrium`, and for the envelope form
+:func:`arx_envelope_coefficients`) lives here too, for the same renderings.
 """
 
 from __future__ import annotations
@@ -21,8 +23,8 @@ import math
 #: The functions rendered into the C FMU's generated ``blocks.c`` (prefix ``gt_``).
 RENDERED_C = ("move_toward", "play", "gain_map", "gain_map_inverse", "flow_scaled", "first_order",
               "seiche_advance", "seiche_equilibrium", "seiche_output", "lag_interval",
-              "grid_index_at_or_after", "arx_pole_scaled", "arx_gain_rescaled", "arx_sample",
-              "arx_equilibrium")  # fmt: skip
+              "grid_index_at_or_after", "arx_pole_scaled", "arx_gain_rescaled",
+              "arx_envelope_coefficients", "arx_sample", "arx_equilibrium")  # fmt: skip
 
 
 def move_toward(position_mm: float, command_mm: float, max_travel_mm: float) -> float:
@@ -83,6 +85,20 @@ def arx_gain_rescaled(b: float, a1: float, a1_scaled: float) -> float:
     """An envelope ARX's input coefficient at the scaled pole: unit steady gain is kept, so
     the steady level stays the gate law's."""
     return b * (1.0 - a1_scaled) / (1.0 - a1)
+
+
+def arx_envelope_coefficients(
+    a: list[float], b: list[float], a_now: list[float], b_now: list[float], nb: int,
+    time_constant_ref_s: float, time_constant_s: float,
+) -> float:  # fmt: skip
+    """An envelope ARX's coefficients where the pool's time constant is ``time_constant_s``:
+    ``a_now[0]`` the pole ``a[0]`` scaled (:func:`arx_pole_scaled`), ``b_now[j]`` the ``b[j]``
+    rescaled to it (:func:`arx_gain_rescaled`). Returns the scaled pole. (Calls the two
+    blocks, so numba compiles it only with them compiled.)"""
+    a_now[0] = arx_pole_scaled(a[0], time_constant_ref_s, time_constant_s)
+    for j in range(nb):
+        b_now[j] = arx_gain_rescaled(b[j], a[0], a_now[0])
+    return a_now[0]
 
 
 def arx_sample(

@@ -391,8 +391,9 @@ class PlantSimulator:
         steady point of ``u`` and ``q``: the pole scaled by the time constant there."""
         level, tau = self._envelope_point(u, q)
         tau_ref = self.plant.schedule.at("time_constant_ref_s", q)
-        a1 = blocks.arx_pole_scaled(a[0], tau_ref, tau)
-        return level, [a1], [blocks.arx_gain_rescaled(bj, a[0], a1) for bj in b]
+        a_now, b_now = [0.0], [0.0] * len(b)
+        blocks.arx_envelope_coefficients(a, b, a_now, b_now, len(b), tau_ref, tau)
+        return level, a_now, b_now
 
     def _check_range(self, flow_m3h: float) -> None:
         lo, hi = self.plant.schedule.flow_range_m3h
