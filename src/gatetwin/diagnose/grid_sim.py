@@ -5,9 +5,10 @@ that change only at the points of a uniform grid of step ``step_s`` (a record's 
 sample period): the FOPDT with its dead time is then an exact two-tap recursion per grid
 interval (``L = n dt + theta``: the input of interval ``j - n - 1`` acts for ``theta``, that of
 interval ``j - n`` for the rest), and the effect blocks run per interval, the rate-limited
-actuator on its sub-step grid. Loops are compiled with numba around the effect blocks' own
-arithmetic (:mod:`gatetwin.plant.blocks`, compiled as it is). Tests hold it equal to the
-reference to round-off; it is a faster rendering of the same plant, not another model.
+actuator on its sub-step grid. Loops are compiled with numba around the effect blocks' and
+the ARX sample's own arithmetic (:mod:`gatetwin.plant.blocks`, compiled as it is). Tests hold
+it equal to the reference to round-off; it is a faster rendering of the same plant, not
+another model.
 
 The grid starts at the first record sample; a record's samples are mapped to the nearest grid
 point (:func:`grid_index`), and inputs are held from one sample to the next, as the FMU
@@ -79,8 +80,9 @@ def grid_inputs(
 # --------------------------------------------------------------------------- kernels
 
 
-# The effect blocks' arithmetic, compiled: the very functions the reference simulator and
-# the pythonfmu FMU run (:mod:`gatetwin.plant.blocks`), so this module only loops.
+# The effect blocks' and the ARX sample's arithmetic, compiled: the very functions the
+# reference simulator and the pythonfmu FMU run (:mod:`gatetwin.plant.blocks`), so this
+# module only loops.
 _move_toward = njit(cache=True)(blocks.move_toward)
 _play = njit(cache=True)(blocks.play)
 _relax = njit(cache=True)(blocks.first_order)

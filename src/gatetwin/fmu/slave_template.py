@@ -3,9 +3,9 @@
 Self-contained on purpose: the FMU runs where gatetwin is not installed, so this file uses the
 standard library and pythonfmu only. It mirrors gatetwin.plant.simulate.PlantSimulator and the
 C FMU (fmu_templates/plant.c, model_fopdt.c, model_arx.c, effects.c) operation by operation.
-The effect blocks' arithmetic is gatetwin/plant/blocks.py itself, and the physical family's is
-gatetwin/plant/physical_kernel.py: at export their sources replace the imports between the
-BEGIN/END markers below, so the FMU carries them.
+The effect blocks' and the ARX sample's arithmetic is gatetwin/plant/blocks.py itself, and
+the physical family's is gatetwin/plant/physical_kernel.py: at export their sources replace
+the imports between the BEGIN/END markers below, so the FMU carries them.
 
 The FMI callbacks themselves are gatetwin/fmu/slave_guard.py's GuardedSlave (embedded the same
 way): it answers every refusal with a status and a log line and keeps pythonfmu's wrapper from
