@@ -1,13 +1,13 @@
 /* Scheduled ARX(na, nb, nk) dynamics, paper's sign convention:
  *   x(k) = sum_i a_i x(k-i) + sum_j b_j u(k-nk-j+1),
  * stepped at the sample period; a communication step runs a whole number of samples, the input
- * blocks sampled at the start of each. Mirrors PlantSimulator._arx_sample / _arx_pieces in
- * gatetwin/plant/simulate.py.
+ * blocks sampled at the start of each. The sample's arithmetic and the rest state are blocks.c's
+ * gt_arx_sample and gt_arx_equilibrium (generated from gatetwin/plant/blocks.py); the control
+ * flow mirrors PlantSimulator._arx_pieces in gatetwin/plant/simulate.py.
  *
  * Envelope ARX (GT_ENVELOPE): the input is the gate law's steady level at the gate and the
  * step's discharge, the pole a1 scaled by the pool's time constant there and the b rescaled to
- * unit gain (blocks.c: gt_arx_pole_scaled, gt_arx_gain_rescaled); mirrors
- * PlantSimulator._arx_envelope.
+ * unit gain (blocks.c: gt_arx_envelope_coefficients); mirrors PlantSimulator._arx_envelope.
  */
 #include <math.h>
 
@@ -56,21 +56,15 @@ PlantStatus dynamics_equilibrium(const ModelData *m, double u_mm, const KnotPosi
     return PLANT_OK;
 #else
     double a[GT_NA], b[GT_NB];
-    double sum_a = 0.0, sum_b = 0.0;
-    int i;
+    double sum_a, x0;
     coefficients(m, at, a, b);
-    for (i = 0; i < GT_NA; i++) {
-        sum_a += a[i];
-    }
-    for (i = 0; i < GT_NB; i++) {
-        sum_b += b[i];
-    }
+    gt_arx_equilibrium(a, b, u_mm, GT_NA, GT_NB, &sum_a, &x0);
     if (sum_a == 1.0) {
         plant_message(msg, "arx: no equilibrium at flow_m3h = %.17g (sum of a coefficients is 1)",
                       m->real[VR_FLOW_M3H]);
         return PLANT_ERROR;
     }
-    *x0_mm = sum_b / (1.0 - sum_a) * u_mm;
+    *x0_mm = x0;
     return PLANT_OK;
 #endif
 }
@@ -118,28 +112,12 @@ PlantStatus dynamics_check_step(const ModelData *m, double step_s, double comman
     return samples_in_step(m, step_s, msg) < 0.0 ? PLANT_ERROR : PLANT_OK;
 }
 
-/* One ARX sample with the input u; returns x(k+1). */
+/* One ARX sample with the input u (blocks.c: gt_arx_sample); returns x(k+1). */
 static double sample_step(DynamicsState *d, const double a[GT_NA], const double b[GT_NB],
                           double u_mm)
 {
-    double x_new = 0.0;
-    int i;
-    for (i = GT_ARX_U_LAGS - 1; i > 0; i--) {
-        d->u_hist[i] = d->u_hist[i - 1];
-    }
-    d->u_hist[0] = u_mm;
-    for (i = 0; i < GT_NA; i++) {
-        x_new += a[i] * d->x_hist[i];
-    }
-    for (i = 0; i < GT_NB; i++) {
-        x_new += b[i] * d->u_hist[GT_NK - 1 + i];
-    }
-    for (i = GT_NA - 1; i > 0; i--) {
-        d->x_hist[i] = d->x_hist[i - 1];
-    }
-    d->x_hist[0] = x_new;
-    d->x = x_new;
-    return x_new;
+    d->x = gt_arx_sample(d->x_hist, d->u_hist, a, b, u_mm, GT_NA, GT_NB, GT_NK);
+    return d->x;
 }
 
 /* The input blocks are sampled at the start of every ARX sample (see effects.h). */
@@ -161,14 +139,10 @@ void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPos
         {
             const double tau_ref = plant_interp(at, &m->real[VR_COL_TIME_CONSTANT_REF_S]);
             double level_mm, tau_s, a_now[GT_NA], b_now[GT_NB];
-            int j;
             kernel_envelope_point(KERNEL(m),
                                   effects_input(m, m->fx.gate_mm) + m->real[VR_OPENING_REF_MM],
                                   m->real[VR_FLOW_M3H], &level_mm, &tau_s);
-            a_now[0] = gt_arx_pole_scaled(a[0], tau_ref, tau_s);
-            for (j = 0; j < GT_NB; j++) {
-                b_now[j] = gt_arx_gain_rescaled(b[j], a[0], a_now[0]);
-            }
+            gt_arx_envelope_coefficients(a, b, a_now, b_now, GT_NB, tau_ref, tau_s);
             x_new = sample_step(&m->dyn, a_now, b_now, level_mm);
         }
 #else
