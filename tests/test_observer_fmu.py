@@ -140,13 +140,17 @@ def test_parameters_set_in_initialisation_are_the_ones_used(plant, fmu):
     level offset follows the measured one); band and run from the master."""
     _, y, e, q = _inputs("C")
     q = np.full(q.size, np.median(q))
-    params = {"horizon_s": 0.0, "anomaly_band_sigma": 1.5, "anomaly_run_samples": 2.0}
+    params = {"horizon_s": 0.0, "anomaly_band_sigma": 1.5, "anomaly_run_samples": 2.0,
+              "anomaly_cusum_slack_sigma": 0.5, "anomaly_cusum_threshold": 4.0}  # fmt: skip
     got = run_observer_fmu(fmu, y, e, q, params)
     np.testing.assert_allclose(got["predicted_level_mm"], got["filtered_level_mm"], rtol=0,
                                atol=TOL)  # fmt: skip
-    ref = OnlineObserver(plant, horizon_s=0.0, anomaly=AnomalySettings(1.5, 2)).run(y, e, q)
-    np.testing.assert_array_equal(got["anomaly"], ref["anomaly"])
-    assert got["anomaly"].sum() > 0  # a band this narrow is left on the flume's record
+    anomaly = AnomalySettings(1.5, 2, 0.5, 4.0)
+    ref = OnlineObserver(plant, horizon_s=0.0, anomaly=anomaly).run(y, e, q)
+    for key in ("anomaly", "anomaly_kind", "cusum_high", "cusum_low"):
+        np.testing.assert_allclose(got[key], ref[key], rtol=0, atol=TOL, err_msg=key)
+    # a band and a threshold this narrow are passed on the flume's record, by both rules
+    assert {1.0, 2.0} <= set(got["anomaly_kind"])
 
 
 def test_anomaly_is_the_run_outside_the_scaled_band_or_the_cusum(fmu):
@@ -210,7 +214,9 @@ def test_a_step_not_a_whole_number_of_samples_is_refused(fmu):
 
 
 @pytest.mark.parametrize(("name", "value"), [("horizon_s", 61.0), ("anomaly_band_sigma", 0.0),
-                                             ("anomaly_run_samples", 2.5)])  # fmt: skip
+                                             ("anomaly_run_samples", 2.5),
+                                             ("anomaly_cusum_slack_sigma", -0.5),
+                                             ("anomaly_cusum_threshold", 0.0)])  # fmt: skip
 def test_bad_parameters_are_refused_at_initialisation(fmu, name, value):
     from fmpy.fmi1 import FMICallException
 
@@ -230,6 +236,10 @@ def test_export_refuses_what_the_observer_does_not_cover(tmp_path):
                         without_effects=True)  # fmt: skip
     with pytest.raises(ControlError, match="run_samples"):
         AnomalySettings(run_samples=0)
+    with pytest.raises(ControlError, match="cusum_slack_sigma"):
+        AnomalySettings(cusum_slack_sigma=float("nan"))
+    with pytest.raises(ControlError, match="scale_window_samples"):
+        AnomalySettings(scale_window_samples=0)
     assert list(tmp_path.iterdir()) == []
 
 
@@ -240,12 +250,20 @@ def test_cli_exports_and_refuses_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--without-effects" in err
     assert not out.exists()
+    assert main(["export-observer", model, "--out", str(out), "--without-effects",
+                 "--cusum-threshold", "0"]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cusum_threshold" in err
+    assert not out.exists()
     assert main(["export-observer", model, "--out", str(out), "--horizon", "12",
-                 "--without-effects", "--run-samples", "6"]) == 0  # fmt: skip
+                 "--without-effects", "--run-samples", "6", "--cusum-slack", "0.75",
+                 "--cusum-threshold", "20"]) == 0  # fmt: skip
     from fmpy import read_model_description
 
     starts = {v.name: v.start for v in read_model_description(str(out)).modelVariables}
     assert float(starts["horizon_s"]) == 12.0 and float(starts["anomaly_run_samples"]) == 6.0
+    assert float(starts["anomaly_cusum_slack_sigma"]) == 0.75
+    assert float(starts["anomaly_cusum_threshold"]) == 20.0
 
 
 @pytest.mark.parametrize("name", sorted(p.stem for p in bundled_records_dir().glob("*.csv")
