@@ -5,9 +5,10 @@
  * This file only orders calls: every number is computed by the functions casadi generated from
  * the observer's Python code (observer_generated.c, gatetwin.mpc.observer_codegen): start,
  * riccati, correct, advance, level, predict. Per sample, as OnlineObserver.step: correct with
- * the measured level (model of the last prediction; the innovation, its normalised value and
- * the anomaly rules' outputs and next state come with it), forecast horizon_s ahead with the inputs held (advance, that
- * many samples, then level), predict with the opening over the next sample.
+ * the measured level (model of the last prediction; the innovation, its normalised value,
+ * the anomaly rules' outputs and their next state come with it), forecast horizon_s ahead
+ * with the inputs held (advance, that many samples, then level), predict with the opening
+ * over the next sample.
  *
  * Timing: doStep(t, h) takes the inputs at t as the measurements of the sample at t; after it
  * the outputs are the estimate at t and the forecast from t. h must be a whole number of
