@@ -304,7 +304,13 @@ def run_export_controller(args: argparse.Namespace) -> int:
 
 
 def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
-    from gatetwin.mpc.online import ANOMALY_BAND_SIGMA, ANOMALY_RUN_SAMPLES, DEFAULT_HORIZON_S
+    from gatetwin.mpc.online import (
+        ANOMALY_BAND_SIGMA,
+        ANOMALY_RUN_SAMPLES,
+        CUSUM_SLACK_SIGMA,
+        CUSUM_THRESHOLD,
+        DEFAULT_HORIZON_S,
+    )
 
     parser.add_argument("model", metavar="MODEL.json")
     parser.add_argument("--out", metavar="NAME.fmu", required=True)
@@ -312,11 +318,18 @@ def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
                         help="how far ahead predicted_level_mm looks, s: a whole multiple of "
                         f"the 1.2 s sample period (default {DEFAULT_HORIZON_S:g})")  # fmt: skip
     parser.add_argument("--band", metavar="SIGMA", type=float, default=ANOMALY_BAND_SIGMA,
-                        help="band of the normalised innovation, standard deviations "
-                        f"(default {ANOMALY_BAND_SIGMA:g})")  # fmt: skip
+                        help="band of the normalised innovation, standard deviations times "
+                        f"its scale (default {ANOMALY_BAND_SIGMA:g})")  # fmt: skip
     parser.add_argument("--run-samples", metavar="N", type=int, default=ANOMALY_RUN_SAMPLES,
                         help="consecutive samples outside the band that raise the anomaly "
                         f"flag (default {ANOMALY_RUN_SAMPLES})")  # fmt: skip
+    parser.add_argument("--cusum-slack", metavar="SIGMA", type=float,
+                        default=CUSUM_SLACK_SIGMA,
+                        help="slack of the innovation's two-sided CUSUM, standard deviations "
+                        f"per sample (default {CUSUM_SLACK_SIGMA:g})")  # fmt: skip
+    parser.add_argument("--cusum-threshold", metavar="H", type=float, default=CUSUM_THRESHOLD,
+                        help="CUSUM value that raises the anomaly flag "
+                        f"(default {CUSUM_THRESHOLD:g})")  # fmt: skip
     parser.add_argument("--without-effects", action="store_true",
                         help="observe with the model's FOPDT alone, its effect blocks dropped "
                         "(a model with effect blocks is refused otherwise)")  # fmt: skip
@@ -327,7 +340,9 @@ def run_export_observer(args: argparse.Namespace) -> int:
     from gatetwin.modelfile import read_model_file
     from gatetwin.mpc.online import AnomalySettings
 
-    anomaly = AnomalySettings(band_sigma=args.band, run_samples=args.run_samples)
+    anomaly = AnomalySettings(band_sigma=args.band, run_samples=args.run_samples,
+                              cusum_slack_sigma=args.cusum_slack,
+                              cusum_threshold=args.cusum_threshold)  # fmt: skip
     model = read_model_file(args.model)
     check_writable(args.out)
     path = export_observer(model.plant, args.out, horizon_s=args.horizon, anomaly=anomaly,
