@@ -98,16 +98,20 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         fmu = export_observer(plant, Path(tmp) / "observer.fmu")
         print(f"observer FMU of fopdt_3F (effects dropped), {settings}, noise {MONITORING}")
-        print("\nclean records: rises of the anomaly flag, longest run outside the band "
-              f"(flag at {args.run_samples}), largest CUSUM (flag at {args.cusum_threshold:g})")
+        print(
+            "\nclean records: rises of the anomaly flag, longest run outside the band "
+            f"(flag at {args.run_samples}), largest CUSUM (flag at {args.cusum_threshold:g})"
+        )
         hours = 0.0
         for name, (t, y, e, q, role) in records.items():
             out = run_observer_fmu(fmu, y, e, q, params)
             found = detection(t, out["anomaly"], None)
             cusum = max(out["cusum_high"].max(), out["cusum_low"].max())
             hours += (t[-1] - t[0] + t[1] - t[0]) / 3600.0
-            print(f"  {name:10s} {role:10s} {t.size:5d} samples  {found.false_alarms}  "
-                  f"run {int(out['anomaly_samples'].max())}  CUSUM {cusum:.1f}")
+            print(
+                f"  {name:10s} {role:10s} {t.size:5d} samples  {found.false_alarms}  "
+                f"run {int(out['anomaly_samples'].max())}  CUSUM {cusum:.1f}"
+            )
         print(f"  {hours:.2f} h of clean records")
         flume = {n: records[n][:4] for n in BASES}
         _print_table("flume (bundled records)", _delays(fmu, plant, flume, params))
