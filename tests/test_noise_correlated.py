@@ -27,6 +27,7 @@ from gatetwin.noise import (
     _stretch,
     hold_openings,
     noise_floor,
+    plain_pooled_sd,
     record_noise_floor,
     steady_stretches,
 )
@@ -79,22 +80,12 @@ def test_expected_lag_sums_equal_the_traces() -> None:
         np.testing.assert_allclose(s.expected_lag_sums(phi), direct, atol=1e-10)
 
 
-def _plain_sigma(time_s: np.ndarray, level_mm: np.ndarray, stretches: list) -> float:
-    """The uncorrected pool: residual sum of squares over samples minus 3 per stretch."""
-    rss = dof = 0.0
-    for a, b in stretches:
-        s = _stretch(time_s, level_mm, a, b)
-        if s is not None:
-            rss, dof = rss + s.lag_sums()[0], dof + s.residual_mm.size - 3
-    return float(np.sqrt(rss / dof))
-
-
 def test_correlated_noise_sd_is_recovered_where_the_plain_pool_is_low() -> None:
     corrected, plain = [], []
     for seed in range(SEEDS):
         t, level, stretches = _synthetic(seed)
         corrected.append(noise_floor(t, level, np.ones(t.size, bool), stretches).sigma_mm)
-        plain.append(_plain_sigma(t, level, stretches))
+        plain.append(plain_pooled_sd(t, level, stretches))
     assert abs(np.mean(corrected) / SIGMA_MM - 1.0) <= 0.03, np.mean(corrected)
     assert np.mean(plain) / SIGMA_MM < 0.97, np.mean(plain)
 
@@ -114,7 +105,7 @@ def floor_errors() -> dict[tuple[str, str], tuple[float, float]]:
             y = rec.levels_mm[g]
             truth = free_run_metrics(y, run.depth_mm[g] + cfg.gauge_datum_mm.get(g, 0.0))
             floor = noise_floor_fit_percent(record_noise_floor(rec, g).sigma_mm, y)[0]
-            plain = noise_floor_fit_percent(_plain_sigma(t, np.asarray(y), stretches), y)[0]
+            plain = noise_floor_fit_percent(plain_pooled_sd(t, np.asarray(y), stretches), y)[0]
             out[(scn.name, g)] = (floor - truth.fit_percent, plain - truth.fit_percent)
     return out
 

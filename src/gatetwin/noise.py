@@ -205,6 +205,20 @@ def _correlation(stretches: list[_Stretch]) -> tuple[float, float]:
     return phi, (float(var[1]) / total if total > 0 else 1.0)
 
 
+def plain_pooled_sd(
+    time_s: np.ndarray, level_mm: np.ndarray, stretches: list[tuple[int, int]]
+) -> float:
+    """The uncorrected pool ``sqrt(sum r'r / sum (m - 3))`` over the stretches' last halves.
+
+    Right for white noise only; :func:`noise_floor` corrects it for correlated noise. Kept
+    to show what the correction changes (``benchmarks/bench_noise_floor.py``).
+    """
+    found = [s for a, b in stretches if (s := _stretch(time_s, level_mm, a, b)) is not None]
+    rss = sum(float(s.lag_sums()[0]) for s in found)
+    dof = sum(s.residual_mm.size - 3 for s in found)
+    return math.sqrt(rss / dof) if dof > 0 else math.nan
+
+
 def noise_floor(
     time_s: np.ndarray, level_mm: np.ndarray, hold: np.ndarray, stretches: list[tuple[int, int]]
 ) -> NoiseFloor:
