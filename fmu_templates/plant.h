@@ -9,9 +9,9 @@
 #ifndef GATETWIN_PLANT_H
 #define GATETWIN_PLANT_H
 
-#include "component.h" /* the glue-facing part, and ModelData (plant_data.h) */
-
 #include <string.h>
+
+#include "component.h" /* the glue-facing part, and ModelData (plant_data.h) */
 
 /* KnotPosition and StepCache are in plant_data.h (ModelData holds them). */
 KnotPosition plant_locate(const ModelData *m, double flow_m3h);

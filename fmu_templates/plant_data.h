@@ -38,9 +38,9 @@ typedef struct {
     int initialized;          /* plant_initialize succeeded */
     int warned_validity;      /* the validity warning (envelope or schedule range) was given */
     int parameters_changed;   /* parameters were set since they were last checked */
+    StepCache cache;          /* derived from the inputs and parameters alone (plant.c) */
     DynamicsState dyn;        /* the family's state; dyn.x is the deviation from level_ref, mm */
     EffectState fx;           /* the effect blocks' state */
-    StepCache cache;          /* derived from the inputs and parameters alone (plant.c) */
 } ModelData;
 
 #endif
