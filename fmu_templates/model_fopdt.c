@@ -309,8 +309,7 @@ PlantStatus dynamics_check_cache(const ModelData *m, PlantMessage *msg)
         return PLANT_ERROR;
     }
 #if GT_ENVELOPE
-    if (c->point_valid != 0 && c->point_valid != 1) {
-        plant_message(msg, "state's cached steady-point flag is %d, not 0 or 1", c->point_valid);
+    if (plant_check_flag(c->point_valid, "cached steady-point", msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     if (c->point_valid) {

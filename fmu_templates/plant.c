@@ -306,8 +306,7 @@ static PlantStatus check_cache(const ModelData *m, PlantMessage *msg)
 {
     const StepCache *c = &m->cache;
     KnotPosition at;
-    if (c->valid != 0 && c->valid != 1) {
-        plant_message(msg, "state's step cache flag is %d, not 0 or 1", c->valid);
+    if (plant_check_flag(c->valid, "step cache", msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     if (!c->valid || !m->initialized || m->parameters_changed) {

@@ -23,6 +23,9 @@ static inline int plant_same_bits(double a, double b)
     return memcmp(&a, &b, sizeof a) == 0;
 }
 
+/* PLANT_OK when a restored state's cache flag `what` is 0 or 1; otherwise an error naming it. */
+PlantStatus plant_check_flag(int flag, const char *what, PlantMessage *msg);
+
 /* Implemented once per family (model_fopdt.c, model_arx.c, model_physical.c); called by
  * plant.c only. dynamics_check_step and dynamics_step get the commanded opening: the family
  * runs the input blocks over its own pieces of the step (see effects.c); dynamics_step takes
