@@ -7,6 +7,7 @@ import argparse
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from gatetwin._io import check_writable, write_json_atomic
 from gatetwin.errors import GatetwinError, IdentificationError
@@ -91,23 +92,43 @@ def add_routine_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument("--json", metavar="OUT.json", required=True,
                         help="windows, schedule on Q and overall estimate")  # fmt: skip
+    parser.add_argument(
+        "--max-memory", metavar="MIB", type=float,
+        help="read a Parquet history a chunk at a time, window by window, to stay within "
+        "this many MiB (same result as reading it whole); a folder of day files is always "
+        "read a file at a time",
+    )  # fmt: skip
     parser.epilog = (
         "exit status 0 with at least one informative window; 2 when the history has none "
         "(one line saying why the moves were rejected; nothing is written) or cannot be read"
     )
 
 
-def run_routine(args: argparse.Namespace) -> int:
-    from gatetwin.identify.routine import WindowCriteria, identify_routine
+def _routine_result(args: argparse.Namespace, criteria: Any) -> Any:
+    """The whole history read at once, or chunk by chunk (``--max-memory`` or a folder)."""
+    from gatetwin.identify.routine import identify_routine
+    from gatetwin.identify.routine_chunks import (
+        DEFAULT_CHUNK_ROWS,
+        chunk_rows_for,
+        identify_routine_chunked,
+    )
     from gatetwin.records import read_record
+
+    if args.max_memory is None and not Path(args.path).is_dir():
+        return identify_routine(read_record(args.path, test="routine"), args.gauge, criteria)
+    rows = DEFAULT_CHUNK_ROWS if args.max_memory is None else chunk_rows_for(args.max_memory)
+    return identify_routine_chunked(args.path, args.gauge, criteria, chunk_rows=rows)
+
+
+def run_routine(args: argparse.Namespace) -> int:
+    from gatetwin.identify.routine import WindowCriteria
 
     check_writable(args.json)
     if not (args.pre_s > 0 and args.post_s > 0):
         raise GatetwinError("--pre-s and --post-s: expected durations > 0 s")
     criteria = WindowCriteria(pre_s=args.pre_s, post_min_s=args.post_s,
                               post_max_s=max(1200.0, args.post_s))  # fmt: skip
-    record = read_record(args.path, test="routine")
-    res = identify_routine(record, args.gauge, criteria)
+    res = _routine_result(args, criteria)
     o = res.overall
     print(f"{res.gauge}: {len(res.windows)} informative window(s) of {res.n_moves} observed "
           f"move(s); K {o['gain_mm_per_mm']:.2f} mm/mm, T {o['time_constant_s']:.1f} s, "
