@@ -196,7 +196,8 @@ def _run_fleet(args: argparse.Namespace) -> int:
     doc = run_fleet(sources, args.out, settings, fmu_backend=args.fmus,
                     progress=_print_to_stderr)  # fmt: skip
     print(f"wrote {doc['n_ok']} model sets of {doc['n_gates']} gates and the summary "
-          f"{Path(args.out) / 'fleet.json'}; {doc['n_failed']} failed")  # fmt: skip
+          f"{Path(args.out) / 'fleet.json'}; {doc['n_failed']} failed, "
+          f"{doc['n_no_window']} without an informative window")  # fmt: skip
     return 1 if doc["n_failed"] else 0
 
 

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from gatetwin.errors import IdentificationError
+from gatetwin.errors import IdentificationError, NoWindowError
 from gatetwin.identify.fopdt_driven import fit_fopdt_driven
 from gatetwin.identify.preprocess import hampel_filter, reconstructed_opening
 from gatetwin.identify.serial import finite_or_none
@@ -376,7 +376,7 @@ def identify_routine(record: Record, gauge: str | None = None,
         tally_event(record, event, name, crit, controller, windows, rejected)
     where = record.path or "record"
     if not windows:
-        raise IdentificationError(no_window_message(where, len(record.steps),
+        raise NoWindowError(no_window_message(where, len(record.steps),
                                                     record.unobserved_steps, rejected))  # fmt: skip
     return assemble(record.path, len(record.steps), record.unobserved_steps, name, windows,
                     rejected, crit, controller)  # fmt: skip

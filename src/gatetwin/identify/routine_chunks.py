@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gatetwin.errors import IdentificationError, RecordError
+from gatetwin.errors import IdentificationError, NoWindowError, RecordError
 from gatetwin.identify.routine import (
     RoutineIdentification,
     RoutineWindow,
@@ -203,7 +203,7 @@ def identify_routine_chunked(
         raise IdentificationError(f"{history.path}: fewer than 2 samples; expected a history")
     name = gauge_of(record, gauge)
     if not scan.windows:
-        raise IdentificationError(no_window_message(history.path, scan.n_moves,
+        raise NoWindowError(no_window_message(history.path, scan.n_moves,
                                                     scan.unobserved, scan.rejected))  # fmt: skip
     return assemble(history.path, scan.n_moves, scan.unobserved, name, scan.windows,
                     scan.rejected, scan.crit, scan.controller)
