@@ -113,12 +113,16 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=1,
                         help="lay the generated history end to end this many times")  # fmt: skip
     parser.add_argument("--keep", metavar="DIR", help="write the history here and keep it")
+    parser.add_argument("--history", metavar="FILE.parquet",
+                        help="measure this history (with its sidecar) instead of generating "
+                        "one; --days then only labels it")  # fmt: skip
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(args.keep) if args.keep else Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
         start = time.perf_counter()
-        path = repeated(generate(folder, args.days), args.repeat)
+        source = Path(args.history) if args.history else generate(folder, args.days)
+        path = repeated(source, args.repeat)
         made = time.perf_counter() - start
         import pyarrow.parquet
 

@@ -47,10 +47,13 @@ DEFAULT_CHUNK_ROWS = 65536
 #: Float64 columns beside the levels: time, opening, flow (and the one byte of ``hold``).
 _BASE_COLUMNS = 3
 #: Copies of a row the scan holds at its peak: the carried rows, the new chunk, the record
-#: built from them (checked copies, filled opening, segment indices), Arrow's batch.
-_WORKING_COPIES = 8
-#: Resident memory of the interpreter with numpy, scipy, pyarrow and numba loaded, MiB.
-BASE_MEMORY_MIB = 200.0
+#: built from them (checked copies, filled opening, segment indices, the gap and hold
+#: masks), Arrow's batch and its decoded columns (measured: about 400 bytes a row for one
+#: gauge, 12 copies of its 33 bytes; 16 leaves a margin).
+_WORKING_COPIES = 16
+#: Resident memory of ``gatetwin routine`` before it reads a row (interpreter, numpy,
+#: scipy, pyarrow, numba and the fit's compiled kernels), MiB, as measured.
+BASE_MEMORY_MIB = 300.0
 
 
 def chunk_rows_for(max_memory_mib: float, n_gauges: int = 1) -> int:
