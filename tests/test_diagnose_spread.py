@@ -1,0 +1,58 @@
+"""``gatetwin diagnose`` over several records, one record per task on a process pool: the
+findings and every file written are the serial run's."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from gatetwin.bundled import bundled_records_dir
+from gatetwin.cli import main
+from gatetwin.diagnose import DiagnosisSettings, diagnose_record
+from gatetwin.diagnose.spread import DiagnoseTask, diagnose_records
+from gatetwin.fleet.execute import FleetSettings
+
+#: B, a step test, and C, a PRBS test: an FOPDT and an ARX baseline.
+RECORDS = ("B", "C")
+
+
+def _run(out: Path, *extra: str) -> tuple[str, dict[str, bytes]]:
+    records = [str(bundled_records_dir() / f"{r}.csv") for r in RECORDS]
+    assert main(["diagnose", *records, "--json", str(out / "d.json"), "--plots",
+                 str(out / "plots"), "--fmu-dir", str(out / "fmus"), *extra]) == 0  # fmt: skip
+    files = {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*"))
+             if p.is_file() and p.name != "d.json"}  # fmt: skip
+    return (out / "d.json").read_text().replace(str(out), "OUT"), files
+
+
+def test_two_process_pool_gives_the_serial_findings(tmp_path) -> None:
+    # the findings alone (no figure, no FMU): the diagnosis itself, on two processes
+    paths = [str(bundled_records_dir() / f"{r}.csv") for r in RECORDS]
+    serial = [diagnose_record(p) for p in paths]
+    tasks = [DiagnoseTask(p, None, None, None, DiagnosisSettings()) for p in paths]
+    pool = diagnose_records(tasks, FleetSettings(workers=2))
+    assert len(pool) == len(RECORDS)
+    assert json.dumps(pool, sort_keys=True) == json.dumps(serial, sort_keys=True)
+
+
+@pytest.mark.slow
+def test_cli_on_two_processes_writes_the_serial_findings_and_files(tmp_path) -> None:
+    # about 100 s on 2 shared cores: each record's augmented model is exported as FMUs
+    # and validated through fmpy
+    serial, serial_files = _run(tmp_path / "serial")
+    pool, pool_files = _run(tmp_path / "pool", "--workers", "2")
+    assert len(json.loads(serial)["diagnoses"]) == len(RECORDS)
+    assert pool == serial
+    assert sorted(pool_files) == sorted(serial_files) and serial_files
+    for name, data in serial_files.items():
+        assert pool_files[name] == data, name
+
+
+def test_workers_with_a_scheduler_is_refused_in_one_line(tmp_path, capsys) -> None:
+    record = str(bundled_records_dir() / "A.csv")
+    assert main(["diagnose", record, "--json", str(tmp_path / "d.json"), "--workers", "2",
+                 "--scheduler", "tcp://127.0.0.1:1"]) == 2  # fmt: skip
+    assert capsys.readouterr().err.count("\n") == 1
+    assert not (tmp_path / "d.json").exists()
