@@ -56,3 +56,29 @@ def test_workers_with_a_scheduler_is_refused_in_one_line(tmp_path, capsys) -> No
                  "--scheduler", "tcp://127.0.0.1:1"]) == 2  # fmt: skip
     assert capsys.readouterr().err.count("\n") == 1
     assert not (tmp_path / "d.json").exists()
+
+
+@pytest.mark.slow
+def test_the_runs_diagnosis_stage_on_a_pool_writes_the_serial_outputs(tmp_path) -> None:
+    # about 100 s on 2 shared cores (FMU export and validation of each augmented model)
+    import shutil
+    from types import SimpleNamespace
+
+    from gatetwin.run.stages import diagnose_records as diagnose_stage
+
+    records = tmp_path / "records"
+    records.mkdir()
+    for name in RECORDS:
+        for suffix in (".csv", ".json"):
+            shutil.copy(bundled_records_dir() / f"{name}{suffix}", records)
+    texts = []
+    for label, fleet in (("serial", None), ("pool", FleetSettings(workers=2))):
+        out = tmp_path / label
+        ctx = SimpleNamespace(out_dir=out, records_dir=records, fleet=fleet, results={},
+                              progress=lambda _line: None)  # fmt: skip
+        diagnose_stage(ctx)
+        files = {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*"))
+                 if p.is_file() and p.name != "diagnose.json"}  # fmt: skip
+        texts.append(((out / "diagnose.json").read_text().replace(str(out), "OUT"), files))
+    assert texts[0][0] == texts[1][0]
+    assert texts[0][1] == texts[1][1] and texts[0][1]
