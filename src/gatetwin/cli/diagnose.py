@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -93,9 +94,11 @@ def _diagnoses(args: argparse.Namespace, fmu_dir: Path) -> list[dict[str, Any]]:
                                 settings=settings) for record in args.record]  # fmt: skip
     tasks = [DiagnoseTask(record, args.model, args.plots, str(fmu_dir), settings)
              for record in args.record]  # fmt: skip
-    from gatetwin.cli import print_to_stderr
+    return diagnose_records(tasks, spread, progress=_to_stderr)
 
-    return diagnose_records(tasks, spread, progress=print_to_stderr)
+
+def _to_stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
 
 
 def run_diagnose(args: argparse.Namespace) -> int:
