@@ -79,7 +79,9 @@ def run_identify(args: argparse.Namespace) -> int:
 
 
 def add_routine_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("path", metavar="RECORD.csv", help="routine operation history")
+    parser.add_argument("path", metavar="RECORD.csv",
+                        help="routine operation history (CSV or Parquet), or a folder of "
+                        "its day files (read a file at a time)")  # fmt: skip
     parser.add_argument("--gauge", help="gauge (default: the record's only gauge)")
     parser.add_argument(
         "--pre-s", type=float, default=300.0,
