@@ -1,8 +1,10 @@
 """The fleet summary: one JSON document, a Markdown table, an HTML page and one figure.
 
-``fleet.json`` holds one entry per gate (``status`` ok or failed, the model families
-identified, each model's validity envelope, each model's free-run fit on the held-out
-records, the warnings raised while identifying, and for a failed gate the reason).
+``fleet.json`` holds one entry per gate (``status`` ok, failed, or no_window for a gate of
+routine histories without any informative window; the model families identified and
+``fopdt_source``, each model's validity envelope, each model's free-run fit on the held-out
+records, each routine history's overall K, T, L under ``routine``, the warnings raised
+while identifying, and for a gate that is not ok the reason).
 ``fleet.md`` and ``fleet.html`` show the same as a table; ``fleet.png`` plots the held-out
 free-run fit of every gate and family, failed gates marked.
 """
