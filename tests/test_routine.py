@@ -292,8 +292,8 @@ def test_cli_routine_max_memory_writes_the_same_json(short_district, tmp_path) -
     pq = _parquet_history(short_district / gate.gate / "routine.csv", tmp_path)
     assert main(["routine", str(pq), "--json", str(tmp_path / "a.json")]) == 0
     assert main(["routine", str(pq), "--json", str(tmp_path / "b.json"),
-                 "--max-memory", "300"]) == 0  # fmt: skip
+                 "--max-memory", "400"]) == 0  # fmt: skip
     assert (tmp_path / "a.json").read_bytes() == (tmp_path / "b.json").read_bytes()
     assert main(["routine", str(pq), "--json", str(tmp_path / "c.json"),
-                 "--max-memory", "50"]) == 2  # fmt: skip
+                 "--max-memory", "250"]) == 2  # fmt: skip
     assert not (tmp_path / "c.json").exists()
