@@ -70,10 +70,12 @@ def throughput(gates: int, workers: int, tmp: Path) -> dict[int, float]:
 
 
 def added_worker(times: dict[int, float], workers: int) -> float:
-    """What each worker beyond the first adds, as a fraction of one worker's rate."""
+    """What each worker beyond the first adds, as a fraction of one worker's rate: 0 to 1
+    (a ratio above linear says the serial run was slowed by other load, not that workers
+    scale better than linearly)."""
     if workers <= 1:
         return 1.0
-    return max(0.0, (times[1] / times[workers] - 1.0) / (workers - 1))
+    return min(1.0, max(0.0, (times[1] / times[workers] - 1.0) / (workers - 1)))
 
 
 def memory(history: Path, tmp: Path) -> tuple[int, float]:
