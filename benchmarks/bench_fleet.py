@@ -66,8 +66,10 @@ def throughput(gates: int, workers: int, tmp: Path) -> dict[int, float]:
         print(f"| {n} | {seconds:.1f} | {gates / seconds:.2f} | {n_files / seconds:.2f} | "
               f"{samples / seconds:,.0f} |")  # fmt: skip
     speedup = times[1] / times[workers]
-    print(f"scaling: {speedup:.2f}x with {workers} processes ({speedup / workers:.2f} of "
-          f"linear); failed gates {failed[1]} (same in both: {failed[1] == failed[workers]})")
+    print(
+        f"scaling: {speedup:.2f}x with {workers} processes ({speedup / workers:.2f} of "
+        f"linear); failed gates {failed[1]} (same in both: {failed[1] == failed[workers]})"
+    )
     return times
 
 
@@ -130,13 +132,15 @@ def projection(rate_rows_s: float, scaling: float, gates: int, days: float,
     """Projected wall time of a district's year of 1 Hz histories."""
     samples = gates * days * 86400.0  # 1 Hz
     print(f"3. projection: {gates} gates x {days:g} days at 1 Hz = {samples:.3g} samples")
-    print("   assumptions: one routine history per gate, read chunk by chunk within "
-          f"{WORKER_MEMORY_MIB:g} MiB a worker; each worker identifies {rate_rows_s:,.0f} "
-          "rows/s (measured in 2 on one gate's month, the bench's operator schedule: one "
-          "move every 15 min-4 h); each worker beyond the first adds the fraction of one "
-          f"worker's rate measured in 2 with routine jobs at once ({scaling:.2f}; beyond "
-          "the measured workers, the same fraction on as many cores); local Parquet read, "
-          "no network or scheduler overhead, worker start-up (a few seconds) neglected")
+    print(
+        "   assumptions: one routine history per gate, read chunk by chunk within "
+        f"{WORKER_MEMORY_MIB:g} MiB a worker; each worker identifies {rate_rows_s:,.0f} "
+        "rows/s (measured in 2 on one gate's month, the bench's operator schedule: one "
+        "move every 15 min-4 h); each worker beyond the first adds the fraction of one "
+        f"worker's rate measured in 2 with routine jobs at once ({scaling:.2f}; beyond "
+        "the measured workers, the same fraction on as many cores); local Parquet read, "
+        "no network or scheduler overhead, worker start-up (a few seconds) neglected"
+    )
     print("| workers | projected wall time |")
     print("|---|---|")
     for n in workers:
@@ -163,8 +167,10 @@ def main() -> None:
         history = Path(args.history) if args.history else generate(tmp, args.days)
         _, rate = memory(history, tmp)
         added = routine_scaling(history, args.workers, tmp)
-    print(f"   (gatetwin models above: each worker beyond the first added "
-          f"{added_worker(times, args.workers):.2f} of one on the step-test district)")
+    print(
+        f"   (gatetwin models above: each worker beyond the first added "
+        f"{added_worker(times, args.workers):.2f} of one on the step-test district)"
+    )
     projection(rate, added, args.project_gates, args.project_days, args.project_workers)
 
 

@@ -208,5 +208,13 @@ def identify_routine_chunked(
     if not scan.windows:
         raise NoWindowError(no_window_message(history.path, scan.n_moves,
                                                     scan.unobserved, scan.rejected))  # fmt: skip
-    return assemble(history.path, scan.n_moves, scan.unobserved, name, scan.windows,
-                    scan.rejected, scan.crit, scan.controller)
+    return assemble(
+        history.path,
+        scan.n_moves,
+        scan.unobserved,
+        name,
+        scan.windows,
+        scan.rejected,
+        scan.crit,
+        scan.controller,
+    )

@@ -88,8 +88,7 @@ def open_history(path: str | os.PathLike[str]) -> History:
             raise RecordError(f"{path}: no record files (.csv, .parquet, .pq) in the folder; "
                               "expected one file per day of the history")  # fmt: skip
         own = where.with_suffix(".json") if where.name else None
-        side = read_sidecar(where) if own is not None and own.is_file() else read_sidecar(
-            files[0])
+        side = read_sidecar(where) if own is not None and own.is_file() else read_sidecar(files[0])
         return History(str(path), files, side)
     if not where.is_file():
         raise RecordError(f"{path}: no such file or folder")
