@@ -18,7 +18,10 @@ sampling) the plain ``r'r / (m - 3)`` is 7–11 % low. So the noise is modelled 
 white, ``R = (1 - w) phi^|i-j| + w I``; ``phi`` and ``w`` are fitted to the residuals'
 autocovariances at lags 0..:data:`CORRELATION_LAGS` pooled over the stretches (their
 expectations are ``trace(M R M S_k)``), and ``sigma^2 = sum r'r / sum trace(M R)``. White
-noise gives ``phi = 0`` or ``w = 1`` and the plain pooled SD back. Checked against the
+noise gives ``phi = 0`` or ``w = 1`` and the plain pooled SD back. Residuals whose best
+fit wants a correlation time beyond :data:`MAX_CORRELATION_S` hold structure rather than
+noise (a seiche the model lacks, ringing through the holds): the pool is then left
+uncorrected and the method says so. Checked against the
 virtual flume's noise-free level (``tests/test_noise_correlated.py``): over the 75 bundled
 record × gauge cells the floor's fit is the truth's within -2.8..+0.4 points, mean -0.5
 (the plain pool: -1.3..+4.7, and +2.0 on average on the PRBS records C and D).
@@ -50,11 +53,18 @@ STRETCH_GAP_FACTOR = 1.5
 
 #: Autocovariance lags the noise's correlation is fitted to.
 CORRELATION_LAGS = 2
-#: Largest AR(1) coefficient considered (a correlation time of ~20 samples).
-PHI_MAX = 0.95
+#: Longest correlation time taken for noise, s. Surface waves and a gauge's own response
+#: decorrelate within seconds (the flume's: 1.5 s). Residuals that want a longer one hold
+#: structure, not noise: an oscillation still ringing (a seiche the model may lack) or a
+#: transient the quadratic missed. Taken for noise it would inflate ``sigma`` and hide the
+#: very mismatch the floor is there to show, so the pool is then left uncorrected.
+MAX_CORRELATION_S = 5.0
 
 METHOD_HOLDS = ("SD around a quadratic over the last half of steady holds, "
                 "corrected for the noise's correlation (AR(1) plus white)")  # fmt: skip
+METHOD_UNCORRECTED = ("SD around a quadratic over the last half of steady holds, not "
+                      "corrected: the residuals' correlation outlasts MAX_CORRELATION_S "
+                      "(structure such as a ringing oscillation, not noise)")  # fmt: skip
 METHOD_DIFFERENCES = ("robust SD of first differences of hold samples / sqrt(2) "
                       "(no steady stretch long enough)")  # fmt: skip
 
@@ -84,10 +94,15 @@ class NoiseFloor:
     white_fraction: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON-ready; the correlation model is None where it was not fitted."""
         return {"sigma_mm": self.sigma_mm, "method": self.method,
                 "n_stretches": self.n_stretches, "n_samples": self.n_samples,
-                "ar1_coefficient": self.ar1_coefficient,
-                "white_fraction": self.white_fraction}  # fmt: skip
+                "ar1_coefficient": _finite_or_none(self.ar1_coefficient),
+                "white_fraction": _finite_or_none(self.white_fraction)}  # fmt: skip
+
+
+def _finite_or_none(value: float) -> float | None:
+    return value if math.isfinite(value) else None
 
 
 def flow_steps(flow_m3h: np.ndarray) -> np.ndarray:
@@ -148,23 +163,24 @@ class _Stretch:
     design: np.ndarray  # X, (m, 3)
     hat: np.ndarray  # Q, (m, 3)
 
-    def lag_sums(self) -> np.ndarray:
-        """``sum_t r_t r_(t+k)`` for ``k = 0..CORRELATION_LAGS``."""
+    def lag_sums(self, lags: int = CORRELATION_LAGS) -> np.ndarray:
+        """``sum_t r_t r_(t+k)`` for ``k = 0..lags`` (0 beyond the stretch)."""
         r = self.residual_mm
-        return np.array([r[: r.size - k] @ r[k:] for k in range(CORRELATION_LAGS + 1)])
+        return np.array([r[: r.size - k] @ r[k:] if k < r.size else 0.0
+                         for k in range(lags + 1)])  # fmt: skip
 
-    def expected_lag_sums(self, phi: float) -> np.ndarray:
+    def expected_lag_sums(self, phi: float, lags: int = CORRELATION_LAGS) -> np.ndarray:
         """``trace(M R M S_k)`` per unit AR(1) variance and ``trace(M S_k)`` per unit white.
 
-        ``S_k`` picks the ``k``-th superdiagonal; rows ``k = 0..CORRELATION_LAGS``.
+        ``S_k`` picks the ``k``-th superdiagonal; rows ``k = 0..lags``.
         """
         x, q = self.design, self.hat
         m = x.shape[0]
         i = np.arange(m)
         rx = (phi ** np.abs(i[:, None] - i[None, :])) @ x  # R X
         qb = q @ (x.T @ rx)  # Q X'R X
-        out = np.empty((CORRELATION_LAGS + 1, 2))
-        for k in range(CORRELATION_LAGS + 1):
+        out = np.zeros((lags + 1, 2))
+        for k in range(min(lags, m - 1) + 1):
             lo, hi = slice(0, m - k), slice(k, m)
             ar = ((m - k) * phi**k - np.sum(q[lo] * rx[hi]) - np.sum(rx[lo] * q[hi])
                   + np.sum(qb[lo] * q[hi]))  # fmt: skip
@@ -183,13 +199,16 @@ def _stretch(time_s: np.ndarray, level_mm: np.ndarray, start: int, stop: int) ->
     return _Stretch(y - q @ (x.T @ y), x, q)
 
 
-def _expected_lag_sums(stretches: list[_Stretch], phi: float) -> np.ndarray:
+def _expected_lag_sums(
+    stretches: list[_Stretch], phi: float, lags: int = CORRELATION_LAGS
+) -> np.ndarray:
     """Columns: the lag sums' expectations per unit AR(1) and per unit white variance."""
-    return np.sum([s.expected_lag_sums(phi) for s in stretches], axis=0)
+    return np.sum([s.expected_lag_sums(phi, lags) for s in stretches], axis=0)
 
 
-def _correlation(stretches: list[_Stretch]) -> tuple[float, float]:
-    """``(phi, w)`` whose expected lag sums best match the observed ones (module docstring)."""
+def _correlation(stretches: list[_Stretch], phi_max: float) -> tuple[float, float] | None:
+    """``(phi, w)`` whose expected lag sums best match the observed ones (module docstring),
+    or None when the best ``phi`` is at ``phi_max`` (:data:`MAX_CORRELATION_S`)."""
     observed = np.sum([s.lag_sums() for s in stretches], axis=0)
 
     def misfit(phi: float) -> tuple[float, np.ndarray]:
@@ -197,9 +216,11 @@ def _correlation(stretches: list[_Stretch]) -> tuple[float, float]:
         var, residual = optimize.nnls(design, observed)
         return residual, var
 
-    found = optimize.minimize_scalar(lambda phi: misfit(phi)[0], bounds=(0.0, PHI_MAX),
+    found = optimize.minimize_scalar(lambda phi: misfit(phi)[0], bounds=(0.0, phi_max),
                                      method="bounded", options={"xatol": 1e-3})  # fmt: skip
     phi = float(found.x)
+    if phi >= phi_max - 1e-2:
+        return None
     var = misfit(phi)[1]
     total = float(np.sum(var))
     return phi, (float(var[1]) / total if total > 0 else 1.0)
@@ -239,10 +260,15 @@ def noise_floor(
     if found:
         sd = np.array([math.sqrt(s.lag_sums()[0] / (s.residual_mm.size - 3)) for s in found])
         kept = [s for s, v in zip(found, sd, strict=True) if v <= 3.0 * np.median(sd)]
-        phi, white = _correlation(kept)
         rss = sum(float(s.lag_sums()[0]) for s in kept)
-        dof = sum(_expected_lag_sums([s], phi)[0] @ (1.0 - white, white) for s in kept)
         used = sum(s.residual_mm.size for s in kept)
+        period_s = float(np.median(np.diff(time_s)))
+        fitted = _correlation(kept, math.exp(-period_s / MAX_CORRELATION_S))
+        if fitted is None:
+            plain = math.sqrt(rss / (used - 3 * len(kept)))
+            return NoiseFloor(plain, METHOD_UNCORRECTED, len(kept), used)
+        phi, white = fitted
+        dof = sum(_expected_lag_sums([s], phi)[0] @ (1.0 - white, white) for s in kept)
         return NoiseFloor(math.sqrt(rss / dof), METHOD_HOLDS, len(kept), used, phi, white)
     y = np.where(hold, level_mm, np.nan)
     d = np.diff(y)
