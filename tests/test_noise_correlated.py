@@ -24,6 +24,7 @@ from gatetwin.flume.config import FlumeConfig
 from gatetwin.flume.experiments import reference_scenarios
 from gatetwin.flume.simulate import run_flume, spin_up
 from gatetwin.noise import (
+    METHOD_UNCORRECTED,
     _stretch,
     hold_openings,
     noise_floor,
@@ -120,3 +121,22 @@ def test_floor_matches_the_truths_fit_on_the_flume_records(
     assert errors.shape[0] >= 75 and prbs.shape[0] == 10
     assert abs(np.mean(errors[:, 0])) <= 1.0, np.mean(errors[:, 0])
     assert np.mean(np.abs(prbs[:, 0])) < np.mean(np.abs(prbs[:, 1])), prbs
+
+
+def test_a_ringing_seiche_is_not_taken_for_noise(tmp_path) -> None:
+    # A generated record whose level rings after every move (a seiche of 3-8 noise SDs per mm
+    # of move, tests/diagnose_cases.py) over white noise: its residuals want a correlation
+    # time far beyond MAX_CORRELATION_S, so the pool stays uncorrected and sigma does not
+    # swallow the oscillation the diagnosis is to find.
+    from diagnose_cases import draw_case
+
+    record = read_record(draw_case(1014, "seiche").write(tmp_path))
+    floor = record_noise_floor(record, "3F")
+    t, hold = record.time_s, np.asarray(record.hold, bool)
+    stretches = steady_stretches(t, hold, hold_openings(record), record.flow_m3h,
+                                 record.sample_period_s)  # fmt: skip
+    assert floor.method == METHOD_UNCORRECTED
+    assert floor.sigma_mm == pytest.approx(
+        plain_pooled_sd(t, np.asarray(record.levels_mm["3F"]), stretches), rel=1e-12
+    )
+    assert floor.to_dict()["ar1_coefficient"] is None
