@@ -81,6 +81,15 @@ FLAGS = CoSimulationFlags(
 )
 
 
+def check_fmi_version(fmi_version: object) -> str:
+    """``fmi_version`` if a glue exists for it (a key of :data:`FMI_APIS`); else
+    :class:`ExportError` naming the versions there are."""
+    if not isinstance(fmi_version, str) or fmi_version not in FMI_APIS:
+        raise ExportError(f"fmi_version must be one of {', '.join(FMI_APIS)} (got "
+                          f"{str(fmi_version)[:20]!r})")  # fmt: skip
+    return fmi_version
+
+
 def templates_dir() -> Path:
     """The C templates: packaged copy (``gatetwin/fmu/templates``) or the repository's."""
     here = Path(__file__).resolve().parent
@@ -205,16 +214,18 @@ def build_generated_component(
     config_header: str,
     generated_by: str,
     tool: str,
+    fmi_version: str = "2.0",
 ) -> None:
-    """Lay out the FMI 2.0 C FMU of a component whose arithmetic is generated (the MPC
-    controller, the observer) in ``fmu_dir``: the generated ``<generated_stem>.c``/``.h`` are
-    already in ``fmu_dir/sources``; this adds the FMI 2.0 glue and headers, ``component.h``,
-    the component's fixed ``component_files`` (its ``.c`` first), ``model_config.h``,
+    """Lay out the C FMU of a component whose arithmetic is generated (the MPC controller,
+    the observer) in ``fmu_dir``: the generated ``<generated_stem>.c``/``.h`` are already in
+    ``fmu_dir/sources``; this adds ``fmi_version``'s glue and headers, ``component.h``, the
+    component's fixed ``component_files`` (its ``.c`` first), ``model_config.h``,
     ``BUILD.txt``, the host's binary and ``modelDescription.xml`` (``desc`` as
-    :func:`~gatetwin.fmu.description.model_description_xml` takes it)."""
-    from fmpy import platform, sharedLibraryExtension
+    :func:`~gatetwin.fmu.description.model_description_xml` takes it). The component is the
+    same under either API: only the glue and the description's rendering differ."""
+    from fmpy import platform, platform_tuple, sharedLibraryExtension
 
-    api = FMI_APIS["2.0"]
+    api = FMI_APIS[fmi_version]
     sources = fmu_dir / "sources"
     c_files = (api.glue, component_files[0], f"{generated_stem}.c")
     templates = templates_dir()
@@ -229,11 +240,13 @@ def build_generated_component(
         encoding="utf-8",
     )
     name = f"{desc.model_identifier}{sharedLibraryExtension}"
-    binary = fmu_dir / "binaries" / platform / name
+    folder = platform if fmi_version == "2.0" else platform_tuple
+    binary = fmu_dir / "binaries" / folder / name
     binary.parent.mkdir(parents=True)
     compile_shared(sources, c_files, binary)
     flags = dataclasses.replace(FLAGS, source_files=c_files)
-    (fmu_dir / "modelDescription.xml").write_bytes(model_description_xml(desc, flags, tool=tool))
+    render = model_description_xml if fmi_version == "2.0" else model_description_xml3
+    (fmu_dir / "modelDescription.xml").write_bytes(render(desc, flags, tool=tool))
 
 
 def compile_shared(
