@@ -341,6 +341,12 @@ PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMe
         plant_message(msg, "%s is not an output", plant_variables[vr].name);
         return PLANT_ERROR;
     }
+    /* before initialisation the opening is the one held at rest: start_opening_mm as set now
+     * (a master propagating initial values reads it, as the PI's) */
+    if (!m->initialized && vr == VR_OPENING_MM) {
+        *value = m->real[VR_START_OPENING_MM];
+        return PLANT_OK;
+    }
     *value = m->real[vr];
     return PLANT_OK;
 }

@@ -233,6 +233,28 @@ def _start(fmu, opening=25.0, level=190.0, flow=40.0):
     return slave, vr, driver.messages, folder
 
 
+def test_before_initialisation_the_opening_is_the_start_opening_set(fmu):
+    """A master propagating initial values (gatetwin's SSP master) reads the opening before
+    the controller leaves initialisation mode: it must be the start opening set, as the
+    PI's, not the start value it was built with."""
+    from fmpy import extract
+
+    from fmu_support import open_fmu
+
+    folder = extract(str(fmu))
+    driver = open_fmu(folder)
+    slave, vr = driver.slave, driver.vr
+    try:
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        built = slave.getReal([vr["opening_mm"]])[0]
+        slave.setReal([vr["start_opening_mm"]], [built + 7.0])
+        assert slave.getReal([vr["opening_mm"]]) == [built + 7.0]
+    finally:
+        slave.freeInstance()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def test_a_nan_level_is_refused_with_a_logged_reason(fmu):
     from fmpy.fmi1 import FMICallException
 
