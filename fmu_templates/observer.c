@@ -315,6 +315,11 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
                            "observer's sample period %.17g s", step_s, GT_OBS_SAMPLE_PERIOD_S);
         return PLANT_ERROR;
     }
+    if (n > GT_OBS_MAX_SAMPLES_PER_STEP) {
+        plant_message(msg, "communication step %.17g s spans %ld samples; at most %d per step",
+                      step_s, n, GT_OBS_MAX_SAMPLES_PER_STEP);
+        return PLANT_ERROR;
+    }
     if (!(fabs(m->time_s + step_s) <= GT_MAX_TIME_S)) {
         plant_message(msg, "communication step to t = %.17g s passes the time limit %g s",
                       m->time_s + step_s, GT_MAX_TIME_S);

@@ -193,6 +193,22 @@ def test_a_step_of_whole_samples_takes_the_held_inputs_for_each(plant, fmu):
     np.testing.assert_allclose(got, ref.values(), rtol=0, atol=TOL)
 
 
+def test_a_step_beyond_the_sample_budget_is_refused(fmu):
+    """The longest step is taken; one sample more is refused (not worked through)."""
+    from fmpy.fmi1 import FMICallException
+
+    from gatetwin.fmu.observer_fmu import MAX_SAMPLES_PER_STEP
+
+    slave, vr = _slave(fmu)
+    slave.exitInitializationMode()
+    slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=MAX_SAMPLES_PER_STEP * 1.2)
+    assert np.all(np.isfinite(slave.getReal([vr[n] for n in OUTPUTS])))
+    with pytest.raises(FMICallException):
+        slave.doStep(currentCommunicationPoint=MAX_SAMPLES_PER_STEP * 1.2,
+                     communicationStepSize=(MAX_SAMPLES_PER_STEP + 1) * 1.2)  # fmt: skip
+    slave.freeInstance()
+
+
 def test_a_step_not_a_whole_number_of_samples_is_refused(fmu):
     from fmpy.fmi1 import FMICallException
 

@@ -15,7 +15,8 @@ outputs ``filtered_level_mm``, ``disturbance_mm``, ``innovation_mm``,
 ``anomaly_run_samples`` and the schedule (``schedule.flow_m3h[k]``, ``schedule.<column>[k]``,
 ``opening_ref_mm``). The observer starts at rest on the inputs set in initialisation mode;
 ``doStep(t, h)`` takes the inputs at ``t`` as the sample at ``t`` (``h`` a whole number of
-sample periods, each taking the held inputs); after it the outputs are the estimate at ``t``.
+sample periods, at most :data:`MAX_SAMPLES_PER_STEP`, each taking the held inputs); after it
+the outputs are the estimate at ``t``.
 
 No heap after instantiation: the instance (one ``ModelData``) is allocated once by the glue.
 """
@@ -70,6 +71,9 @@ COMPONENT_FILES = ("observer.c", "observer_data.h")
 #: by more than this times the largest (round-off), and fails after this many iterations.
 RICCATI_RTOL = 1e-14
 RICCATI_MAX_ITER = 100_000
+#: Most samples one communication step may span (3 h 20 min of 1.2 s samples): a budget of
+#: work per call (~14 µs a sample, so ~0.15 s) that keeps a huge step from stalling the host.
+MAX_SAMPLES_PER_STEP = 10_000
 DEFAULT_NAME = "gatetwin_observer"
 
 
@@ -426,6 +430,7 @@ def observer_config_header(
         f"#define GT_OBS_MAX_DEAD_TIME_S {_c(max_dead)}",
         f"#define GT_OBS_RICCATI_RTOL {_c(RICCATI_RTOL)}",
         f"#define GT_OBS_RICCATI_MAX_ITER {RICCATI_MAX_ITER}",
+        f"#define GT_OBS_MAX_SAMPLES_PER_STEP {MAX_SAMPLES_PER_STEP}",
         "",
         "/* value references (indices into ModelData.real) */",
         f"#define VR_LEVEL {vr[output_name(desc.gauge)]}",
