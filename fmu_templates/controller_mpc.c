@@ -241,6 +241,21 @@ static PlantStatus finite_estimate(const ModelData *m, const char *when, PlantMe
     return PLANT_ERROR;
 }
 
+/* Every output finite: a restored state can hold a covariance no run produces (finite, but not
+ * positive semi-definite), whose step gives finite estimates and NaN derived outputs. */
+static PlantStatus finite_outputs(const ModelData *m, PlantMessage *msg)
+{
+    unsigned vr;
+    for (vr = 0; vr < GT_N_REAL; vr++) {
+        if (plant_variables[vr].kind == GT_KIND_OUTPUT && !isfinite(m->real[vr])) {
+            plant_message(msg, "%s is not finite after the step; reset the %s",
+                          plant_variables[vr].name, "controller");
+            return PLANT_ERROR;
+        }
+    }
+    return PLANT_OK;
+}
+
 static void set_outputs(ModelData *m, double opening, double level, double active, int status,
                         double iterations)
 {
@@ -332,7 +347,10 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     m->opening_mm = opening;
     m->time_s += step_s;
     set_outputs(m, opening, level, active, ok ? 0 : 1, iterations);
-    return finite_estimate(m, "after the step", msg);
+    if (finite_estimate(m, "after the step", msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    return finite_outputs(m, msg);
 }
 
 PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMessage *msg)

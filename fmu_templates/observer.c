@@ -234,6 +234,21 @@ static PlantStatus finite_estimate(const ModelData *m, const char *when, PlantMe
     return PLANT_ERROR;
 }
 
+/* Every output finite: a restored state can hold a covariance no run produces (finite, but not
+ * positive semi-definite), whose step gives finite estimates and NaN derived outputs. */
+static PlantStatus finite_outputs(const ModelData *m, PlantMessage *msg)
+{
+    unsigned vr;
+    for (vr = 0; vr < GT_N_REAL; vr++) {
+        if (plant_variables[vr].kind == GT_KIND_OUTPUT && !isfinite(m->real[vr])) {
+            plant_message(msg, "%s is not finite after the step; reset the %s",
+                          plant_variables[vr].name, "observer");
+            return PLANT_ERROR;
+        }
+    }
+    return PLANT_OK;
+}
+
 /* One sample: correct with the level y, forecast, predict with opening e at discharge q. */
 static void sample(ModelData *m, double y, double e, double q)
 {
@@ -332,7 +347,10 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
         sample(m, m->real[VR_LEVEL], m->real[VR_OPENING_MM], m->real[VR_FLOW_M3H]);
     }
     m->time_s += step_s;
-    return finite_estimate(m, "after the step", msg);
+    if (finite_estimate(m, "after the step", msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    return finite_outputs(m, msg);
 }
 
 PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMessage *msg)
