@@ -9,6 +9,7 @@ demo's N = 100); the demo's horizon itself is the slow test.
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 from dataclasses import replace
 
@@ -233,26 +234,33 @@ def _start(fmu, opening=25.0, level=190.0, flow=40.0):
     return slave, vr, driver.messages, folder
 
 
-def test_before_initialisation_the_opening_is_the_start_opening_set(fmu):
-    """A master propagating initial values (gatetwin's SSP master) reads the opening before
-    the controller leaves initialisation mode: it must be the start opening set, as the
-    PI's, not the start value it was built with."""
+@contextlib.contextmanager
+def _initialising(fmu):
+    """The FMU instantiated and in initialisation mode (slave, value references, logged
+    messages); freed and deleted afterwards."""
     from fmpy import extract
 
     from fmu_support import open_fmu
 
     folder = extract(str(fmu))
     driver = open_fmu(folder)
-    slave, vr = driver.slave, driver.vr
     try:
-        slave.setupExperiment(startTime=0.0)
-        slave.enterInitializationMode()
+        driver.slave.setupExperiment(startTime=0.0)
+        driver.slave.enterInitializationMode()
+        yield driver.slave, driver.vr, driver.messages
+    finally:
+        driver.slave.freeInstance()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_before_initialisation_the_opening_is_the_start_opening_set(fmu):
+    """A master propagating initial values (gatetwin's SSP master) reads the opening before
+    the controller leaves initialisation mode: it must be the start opening set, as the
+    PI's, not the start value it was built with."""
+    with _initialising(fmu) as (slave, vr, _):
         built = slave.getReal([vr["opening_mm"]])[0]
         slave.setReal([vr["start_opening_mm"]], [built + 7.0])
         assert slave.getReal([vr["opening_mm"]]) == [built + 7.0]
-    finally:
-        slave.freeInstance()
-        shutil.rmtree(folder, ignore_errors=True)
 
 
 def test_a_nan_level_is_refused_with_a_logged_reason(fmu):
@@ -334,24 +342,13 @@ def test_a_restored_state_repeats_the_same_steps(fmu):
 
 
 def test_a_dead_time_beyond_the_generated_register_is_refused_at_initialisation(fmu):
-    from fmpy import extract
     from fmpy.fmi1 import FMICallException
 
-    from fmu_support import open_fmu
-
-    folder = extract(str(fmu))
-    driver = open_fmu(folder)
-    slave, vr = driver.slave, driver.vr
-    try:
-        slave.setupExperiment(startTime=0.0)
-        slave.enterInitializationMode()
+    with _initialising(fmu) as (slave, vr, logged):
         slave.setReal([vr["schedule.dead_time_s[2]"]], [60.0])  # the register holds ~3.6 s
         with pytest.raises(FMICallException):
             slave.exitInitializationMode()
-        assert any("schedule.dead_time_s[2]" in m for _, m in driver.messages), driver.messages
-    finally:
-        slave.freeInstance()
-        shutil.rmtree(folder, ignore_errors=True)
+        assert any("schedule.dead_time_s[2]" in m for _, m in logged), logged
 
 
 def test_export_controller_builds_the_mpc_from_a_model_file(tmp_path, capsys):
