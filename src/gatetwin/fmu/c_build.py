@@ -50,6 +50,11 @@ HOST_FLAGS = ("-flto",)
 #: component.c (the variable table and the message formatter) serves every component.
 COMMON_SOURCES = ("component.c", "plant.c", "support.c", "effects.c", "blocks.c")
 COMMON_HEADERS = ("component.h", "plant_data.h", "plant.h", "effects.h", "blocks.h")
+#: What every component with casadi-generated arithmetic (the MPC controller, the observer)
+#: compiles besides its own file: the variable table and message formatter, and the calls and
+#: checks around the generated code (generated_support.h).
+GENERATED_SUPPORT_SOURCES = ("component.c", "generated_support.c")
+GENERATED_SUPPORT_FILES = (*GENERATED_SUPPORT_SOURCES, "generated_support.h")
 
 
 @dataclass(frozen=True)
@@ -218,18 +223,20 @@ def build_generated_component(
 ) -> None:
     """Lay out the C FMU of a component whose arithmetic is generated (the MPC controller,
     the observer) in ``fmu_dir``: the generated ``<generated_stem>.c``/``.h`` are already in
-    ``fmu_dir/sources``; this adds ``fmi_version``'s glue and headers, ``component.h``, the
-    component's fixed ``component_files`` (its ``.c`` first), ``model_config.h``,
-    ``BUILD.txt``, the host's binary and ``modelDescription.xml`` (``desc`` as
-    :func:`~gatetwin.fmu.description.model_description_xml` takes it). The component is the
-    same under either API: only the glue and the description's rendering differ."""
+    ``fmu_dir/sources``; this adds ``fmi_version``'s glue and headers, ``component.h``,
+    :data:`GENERATED_SUPPORT_FILES`, the component's fixed ``component_files`` (its ``.c``
+    first), ``model_config.h``, ``BUILD.txt``, the host's binary and ``modelDescription.xml``
+    (``desc`` as :func:`~gatetwin.fmu.description.model_description_xml` takes it). The
+    component is the same under either API: only the glue and the description's rendering
+    differ."""
     from fmpy import platform, platform_tuple, sharedLibraryExtension
 
     api = FMI_APIS[fmi_version]
     sources = fmu_dir / "sources"
-    c_files = (api.glue, component_files[0], f"{generated_stem}.c")
+    c_files = (api.glue, *GENERATED_SUPPORT_SOURCES, component_files[0], f"{generated_stem}.c")
     templates = templates_dir()
-    for name in (api.glue, *component_files, *api.headers, "component.h", api.license):
+    for name in (api.glue, *GENERATED_SUPPORT_FILES, *component_files, *api.headers,
+                 "component.h", api.license):  # fmt: skip
         shutil.copyfile(templates / name, sources / name)
     (sources / "model_config.h").write_text(config_header, encoding="utf-8")
     line = " ".join(["cc", *CFLAGS, "-o", f"{desc.model_identifier}.so", *c_files, "-lm"])

@@ -26,44 +26,34 @@ generated code's work arrays included) is allocated once by the glue.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
-import tempfile
-import uuid
 from pathlib import Path
 from typing import Any
 
-from gatetwin.errors import ExportError, OutputError
-from gatetwin.fmu.c_build import (
-    FMI_APIS,
-    build_generated_component,
-    check_fmi_version,
-    templates_dir,
-    zip_folder,
+from gatetwin.errors import ExportError
+from gatetwin.fmu.c_build import build_generated_component, check_fmi_version, zip_folder
+from gatetwin.fmu.description import FmuDescription, VariableSpec, output_name
+from gatetwin.fmu.generated_component import (
+    Row,
+    c_double,
+    code_digest,
+    config_header,
+    fmu_target,
+    generated_guid,
+    schedule_rows,
+    variables_of,
+    write_atomically,
 )
-from gatetwin.fmu.description import (
-    COMMUNICATION_POINT_RTOL,
-    LOG_CATEGORIES,
-    FmuDescription,
-    VariableSpec,
-    output_name,
-)
-from gatetwin.fmu.limits import MAX_TIME_S, PARAMETER_MAX_ABS
-from gatetwin.mpc.codegen import COLUMNS, Layout, build_functions, generate_c, theta_names
+from gatetwin.mpc.codegen import Layout, build_functions, generate_c
 from gatetwin.mpc.discrete import register_length
 from gatetwin.mpc.qp import QRQP_MAX_ITER
 from gatetwin.mpc.settings import MpcSettings
-from gatetwin.plant.model import FLOW_RANGE_M3H, FopdtPlant, Plant, plant_to_dict
+from gatetwin.plant.model import FopdtPlant, Plant, plant_to_dict
 
 #: The component's fixed files (the FMI glue and headers come with them,
 #: :func:`~gatetwin.fmu.c_build.build_generated_component`).
 COMPONENT_FILES = ("controller_mpc.c", "mpc_data.h")
-#: The steady observer covariance at the start: the Riccati iteration stops when a step
-#: moves no entry by more than this times the largest (round-off: the fixed point is reached
-#: to a few ulps in ~200 iterations on the demo plant), and fails after this many iterations.
-RICCATI_RTOL = 1e-14
-RICCATI_MAX_ITER = 100_000
 DEFAULT_NAME = "gatetwin_mpc"
 
 
@@ -110,18 +100,9 @@ def export_mpc_controller(
         raise ExportError(f"max_iter must be an integer in [1, 100000] (got {max_iter!r})")
     if settings.level_band_mm is None:
         raise ExportError("mpc controller FMU: the settings need a level band")
-    target = Path(out_path)
-    if target.suffix.lower() != ".fmu":
-        raise ExportError(f"output {target} must end in .fmu")
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
-            built = _build(plant, settings, max_iter, model_name, Path(tmp), target.name,
-                           fmi_version)  # fmt: skip
-            os.replace(built, target)
-    except OSError as exc:
-        raise OutputError(f"{target}: cannot write the FMU ({exc.strerror or exc})") from None
-    return target
+    target = fmu_target(out_path)
+    return write_atomically(target, lambda work, file: _build(
+        plant, settings, max_iter, model_name, work, file, fmi_version))
 
 
 def _load(model_or_path: Any) -> FopdtPlant:
@@ -170,9 +151,9 @@ def _settings_dict(settings: MpcSettings) -> dict[str, Any]:
     return asdict(settings)
 
 
-def _variables(plant: FopdtPlant) -> list[VariableSpec]:
+def _variables(plant: FopdtPlant) -> tuple[VariableSpec, ...]:
     knots = plant.schedule.flow_m3h
-    rows: list[tuple[str, str, str, str | None, str, str, float | None]] = [
+    rows: list[Row] = [
         (output_name(plant.gauge), "input", "continuous", None, "mm",
          f"Level measured at gauge {plant.gauge} now", plant.schedule.at("level_ref_mm", knots[0])),
         ("flow_m3h", "input", "continuous", None, "m3/h",
@@ -192,24 +173,7 @@ def _variables(plant: FopdtPlant) -> list[VariableSpec]:
         ("start_opening_mm", "parameter", "fixed", "exact", "mm",
          "Opening held at rest at the start", plant.opening_ref_mm),
     ]  # fmt: skip
-    meta = {
-        "flow_m3h": ("m3/h", "Discharge knot of the schedule (strictly increasing)"),
-        "gain_mm_per_mm": ("mm/mm", "Static gain K of level on opening"),
-        "time_constant_s": ("s", "Time constant T (> 0)"),
-        "dead_time_s": ("s", "Dead time L (>= 0, at most the export's largest)"),
-        "level_ref_mm": ("mm", "Rating level at opening_ref_mm"),
-        "opening_ref_mm": ("mm", "Reference opening of the schedule's model"),
-    }
-    values = [*knots, *(v for c in COLUMNS for v in plant.schedule.values[c]),
-              plant.opening_ref_mm]  # fmt: skip
-    for name, value in zip(theta_names(len(knots)), values, strict=True):
-        column = name.split(".")[-1].split("[")[0]
-        unit, text = meta[column]
-        rows.append((name, "parameter", "fixed", "exact", unit, text, float(value)))
-    return [
-        VariableSpec(n, vr, c, var, init, u, d, s, initial_dependency=c != "output")
-        for vr, (n, c, var, init, u, d, s) in enumerate(rows)
-    ]
+    return variables_of(rows + schedule_rows(plant))
 
 
 def describe_controller(
@@ -223,10 +187,8 @@ def describe_controller(
             f"model_name {model_name!r} must be a C identifier (letters, digits, _; <= 64 chars)"
         )
     specs = _variables(plant)
-    text = json.dumps([plant_to_dict(plant), _settings_dict(settings), max_iter, model_name,
-                       _code_digest()], sort_keys=True, default=str)  # fmt: skip
-    digest = hashlib.sha256(text.encode()).digest()
-    guid = "{" + str(uuid.UUID(bytes=digest[:16], version=5)) + "}"
+    guid = generated_guid([plant_to_dict(plant), _settings_dict(settings), max_iter, model_name,
+                           _code_digest()])  # fmt: skip
     lo, hi = settings.opening_range_mm
     return FmuDescription(
         model_identifier=model_name,
@@ -234,7 +196,7 @@ def describe_controller(
         family="mpc",
         gauge=plant.gauge,
         n_knots=len(plant.schedule.flow_m3h),
-        variables=tuple(specs),
+        variables=specs,
         columns={},
         arx_orders=None,
         step_size_s=settings.sample_period_s,
@@ -245,20 +207,8 @@ def describe_controller(
 
 
 def _code_digest() -> str:
-    names = (*(api.glue for api in FMI_APIS.values()), "controller_mpc.c", "mpc_data.h",
-             "component.h")  # fmt: skip
-    digest = hashlib.sha256()
-    for n in names:
-        digest.update((templates_dir() / n).read_bytes())
-    mpc = Path(__file__).resolve().parents[1] / "mpc"
-    for n in ("codegen.py", "discrete.py", "observer.py", "qp.py", "statespace.py"):
-        digest.update((mpc / n).read_bytes())
-    return digest.hexdigest()[:16]
-
-
-def _c(value: float) -> str:
-    text = repr(float(value))
-    return text if any(c in text for c in ".en") else text + ".0"
+    return code_digest(COMPONENT_FILES, ("codegen.py", "discrete.py", "observer.py", "qp.py",
+                                         "statespace.py"))
 
 
 def controller_config_header(
@@ -269,70 +219,18 @@ def controller_config_header(
     sizes: dict[str, dict[str, int]],
 ) -> str:
     """``model_config.h`` of the controller FMU."""
-    from gatetwin.fmu.checks import c_string_literal
-
-    kinds = {"input": "GT_KIND_INPUT", "output": "GT_KIND_OUTPUT",
-             "tunable": "GT_KIND_TUNABLE", "fixed": "GT_KIND_FIXED"}  # fmt: skip
-    vr = {v.name: v.vr for v in desc.variables}
     lo, hi = settings.opening_range_mm
-    big = {k: max(s[k] for s in sizes.values()) for k in ("arg", "res", "iw", "w")}
-    lines = [
-        f"/* Generated by gatetwin.fmu.mpc_controller for {desc.model_identifier}; do not edit. */",
-        "#ifndef GATETWIN_MODEL_CONFIG_H",
-        "#define GATETWIN_MODEL_CONFIG_H",
-        "",
-        f"#define GT_MODEL_IDENTIFIER {c_string_literal(desc.model_identifier)}",
-        f"#define GT_GUID {c_string_literal(desc.guid)}",
-        '#define GT_COMPONENT_HEADER "mpc_data.h"',
-        f"#define GT_N_REAL {len(desc.variables)}",
-        f"#define GT_N_KNOTS {desc.n_knots}",
-        f"#define GT_COMMUNICATION_POINT_RTOL {_c(COMMUNICATION_POINT_RTOL)}",
-        f"#define GT_MAX_TIME_S {_c(MAX_TIME_S)}",
-        f"#define GT_PARAMETER_MAX_ABS {_c(PARAMETER_MAX_ABS)}",
-        "#define GT_LOG_CATEGORIES {" + ", ".join(f'"{c}"' for c in LOG_CATEGORIES) + "}",
-        "",
+    own = [
         "/* the controller */",
-        f"#define GT_MPC_NZ {layout.n_states}",
         f"#define GT_MPC_NV {layout.n_var}",
         f"#define GT_MPC_NC {layout.n_con}",
-        f"#define GT_MPC_SZ_ARG {big['arg']}",
-        f"#define GT_MPC_SZ_RES {big['res']}",
-        f"#define GT_MPC_SZ_IW {max(1, big['iw'])}",
-        f"#define GT_MPC_SZ_W {max(1, big['w'])}",
-        f"#define GT_MPC_SAMPLE_PERIOD_S {_c(settings.sample_period_s)}",
-        f"#define GT_MPC_OPENING_MIN_MM {_c(lo)}",
-        f"#define GT_MPC_OPENING_MAX_MM {_c(hi)}",
-        f"#define GT_MPC_FLOW_MIN_M3H {_c(FLOW_RANGE_M3H[0])}",
-        f"#define GT_MPC_FLOW_MAX_M3H {_c(FLOW_RANGE_M3H[1])}",
-        f"#define GT_MPC_MAX_DEAD_TIME_S {_c(_max_dead_time_s(layout, settings))}",
-        f"#define GT_MPC_RICCATI_RTOL {_c(RICCATI_RTOL)}",
-        f"#define GT_MPC_RICCATI_MAX_ITER {RICCATI_MAX_ITER}",
-        "",
-        "/* value references (indices into ModelData.real) */",
-        f"#define VR_LEVEL {vr[output_name(plant.gauge)]}",
-        f"#define VR_FLOW_M3H {vr['flow_m3h']}",
-        f"#define VR_SETPOINT_MM {vr['setpoint_mm']}",
-        f"#define VR_OPENING_MM {vr['opening_mm']}",
-        f"#define VR_PREDICTED_LEVEL_MM {vr['predicted_level_mm']}",
-        f"#define VR_ACTIVE_CONSTRAINTS {vr['active_constraints']}",
-        f"#define VR_SOLVER_STATUS {vr['solver_status']}",
-        f"#define VR_SOLVER_ITERATIONS {vr['solver_iterations']}",
-        f"#define VR_START_OPENING_MM {vr['start_opening_mm']}",
-        f"#define VR_THETA {vr['schedule.flow_m3h[1]']}",
-        f"#define VR_COL_FLOW_M3H {vr['schedule.flow_m3h[1]']}",
+        f"#define GT_MPC_OPENING_MIN_MM {c_double(lo)}",
+        f"#define GT_MPC_OPENING_MAX_MM {c_double(hi)}",
     ]
-    lines += [f"#define VR_COL_{c.upper()} {vr[f'schedule.{c}[1]']}" for c in COLUMNS]
-    lines += ["", "/* every Real variable in value-reference order: name, kind, start */",
-              "#define GT_VARIABLES(X) \\"]  # fmt: skip
-    lines += [f"    X({c_string_literal(v.name)}, {kinds[v.kind]}, {_c(v.start or 0.0)}) \\"
-              for v in desc.variables]  # fmt: skip
-    lines += ["", "#endif", ""]
-    return "\n".join(lines)
-
-
-def _max_dead_time_s(layout: Layout, settings: MpcSettings) -> float:
-    """The longest dead time the register holds: ``L = n Ts + θ`` needs ``n + 1 <= m``."""
-    return layout.register * settings.sample_period_s * (1.0 - 1e-9)
+    names = ("flow_m3h", "setpoint_mm", "opening_mm", "predicted_level_mm",
+             "active_constraints", "solver_status", "solver_iterations", "start_opening_mm")
+    refs = {"LEVEL": output_name(plant.gauge), **{n.upper(): n for n in names}}
+    return config_header(desc, "mpc_data.h", layout, sizes, settings.sample_period_s, own, refs)
 
 
 __all__ = ["DEFAULT_NAME", "controller_config_header", "describe_controller",

@@ -24,32 +24,27 @@ No heap after instantiation: the instance (one ``ModelData``) is allocated once 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 import shutil
-import tempfile
-import uuid
 from pathlib import Path
 from typing import Any
 
-from gatetwin.errors import ExportError, OutputError
-from gatetwin.fmu.c_build import (
-    FMI_APIS,
-    build_generated_component,
-    check_fmi_version,
-    templates_dir,
-    zip_folder,
+from gatetwin.errors import ExportError
+from gatetwin.fmu.c_build import build_generated_component, check_fmi_version, zip_folder
+from gatetwin.fmu.description import FmuDescription, VariableSpec, output_name
+from gatetwin.fmu.generated_component import (
+    Row,
+    c_double,
+    code_digest,
+    config_header,
+    fmu_target,
+    generated_guid,
+    schedule_rows,
+    variables_of,
+    write_atomically,
 )
-from gatetwin.fmu.description import (
-    COMMUNICATION_POINT_RTOL,
-    LOG_CATEGORIES,
-    FmuDescription,
-    VariableSpec,
-    output_name,
-)
-from gatetwin.fmu.limits import MAX_TIME_S, PARAMETER_MAX_ABS
-from gatetwin.mpc.codegen import COLUMNS, Layout, theta_names
+from gatetwin.mpc.codegen import Layout
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S, register_length
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.observer_codegen import ESTIMATE, build_observer_functions, generate_observer_c
@@ -62,15 +57,11 @@ from gatetwin.mpc.online import (
     forecast_samples,
 )
 from gatetwin.mpc.settings import ObserverSettings
-from gatetwin.plant.model import FLOW_RANGE_M3H, FopdtPlant, Plant, plant_to_dict
+from gatetwin.plant.model import FopdtPlant, Plant, plant_to_dict
 
 #: The component's fixed files (the FMI glue and headers come with them,
 #: :func:`~gatetwin.fmu.c_build.build_generated_component`).
 COMPONENT_FILES = ("observer.c", "observer_data.h")
-#: The steady covariance at the start: the Riccati iteration stops when a step moves no entry
-#: by more than this times the largest (round-off), and fails after this many iterations.
-RICCATI_RTOL = 1e-14
-RICCATI_MAX_ITER = 100_000
 #: Most samples one communication step may span (3 h 20 min of 1.2 s samples): a budget of
 #: work per call (~14 µs a sample, so ~0.15 s) that keeps a huge step from stalling the host.
 MAX_SAMPLES_PER_STEP = 10_000
@@ -139,18 +130,10 @@ def export_observer(
         raise ExportError(str(exc)) from None
     cfg = _Config(plant, float(horizon_s), settings or MONITORING,
                   anomaly or AnomalySettings(), model_name)  # fmt: skip
-    target = Path(out_path)
-    if target.suffix.lower() != ".fmu":
-        raise ExportError(f"output {target} must end in .fmu")
+    target = fmu_target(out_path)
     desc = describe_observer(cfg)
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
-            built = _build(cfg, desc, Path(tmp), target.name, fmi_version)
-            os.replace(built, target)
-    except OSError as exc:
-        raise OutputError(f"{target}: cannot write the FMU ({exc.strerror or exc})") from None
-    return target
+    return write_atomically(target, lambda work, file: _build(cfg, desc, work, file,
+                                                              fmi_version))
 
 
 def _load(model_or_path: Any, without_effects: bool) -> Any:
@@ -196,10 +179,7 @@ def _facts(cfg: _Config, desc: FmuDescription | None = None) -> dict[str, Any]:
     return facts
 
 
-_Row = tuple[str, str, str, str | None, str, str, float | None]
-
-
-def _rows(cfg: _Config) -> list[_Row]:
+def _rows(cfg: _Config) -> list[Row]:
     plant = cfg.plant
     knots = plant.schedule.flow_m3h
     level0 = plant.schedule.at("level_ref_mm", knots[0])
@@ -236,27 +216,8 @@ def _rows(cfg: _Config) -> list[_Row]:
     ]  # fmt: skip
 
 
-def _variables(cfg: _Config) -> list[VariableSpec]:
-    plant = cfg.plant
-    rows = _rows(cfg)
-    meta = {
-        "flow_m3h": ("m3/h", "Discharge knot of the schedule (strictly increasing)"),
-        "gain_mm_per_mm": ("mm/mm", "Static gain K of level on opening"),
-        "time_constant_s": ("s", "Time constant T (> 0)"),
-        "dead_time_s": ("s", "Dead time L (>= 0, at most the export's largest)"),
-        "level_ref_mm": ("mm", "Rating level at opening_ref_mm"),
-        "opening_ref_mm": ("mm", "Reference opening of the schedule's model"),
-    }
-    knots = plant.schedule.flow_m3h
-    values = [*knots, *(v for c in COLUMNS for v in plant.schedule.values[c]),
-              plant.opening_ref_mm]  # fmt: skip
-    for name, value in zip(theta_names(len(knots)), values, strict=True):
-        unit, text = meta[name.split(".")[-1].split("[")[0]]
-        rows.append((name, "parameter", "fixed", "exact", unit, text, float(value)))
-    return [
-        VariableSpec(n, vr, c, var, init, u, d, s, initial_dependency=c != "output")
-        for vr, (n, c, var, init, u, d, s) in enumerate(rows)
-    ]
+def _variables(cfg: _Config) -> tuple[VariableSpec, ...]:
+    return variables_of(_rows(cfg) + schedule_rows(cfg.plant))
 
 
 def describe_observer(cfg: _Config) -> FmuDescription:
@@ -267,9 +228,7 @@ def describe_observer(cfg: _Config) -> FmuDescription:
         raise ExportError(
             f"model_name {cfg.name!r} must be a C identifier (letters, digits, _; <= 64 chars)"
         )
-    text = json.dumps([_facts(cfg), cfg.name, _code_digest()], sort_keys=True, default=str)
-    digest = hashlib.sha256(text.encode()).digest()
-    guid = "{" + str(uuid.UUID(bytes=digest[:16], version=5)) + "}"
+    guid = generated_guid([_facts(cfg), cfg.name, _code_digest()])
     n_knots = len(cfg.plant.schedule.flow_m3h)
     return FmuDescription(
         model_identifier=cfg.name,
@@ -277,7 +236,7 @@ def describe_observer(cfg: _Config) -> FmuDescription:
         family="observer",
         gauge=cfg.plant.gauge,
         n_knots=n_knots,
-        variables=tuple(_variables(cfg)),
+        variables=_variables(cfg),
         columns={},
         arx_orders=None,
         step_size_s=SAMPLE_PERIOD_S,
@@ -289,15 +248,8 @@ def describe_observer(cfg: _Config) -> FmuDescription:
 
 
 def _code_digest() -> str:
-    digest = hashlib.sha256()
-    glues = tuple(api.glue for api in FMI_APIS.values())
-    for n in (*glues, "observer.c", "observer_data.h", "component.h"):
-        digest.update((templates_dir() / n).read_bytes())
-    mpc = Path(__file__).resolve().parents[1] / "mpc"
-    for n in ("codegen.py", "observer_codegen.py", "online.py", "discrete.py", "observer.py",
-              "statespace.py"):  # fmt: skip
-        digest.update((mpc / n).read_bytes())
-    return digest.hexdigest()[:16]
+    return code_digest(COMPONENT_FILES, ("codegen.py", "observer_codegen.py", "online.py",
+                                         "discrete.py", "observer.py", "statespace.py"))
 
 
 def run_observer_fmu(
@@ -383,71 +335,20 @@ def _slave(md: Any, unzipped: str) -> _Slave:
     return _Slave(fmu, fmi3)
 
 
-def _c(value: float) -> str:
-    text = repr(float(value))
-    return text if any(c in text for c in ".en") else text + ".0"
-
-
 def observer_config_header(
     desc: FmuDescription, layout: Layout, sizes: dict[str, dict[str, int]]
 ) -> str:
     """``model_config.h`` of the observer FMU."""
-    from gatetwin.fmu.checks import c_string_literal
-
-    kinds = {"input": "GT_KIND_INPUT", "output": "GT_KIND_OUTPUT",
-             "tunable": "GT_KIND_TUNABLE", "fixed": "GT_KIND_FIXED"}  # fmt: skip
-    vr = {v.name: v.vr for v in desc.variables}
-    big = {k: max(s[k] for s in sizes.values()) for k in ("arg", "res", "iw", "w")}
-    max_dead = layout.register * SAMPLE_PERIOD_S * (1.0 - 1e-9)
+    own = [
+        "/* the observer */",
+        f"#define GT_OBS_N_ESTIMATE {len(ESTIMATE)}",
+        f"#define GT_OBS_MAX_HORIZON_S {c_double(MAX_HORIZON_S)}",
+        f"#define GT_OBS_MAX_SAMPLES_PER_STEP {MAX_SAMPLES_PER_STEP}",
+    ]
     named = ("opening_mm", "flow_m3h", *ESTIMATE, "predicted_level_mm", "horizon_s",
              "anomaly_band_sigma", "anomaly_run_samples")  # fmt: skip
-    lines = [
-        f"/* Generated by gatetwin.fmu.observer_fmu for {desc.model_identifier}; do not edit. */",
-        "#ifndef GATETWIN_MODEL_CONFIG_H",
-        "#define GATETWIN_MODEL_CONFIG_H",
-        "",
-        f"#define GT_MODEL_IDENTIFIER {c_string_literal(desc.model_identifier)}",
-        f"#define GT_GUID {c_string_literal(desc.guid)}",
-        '#define GT_COMPONENT_HEADER "observer_data.h"',
-        f"#define GT_N_REAL {len(desc.variables)}",
-        f"#define GT_N_KNOTS {desc.n_knots}",
-        f"#define GT_COMMUNICATION_POINT_RTOL {_c(COMMUNICATION_POINT_RTOL)}",
-        f"#define GT_MAX_TIME_S {_c(MAX_TIME_S)}",
-        f"#define GT_PARAMETER_MAX_ABS {_c(PARAMETER_MAX_ABS)}",
-        "#define GT_LOG_CATEGORIES {" + ", ".join(f'"{c}"' for c in LOG_CATEGORIES) + "}",
-        "",
-        "/* the observer */",
-        f"#define GT_OBS_NZ {layout.n_states}",
-        f"#define GT_OBS_N_ESTIMATE {len(ESTIMATE)}",
-        f"#define GT_OBS_SZ_ARG {big['arg']}",
-        f"#define GT_OBS_SZ_RES {big['res']}",
-        f"#define GT_OBS_SZ_IW {max(1, big['iw'])}",
-        f"#define GT_OBS_SZ_W {max(1, big['w'])}",
-        f"#define GT_OBS_SAMPLE_PERIOD_S {_c(SAMPLE_PERIOD_S)}",
-        f"#define GT_OBS_MAX_HORIZON_S {_c(MAX_HORIZON_S)}",
-        f"#define GT_OBS_FLOW_MIN_M3H {_c(FLOW_RANGE_M3H[0])}",
-        f"#define GT_OBS_FLOW_MAX_M3H {_c(FLOW_RANGE_M3H[1])}",
-        f"#define GT_OBS_MAX_DEAD_TIME_S {_c(max_dead)}",
-        f"#define GT_OBS_RICCATI_RTOL {_c(RICCATI_RTOL)}",
-        f"#define GT_OBS_RICCATI_MAX_ITER {RICCATI_MAX_ITER}",
-        f"#define GT_OBS_MAX_SAMPLES_PER_STEP {MAX_SAMPLES_PER_STEP}",
-        "",
-        "/* value references (indices into ModelData.real) */",
-        f"#define VR_LEVEL {vr[output_name(desc.gauge)]}",
-        *(f"#define VR_{n.upper()} {vr[n]}" for n in named),
-        f"#define VR_THETA {vr['schedule.flow_m3h[1]']}",
-        f"#define VR_COL_FLOW_M3H {vr['schedule.flow_m3h[1]']}",
-        *(f"#define VR_COL_{c.upper()} {vr[f'schedule.{c}[1]']}" for c in COLUMNS),
-        "",
-        "/* every Real variable in value-reference order: name, kind, start */",
-        "#define GT_VARIABLES(X) \\",
-        *(f"    X({c_string_literal(v.name)}, {kinds[v.kind]}, {_c(v.start or 0.0)}) \\"
-          for v in desc.variables),
-        "",
-        "#endif",
-        "",
-    ]  # fmt: skip
-    return "\n".join(lines)
+    refs = {"LEVEL": output_name(desc.gauge), **{n.upper(): n for n in named}}
+    return config_header(desc, "observer_data.h", layout, sizes, SAMPLE_PERIOD_S, own, refs)
 
 
 __all__ = ["DEFAULT_NAME", "describe_observer", "export_observer", "observer_config_header",
