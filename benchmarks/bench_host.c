@@ -4,7 +4,8 @@
  *
  * LIBPYTHON (for pythonfmu FMUs) is loaded first with RTLD_GLOBAL: pythonfmu's binary takes
  * the Python C API from the process instead of linking libpython itself.
- * Prints two lines: doStep alone with held inputs, and setReal + doStep + getReal per step.
+ * Prints three lines: doStep alone with held inputs; setReal + doStep + getReal per step with
+ * the opening changed every 7 steps; the same with the opening changed at every step.
  */
 #define _POSIX_C_SOURCE 199309L
 #include <dlfcn.h>
@@ -110,6 +111,17 @@ int main(int argc, char **argv)
             t += step_s;
         }
         printf("set_doStep_get_ns %.2f\n", (now_ns() - start) / n);
+        start = now_ns();
+        for (k = 0; k < n; k++) {
+            values[0] = k % 2 ? 18.0 : 23.0; /* a new opening at every step */
+            fmi2SetReal(c, inputs, 2, values);
+            if (fmi2DoStep(c, t, step_s, fmi2True) != fmi2OK) {
+                return 1;
+            }
+            fmi2GetReal(c, &output, 1, &level);
+            t += step_s;
+        }
+        printf("set_every_step_ns %.2f\n", (now_ns() - start) / n);
         printf("level %.6f\n", level);
         fmi2FreeInstance(c);
     }

@@ -1,17 +1,24 @@
-"""Peak memory of identifying a month-long 1 Hz routine history from Parquet.
+"""Peak memory of identifying a month-long 1 Hz routine history from Parquet, whole and chunked.
 
 Generates one district gate's routine history (operator schedule) over ``--days`` days at
 1 Hz with the virtual flume (about 2.6e6 rows for 30 days), writes it as Parquet next to
 its sidecar, then measures in fresh child processes, side by side:
 
-* ``gatetwin routine HISTORY.parquet --json OUT.json`` — read, check, find the informative
-  windows, fit them (the whole job);
+* ``gatetwin routine HISTORY.parquet --json OUT.json`` — read the whole history, check,
+  find the informative windows, fit them (the whole job);
+* ``gatetwin routine HISTORY.parquet --json OUT.json --max-memory MIB`` — the same job read
+  a chunk at a time, window by window (its JSON must equal the whole job's);
 * the bare reference: ``pyarrow.parquet.read_table`` of the same file alone.
 
-Peak memory is each child's ``ru_maxrss``; the job's is printed next to the 1 GiB budget of
-a worker and as a ratio to the bare read.
+With ``--repeat R`` the generated history is laid end to end R times (times shifted by its
+length) into a history R times as long: the same moves again, no new simulation, to show a
+history whose whole read exceeds the ``--max-memory`` cap while the chunked job stays
+within it.
 
-usage: python benchmarks/bench_month.py [--days 30] [--keep DIR]
+Peak memory is each child's ``ru_maxrss``; each job's is printed next to the cap and as a
+ratio to the bare read.
+
+usage: python benchmarks/bench_month.py [--days 30] [--max-memory 400] [--repeat 1] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -23,8 +30,6 @@ import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
-
-BUDGET_MIB = 1024.0
 
 
 def generate(folder: Path, days: float) -> Path:
@@ -69,32 +74,76 @@ def child_peak_mib(command: list[str]) -> tuple[float, float]:
     return float(done.stdout.split()[-1]) / 1024.0, time.perf_counter() - start
 
 
+def repeated(path: Path, times: int) -> Path:
+    """The history at ``path`` laid end to end ``times`` times, written a copy at a time."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.parquet
+
+    if times <= 1:
+        return path
+    table = pyarrow.parquet.read_table(path)
+    time_s = table.column("time_s")
+    span = pc.max(time_s).as_py() - pc.min(time_s).as_py() + 1.0
+    out = path.with_name(f"{path.stem}_x{times}.parquet")
+    with pyarrow.parquet.ParquetWriter(out, table.schema) as writer:
+        for k in range(times):
+            shifted = pc.add(time_s, pa.scalar(k * span, time_s.type))
+            index = table.schema.get_field_index("time_s")
+            writer.write_table(table.set_column(index, "time_s", shifted))
+    out.with_suffix(".json").write_text(path.with_suffix(".json").read_text())
+    return out
+
+
+def _routine(path: Path, out: Path, *extra: str) -> list[str]:
+    return [sys.executable, "-m", "gatetwin", "routine", str(path), "--json", str(out), *extra]
+
+
+def _line(label: str, peak: float, seconds: float, bare: float, cap: float) -> str:
+    verdict = "within" if peak <= cap else "OVER"
+    return (f"{label:<34} peak {peak:8.0f} MiB  {seconds:6.1f} s  {peak / bare:5.2f}x the "
+            f"bare read; cap {cap:.0f} MiB: {verdict}")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--days", type=float, default=30.0)
+    parser.add_argument("--max-memory", type=float, default=400.0, metavar="MIB",
+                        help="memory cap of a worker for the chunked job, MiB")  # fmt: skip
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="lay the generated history end to end this many times")  # fmt: skip
     parser.add_argument("--keep", metavar="DIR", help="write the history here and keep it")
+    parser.add_argument("--history", metavar="FILE.parquet",
+                        help="measure this history (with its sidecar) instead of generating "
+                        "one; --days then only labels it")  # fmt: skip
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(args.keep) if args.keep else Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
         start = time.perf_counter()
-        path = generate(folder, args.days)
+        source = Path(args.history) if args.history else generate(folder, args.days)
+        path = repeated(source, args.repeat)
         made = time.perf_counter() - start
         import pyarrow.parquet
 
         rows = pyarrow.parquet.ParquetFile(path).metadata.num_rows
         size = path.stat().st_size / 2**20
-        print(f"{args.days:g} days at 1 Hz: {rows:,} rows, Parquet {size:.1f} MiB "
+        print(f"{args.days * args.repeat:g} days at 1 Hz: {rows:,} rows, Parquet {size:.1f} MiB "
               f"(generated in {made:.0f} s)")  # fmt: skip
         bare, bare_s = child_peak_mib([sys.executable, "-c",
                                        "import sys, pyarrow.parquet as pq; "
                                        "pq.read_table(sys.argv[1])", str(path)])  # fmt: skip
-        job, job_s = child_peak_mib([sys.executable, "-m", "gatetwin", "routine", str(path),
-                                     "--json", str(folder / "routine.json")])  # fmt: skip
-        print(f"bare pyarrow read_table     peak {bare:8.0f} MiB   {bare_s:6.1f} s")
-        print(f"gatetwin routine (whole job) peak {job:8.0f} MiB   {job_s:6.1f} s   "
-              f"{job / bare:.2f}x the bare read; budget {BUDGET_MIB:.0f} MiB: "
-              f"{'within' if job <= BUDGET_MIB else 'OVER'}")  # fmt: skip
+        whole_json, chunk_json = folder / "routine.json", folder / "routine_chunked.json"
+        job, job_s = child_peak_mib(_routine(path, whole_json))
+        cap = f"{args.max_memory:g}"
+        chunked, chunked_s = child_peak_mib(_routine(path, chunk_json, "--max-memory", cap))
+        same = whole_json.read_bytes() == chunk_json.read_bytes()
+        print(f"{'bare pyarrow read_table':<34} peak {bare:8.0f} MiB  {bare_s:6.1f} s")
+        print(_line("gatetwin routine (whole history)", job, job_s, bare, args.max_memory))
+        print(_line(f"gatetwin routine --max-memory {cap}", chunked, chunked_s, bare,
+                    args.max_memory))  # fmt: skip
+        print(f"chunked / whole peak memory: {chunked / job:.2f}x; time: "
+              f"{chunked_s / job_s:.2f}x; same JSON: {same}")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -11,9 +11,12 @@ the default horizon, noise levels and anomaly settings) and runs it through fmpy
   noise of the observer's measurement SD, then the same effects ("model": a record the model
   explains, so the innovation's statistics are the filter's own).
 
-Prints the detection delay (s from the onset to the flag; "-" never within the record) per
-effect and base, the false alarms, and the time the FMU and the Python observer take per
-record (ratio measured in this run). ``--band`` and ``--run-samples`` override the defaults.
+Prints the rises of the flag on the clean records (with the largest run outside the band and
+the largest CUSUM, against the thresholds), the detection delay (s from the onset to the
+flag, the rule that raised it: f fast, p persistent; "-" never within the record) per effect
+and base, the false alarms, and the time the FMU and the Python observer take per record
+(ratio measured in this run). ``--band``, ``--run-samples``, ``--cusum-slack`` and
+``--cusum-threshold`` override the defaults.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from gatetwin.bundled import bundled_records_dir
 from gatetwin.diagnose.onset import ONSET_EFFECTS, detection, first_move_after, with_onset
 from gatetwin.fmu.observer_fmu import export_observer, run_observer_fmu
 from gatetwin.modelfile import read_model_file
+from gatetwin.mpc.observer_codegen import LIMITS
 from gatetwin.mpc.online import MONITORING, AnomalySettings, OnlineObserver, measured_inputs
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import read_record
@@ -56,8 +60,12 @@ def _delays(fmu: Path, plant, bases: dict, params: dict) -> dict[str, list[str]]
         onset = first_move_after(t, e)
         for effect in ONSET_EFFECTS:
             level = with_onset(plant, t, y, e, q, effect, onset)
-            found = detection(t, run_observer_fmu(fmu, level, e, q, params)["anomaly"], onset)
-            cell = "-" if np.isnan(found.delay_s) else f"{found.delay_s:.1f}"
+            out = run_observer_fmu(fmu, level, e, q, params)
+            found = detection(t, out["anomaly"], onset)
+            cell = "-"
+            if not np.isnan(found.delay_s):
+                at = onset + int(np.flatnonzero(out["anomaly"][onset:] > 0.5)[0])
+                cell = f"{found.delay_s:.1f} {'fp'[int(out['anomaly_kind'][at]) - 1]}"
             if found.false_alarms:
                 cell += f" ({found.false_alarms} FA)"
             table.setdefault(effect, []).append(cell)
@@ -76,19 +84,35 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--band", type=float, default=AnomalySettings().band_sigma)
     parser.add_argument("--run-samples", type=int, default=AnomalySettings().run_samples)
+    parser.add_argument("--cusum-slack", type=float,
+                        default=AnomalySettings().cusum_slack_sigma)  # fmt: skip
+    parser.add_argument("--cusum-threshold", type=float,
+                        default=AnomalySettings().cusum_threshold)  # fmt: skip
     args = parser.parse_args()
+    settings = AnomalySettings(args.band, args.run_samples, args.cusum_slack,
+                               args.cusum_threshold)  # fmt: skip
     warnings.simplefilter("ignore")  # the flume records pass the schedule's discharge range
     plant = dataclasses.replace(read_model_file(ROOT / "models/fopdt_3F.json").plant, effects=())
-    params = {"anomaly_band_sigma": args.band, "anomaly_run_samples": args.run_samples}
+    params = {f"anomaly_{n}": v for n, v in zip(LIMITS, settings.limits(), strict=True)}
     records = _records()
     with tempfile.TemporaryDirectory() as tmp:
         fmu = export_observer(plant, Path(tmp) / "observer.fmu")
-        print(f"observer FMU of fopdt_3F (effects dropped), band {args.band:g} sigma, run "
-              f"{args.run_samples} samples, noise {MONITORING}")  # fmt: skip
-        print("\nclean records: rises of the anomaly flag")
+        print(f"observer FMU of fopdt_3F (effects dropped), {settings}, noise {MONITORING}")
+        print(
+            "\nclean records: rises of the anomaly flag, longest run outside the band "
+            f"(flag at {args.run_samples}), largest CUSUM (flag at {args.cusum_threshold:g})"
+        )
+        hours = 0.0
         for name, (t, y, e, q, role) in records.items():
-            found = detection(t, run_observer_fmu(fmu, y, e, q, params)["anomaly"], None)
-            print(f"  {name:10s} {role:10s} {t.size:5d} samples  {found.false_alarms}")
+            out = run_observer_fmu(fmu, y, e, q, params)
+            found = detection(t, out["anomaly"], None)
+            cusum = max(out["cusum_high"].max(), out["cusum_low"].max())
+            hours += (t[-1] - t[0] + t[1] - t[0]) / 3600.0
+            print(
+                f"  {name:10s} {role:10s} {t.size:5d} samples  {found.false_alarms}  "
+                f"run {int(out['anomaly_samples'].max())}  CUSUM {cusum:.1f}"
+            )
+        print(f"  {hours:.2f} h of clean records")
         flume = {n: records[n][:4] for n in BASES}
         _print_table("flume (bundled records)", _delays(fmu, plant, flume, params))
         truth = dataclasses.replace(plant, envelope=None)
@@ -104,7 +128,7 @@ def main() -> None:
         run_observer_fmu(fmu, y, e, q, params)
         fmu_s = time.perf_counter() - start
         start = time.perf_counter()
-        OnlineObserver(plant, anomaly=AnomalySettings(args.band, args.run_samples)).run(y, e, q)
+        OnlineObserver(plant, anomaly=settings).run(y, e, q)
         py_s = time.perf_counter() - start
         print(f"\nrecord C ({t.size} samples): FMU via fmpy {fmu_s:.3f} s, Python {py_s:.3f} s, "
               f"ratio Python/FMU {py_s / fmu_s:.1f}")  # fmt: skip

@@ -2,7 +2,9 @@
  *
  * The FMI 3.0 rendering of the same component as fmi2_glue.c: it talks to the model only through
  * component.h, and model_config.h (generated: instantiation token, value references, start values)
- * is the one the FMI 2.0 FMU gets. Every variable is a scalar Float64.
+ * is the one the FMI 2.0 FMU gets. Every variable is a scalar Float64. What the two versions do
+ * alike (logging, modes, the FMU state, the step) is glue_core.c's, to which this file passes
+ * FMI 3.0's status values and its logger.
  *
  * Policy, as in the FMI 2.0 glue: a call the FMU cannot honour (wrong state, bad pointer,
  * unknown value reference, bad input, a step size it cannot take, a capability the model
@@ -13,168 +15,37 @@
  * fmi3DoStep never returns early and never asks for event handling (hasEventMode="false").
  */
 #include <math.h>
-#include <stdarg.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "fmi3Functions.h"
-#include "component.h"
+#include "glue_core.h"
 
-#define INSTANCE_MAGIC 0x67746633u /* "gtf3" */
-#define STATE_MAGIC 0x73743346u    /* "st3F" */
-#define SERIAL_FORMAT "gatetwin-state-3"
 /* The independent variable `time` follows the component's Real variables (see
  * gatetwin.fmu.description3). */
 #define VR_TIME GT_N_REAL
 
-typedef enum {
-    MODE_INSTANTIATED = 1,
-    MODE_INITIALIZATION = 2,
-    MODE_STEP = 4,
-    MODE_TERMINATED = 8,
-    MODE_ERROR = 16
-} Mode;
-
-#define ANY_MODE (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
-
-/* Where messages go: small, so the instantiate functions can log before allocating. */
-typedef struct {
-    char name[128];
-    fmi3InstanceEnvironment environment;
-    fmi3LogMessageCallback logger;
-    fmi3Boolean logging_on;
-} LogTarget;
-
-typedef struct {
-    unsigned magic;
-    LogTarget sink;
-    Mode mode;
-    ModelData data;
-} Instance;
-
-/* What an FMU state holds and serialises: everything in ModelData and the mode it was taken
- * in. */
-typedef struct {
-    Mode mode;
-    ModelData data;
-} StatePayload;
-
-/* An FMU state in memory; `owner` tells states of this library from another FMU's. */
-typedef struct {
-    unsigned magic;
-    const void *owner;
-    StatePayload payload;
-} StoredState;
-
-#define STATE_OWNER ((const void *)plant_variables)
-
-typedef struct {
-    char format[17]; /* SERIAL_FORMAT */
-    char token[64];  /* GT_GUID: a state only fits the build it came from */
-    unsigned long long payload_size;
-} SerialHeader;
-
-/* --- logging --------------------------------------------------------------------------------- */
-
-static void log_text(const LogTarget *sink, fmi3Status status, const char *text)
+static void emit(const GlueSink *sink, int status, const char *category, const char *text)
 {
-    static const char *const category[] = {"logAll", "logStatusWarning", "logStatusWarning",
-                                           "logStatusError", "logStatusError"};
-    if (!sink->logger || (status == fmi3OK && !sink->logging_on)) {
-        return;
-    }
-    sink->logger(sink->environment, status, category[status <= fmi3Fatal ? status : fmi3Error],
-                 text);
+    const fmi3LogMessageCallback logger = (fmi3LogMessageCallback)sink->callbacks.logger;
+    logger(sink->callbacks.environment, (fmi3Status)status, category, text);
 }
 
-#if defined(__GNUC__)
-static void log_message(const LogTarget *sink, fmi3Status status, const char *format, ...)
-    __attribute__((format(printf, 3, 4)));
-static fmi3Status fail(Instance *inst, const char *format, ...)
-    __attribute__((format(printf, 2, 3)));
-static fmi3Status refuse(Instance *inst, const char *format, ...)
-    __attribute__((format(printf, 2, 3)));
-#endif
+static const GlueVersion FMI3 = {
+    fmi3OK, fmi3Warning, fmi3Discard, fmi3Error,
+    0x67746633u /* "gtf3" */, 0x73743346u /* "st3F" */, "gatetwin-state-3", emit,
+};
 
-static void log_message(const LogTarget *sink, fmi3Status status, const char *format, ...)
-{
-    char text[768];
-    va_list args;
-    va_start(args, format);
-    vsnprintf(text, sizeof text, format, args);
-    va_end(args);
-    log_text(sink, status, text);
-}
-
-/* Log why, enter the error state, return fmi3Error. */
-static fmi3Status fail(Instance *inst, const char *format, ...)
-{
-    char text[768];
-    va_list args;
-    va_start(args, format);
-    vsnprintf(text, sizeof text, format, args);
-    va_end(args);
-    log_text(&inst->sink, fmi3Error, text);
-    inst->mode = MODE_ERROR;
-    return fmi3Error;
-}
-
-/* Log why and return fmi3Error, leaving the instance as it was (refused FMU states). */
-static fmi3Status refuse(Instance *inst, const char *format, ...)
-{
-    char text[768];
-    va_list args;
-    va_start(args, format);
-    vsnprintf(text, sizeof text, format, args);
-    va_end(args);
-    log_text(&inst->sink, fmi3Error, text);
-    return fmi3Error;
-}
-
-static const char *mode_name(Mode mode)
-{
-    switch (mode) {
-    case MODE_INSTANTIATED: return "instantiated";
-    case MODE_INITIALIZATION: return "initialization mode";
-    case MODE_STEP: return "step mode";
-    case MODE_TERMINATED: return "terminated";
-    default: return "error";
-    }
-}
-
-/* The instance behind c if c is one and the call is legal in its mode, else NULL. */
 static Instance *checked(fmi3Instance c, const char *function, unsigned allowed_modes)
 {
-    Instance *inst = (Instance *)c;
-    if (!inst || inst->magic != INSTANCE_MAGIC) {
-        return NULL;
-    }
-    if (!(inst->mode & allowed_modes)) {
-        fail(inst, "%s must not be called in %s", function, mode_name(inst->mode));
-        return NULL;
-    }
-    return inst;
-}
-
-/* Status of a plant call, logged; errors enter the error state. */
-static fmi3Status report(Instance *inst, PlantStatus status, const PlantMessage *msg)
-{
-    if (status == PLANT_ERROR) {
-        return fail(inst, "%s", msg->text);
-    }
-    if (status == PLANT_WARNING) {
-        log_text(&inst->sink, fmi3Warning, msg->text);
-        return fmi3Warning;
-    }
-    return fmi3OK;
+    return glue_checked(c, &FMI3, function, allowed_modes);
 }
 
 /* A function of a capability the model description does not declare. */
 static fmi3Status unsupported(fmi3Instance c, const char *function, const char *why)
 {
     Instance *inst = checked(c, function, ANY_MODE);
-    return inst ? fail(inst, "%s: not supported (%s)", function, why) : fmi3Error;
+    return inst ? glue_fail(inst, "%s: not supported (%s)", function, why) : fmi3Error;
 }
 
 /* --- inquire version, logging ---------------------------------------------------------------- */
@@ -187,27 +58,10 @@ const char *fmi3GetVersion(void)
 fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
                                const fmi3String categories[])
 {
-    static const char *const known[] = GT_LOG_CATEGORIES;
     Instance *inst = checked(instance, "fmi3SetDebugLogging", ANY_MODE);
-    size_t i, k;
-    if (!inst) {
-        return fmi3Error;
-    }
-    if (nCategories > 0 && !categories) {
-        return fail(inst, "fmi3SetDebugLogging: categories is NULL");
-    }
-    for (i = 0; i < nCategories; i++) {
-        int found = 0;
-        for (k = 0; k < sizeof known / sizeof known[0]; k++) {
-            found = found || (categories[i] && strcmp(categories[i], known[k]) == 0);
-        }
-        if (!found) {
-            return fail(inst, "fmi3SetDebugLogging: unknown log category '%s'",
-                        categories[i] ? categories[i] : "(NULL)");
-        }
-    }
-    inst->sink.logging_on = loggingOn;
-    return fmi3OK;
+    return inst ? glue_set_debug_logging(inst, "fmi3SetDebugLogging", loggingOn, nCategories,
+                                         categories)
+                : fmi3Error;
 }
 
 /* --- creation and destruction ---------------------------------------------------------------- */
@@ -239,32 +93,21 @@ fmi3Instance fmi3InstantiateCoSimulation(
     size_t nRequiredIntermediateVariables, fmi3InstanceEnvironment instanceEnvironment,
     fmi3LogMessageCallback logMessage, fmi3IntermediateUpdateCallback intermediateUpdate)
 {
-    LogTarget sink;
-    Instance *inst;
+    GlueSink sink;
     const char *problem = instantiation_problem(instanceName, instantiationToken, eventModeUsed,
                                                 nRequiredIntermediateVariables);
     (void)resourcePath, (void)visible, (void)earlyReturnAllowed;
     (void)requiredIntermediateVariables, (void)intermediateUpdate;
-    memset(&sink, 0, sizeof sink);
-    sink.environment = instanceEnvironment;
-    sink.logger = logMessage;
-    sink.logging_on = loggingOn;
-    snprintf(sink.name, sizeof sink.name, "%s", instanceName ? instanceName : "(NULL)");
+    glue_sink_init(&sink, &FMI3, instanceName, loggingOn);
+    sink.callbacks.environment = instanceEnvironment;
+    sink.callbacks.logger = (void (*)(void))logMessage;
+    sink.callbacks.allocate = calloc;
+    sink.callbacks.release = free;
     if (problem) {
-        log_message(&sink, fmi3Error, "fmi3InstantiateCoSimulation: %s", problem);
+        glue_log_format(&sink, fmi3Error, "fmi3InstantiateCoSimulation: %s", problem);
         return NULL;
     }
-    inst = (Instance *)calloc(1, sizeof *inst);
-    if (!inst) {
-        log_text(&sink, fmi3Error, "fmi3InstantiateCoSimulation: out of memory");
-        return NULL;
-    }
-    inst->magic = INSTANCE_MAGIC;
-    inst->sink = sink;
-    inst->mode = MODE_INSTANTIATED;
-    plant_set_defaults(&inst->data);
-    log_text(&inst->sink, fmi3OK, "instantiated " GT_MODEL_IDENTIFIER);
-    return inst;
+    return glue_new_instance(&sink, "fmi3InstantiateCoSimulation");
 }
 
 fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
@@ -301,8 +144,7 @@ void fmi3FreeInstance(fmi3Instance instance)
 {
     Instance *inst = checked(instance, "fmi3FreeInstance", ANY_MODE);
     if (inst) {
-        inst->magic = 0;
-        free(inst);
+        glue_free_instance(inst);
     }
 }
 
@@ -318,9 +160,8 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
         return fmi3Error;
     }
     if (!(fabs(startTime) <= GT_MAX_TIME_S)) {
-        return fail(inst,
-                    "fmi3EnterInitializationMode: startTime %g s must be finite with |t| <= %g s",
-                    startTime, GT_MAX_TIME_S);
+        return glue_fail(inst, "fmi3EnterInitializationMode: startTime %g s must be finite with "
+                               "|t| <= %g s", startTime, GT_MAX_TIME_S);
     }
     inst->data.time_s = startTime;
     inst->mode = MODE_INITIALIZATION;
@@ -330,16 +171,7 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
 {
     Instance *inst = checked(instance, "fmi3ExitInitializationMode", MODE_INITIALIZATION);
-    PlantMessage msg;
-    PlantStatus status;
-    if (!inst) {
-        return fmi3Error;
-    }
-    status = plant_initialize(&inst->data, &msg);
-    if (status != PLANT_ERROR) {
-        inst->mode = MODE_STEP;
-    }
-    return report(inst, status, &msg);
+    return inst ? glue_exit_initialization(inst) : fmi3Error;
 }
 
 fmi3Status fmi3EnterEventMode(fmi3Instance instance)
@@ -369,77 +201,34 @@ fmi3Status fmi3Reset(fmi3Instance instance)
     if (!inst) {
         return fmi3Error;
     }
-    plant_set_defaults(&inst->data);
-    inst->mode = MODE_INSTANTIATED;
+    glue_reset(inst);
     return fmi3OK;
 }
 
 /* --- getting and setting values -------------------------------------------------------------- */
 
-/* Every variable is a scalar: exactly one value per value reference. */
-static fmi3Status check_arrays(Instance *inst, const char *function, const void *vr, size_t nvr,
-                               const void *values, size_t nValues)
-{
-    if (nvr > 0 && (!vr || !values)) {
-        return fail(inst, "%s: NULL value-reference or value array", function);
-    }
-    if (nValues != nvr) {
-        return fail(inst, "%s: %lu values for %lu scalar variables", function,
-                    (unsigned long)nValues, (unsigned long)nvr);
-    }
-    return fmi3OK;
-}
-
+/* Every variable is a scalar: exactly one value per value reference (glue_check_arrays). */
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, fmi3Float64 values[], size_t nValues)
 {
     Instance *inst = checked(instance, "fmi3GetFloat64", ANY_MODE);
     size_t i;
-    if (!inst || check_arrays(inst, "fmi3GetFloat64", valueReferences, nValueReferences, values,
-                              nValues) != fmi3OK) {
+    if (!inst || glue_check_arrays(inst, "fmi3GetFloat64", valueReferences, nValueReferences,
+                                   values, nValues) != fmi3OK) {
         return fmi3Error;
     }
     for (i = 0; i < nValueReferences; i++) {
         const fmi3ValueReference vr = valueReferences[i];
         if (vr == VR_TIME) {
             values[i] = inst->data.time_s;
-            continue;
-        }
-        if (vr > VR_TIME) {
-            return fail(inst, "fmi3GetFloat64: no Float64 variable has value reference %u",
-                        (unsigned)vr);
-        }
-        if (plant_variables[vr].kind == GT_KIND_OUTPUT) {
-            PlantMessage msg;
-            if (plant_output(&inst->data, vr, &values[i], &msg) != PLANT_OK) {
-                return fail(inst, "fmi3GetFloat64: %s", msg.text);
-            }
-        } else {
-            values[i] = inst->data.real[vr];
+        } else if (vr > VR_TIME) {
+            return glue_fail(inst, "fmi3GetFloat64: no Float64 variable has value reference %u",
+                             (unsigned)vr);
+        } else if (glue_get_real(inst, "fmi3GetFloat64", vr, &values[i]) != fmi3OK) {
+            return fmi3Error;
         }
     }
     return fmi3OK;
-}
-
-/* Why value cannot be set into variable vr in mode, or NULL. */
-static const char *set_problem(fmi3ValueReference vr, Mode mode, double value)
-{
-    if (vr == VR_TIME) {
-        return "is the independent variable";
-    }
-    if (vr > VR_TIME) {
-        return "no Float64 variable has this value reference";
-    }
-    if (plant_variables[vr].kind == GT_KIND_OUTPUT) {
-        return "is an output";
-    }
-    if (plant_variables[vr].kind == GT_KIND_FIXED && mode == MODE_STEP) {
-        return "is a fixed parameter, settable only before fmi3ExitInitializationMode";
-    }
-    if (!isfinite(value)) { /* every value an FMU state holds stays finite */
-        return "must be finite";
-    }
-    return NULL;
 }
 
 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
@@ -448,21 +237,19 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueR
     Instance *inst = checked(instance, "fmi3SetFloat64",
                              MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP);
     size_t i;
-    if (!inst || check_arrays(inst, "fmi3SetFloat64", valueReferences, nValueReferences, values,
-                              nValues) != fmi3OK) {
+    if (!inst || glue_check_arrays(inst, "fmi3SetFloat64", valueReferences, nValueReferences,
+                                   values, nValues) != fmi3OK) {
         return fmi3Error;
     }
     for (i = 0; i < nValueReferences; i++) {
         const fmi3ValueReference vr = valueReferences[i];
-        const char *problem = set_problem(vr, inst->mode, values[i]);
-        if (problem) {
-            return fail(inst, "fmi3SetFloat64: %s (value reference %u) = %g: %s",
-                        vr < GT_N_REAL ? plant_variables[vr].name : "?", (unsigned)vr,
-                        values[i], problem);
+        if (vr >= VR_TIME) {
+            return glue_fail(inst, "fmi3SetFloat64: value reference %u %s", (unsigned)vr,
+                             vr == VR_TIME ? "is time, the independent variable"
+                                           : "is no Float64 variable's");
         }
-        inst->data.real[vr] = values[i];
-        if (plant_variables[vr].kind != GT_KIND_INPUT) {
-            inst->data.parameters_changed = 1;
+        if (glue_set_real(inst, "fmi3SetFloat64", vr, values[i]) != fmi3OK) {
+            return fmi3Error;
         }
     }
     return fmi3OK;
@@ -474,12 +261,12 @@ static fmi3Status no_such_variables(fmi3Instance instance, const char *function,
                                     const void *values, size_t nValues)
 {
     Instance *inst = checked(instance, function, ANY_MODE);
-    if (!inst || check_arrays(inst, function, vr, nvr, values, nValues) != fmi3OK) {
+    if (!inst || glue_check_arrays(inst, function, vr, nvr, values, nValues) != fmi3OK) {
         return fmi3Error;
     }
     if (nvr > 0) {
-        return fail(inst, "%s: no variable of this type has value reference %u", function,
-                    (unsigned)vr[0]);
+        return glue_fail(inst, "%s: no variable of this type has value reference %u", function,
+                         (unsigned)vr[0]);
     }
     return fmi3OK;
 }
@@ -536,172 +323,37 @@ fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference vr[], si
 
 /* --- FMU state ------------------------------------------------------------------------------- */
 
-/* Whether a stored state can be restored into this FMU: its mode and ModelData (component.h). */
-static fmi3Status check_payload(Instance *inst, const char *function, const StatePayload *p)
-{
-    PlantMessage msg;
-    int initialized;
-    switch (p->mode) {
-    case MODE_INSTANTIATED:
-    case MODE_INITIALIZATION: initialized = 0; break;
-    case MODE_STEP:
-    case MODE_TERMINATED: initialized = 1; break;
-    default:
-        return refuse(inst, "%s: the state's mode %d is not a mode a state is taken in", function,
-                      (int)p->mode);
-    }
-    if (plant_check_state(&p->data, initialized, &msg) != PLANT_OK) {
-        return refuse(inst, "%s: corrupt state refused, the instance is unchanged: %s", function,
-                      msg.text);
-    }
-    return fmi3OK;
-}
-
-/* The state behind an FMUState argument if it is one of this library's, else NULL. */
-static StoredState *own_state(fmi3FMUState FMUState)
-{
-    StoredState *stored = (StoredState *)FMUState;
-    if (!stored || stored->magic != STATE_MAGIC || stored->owner != STATE_OWNER) {
-        return NULL;
-    }
-    return stored;
-}
-
-static StoredState *new_state(void)
-{
-    StoredState *stored = (StoredState *)calloc(1, sizeof *stored);
-    if (stored) {
-        stored->magic = STATE_MAGIC;
-        stored->owner = STATE_OWNER;
-    }
-    return stored;
-}
-
-static void free_state(StoredState *stored)
-{
-    stored->magic = 0;
-    free(stored);
-}
-
 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 {
     Instance *inst = checked(instance, "fmi3GetFMUState", ANY_MODE ^ MODE_ERROR);
-    StoredState *stored;
-    if (!inst) {
-        return fmi3Error;
-    }
-    if (!FMUState) {
-        return fail(inst, "fmi3GetFMUState: FMUState is NULL");
-    }
-    stored = own_state(*FMUState);
-    if (*FMUState && !stored) {
-        return fail(inst, "fmi3GetFMUState: *FMUState is not a state of this FMU");
-    }
-    if (!stored) {
-        stored = new_state();
-        if (!stored) {
-            return fail(inst, "fmi3GetFMUState: out of memory");
-        }
-    }
-    stored->payload.mode = inst->mode;
-    memcpy(&stored->payload.data, &inst->data, sizeof inst->data);
-    *FMUState = stored;
-    return fmi3OK;
+    return inst ? glue_get_state(inst, "fmi3GetFMUState", FMUState) : fmi3Error;
 }
 
 fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState)
 {
     Instance *inst = checked(instance, "fmi3SetFMUState", ANY_MODE);
-    const StoredState *stored = own_state(FMUState);
-    if (!inst) {
-        return fmi3Error;
-    }
-    if (!stored) {
-        return refuse(inst, "fmi3SetFMUState: FMUState is NULL or not a state of this FMU");
-    }
-    if (check_payload(inst, "fmi3SetFMUState", &stored->payload) != fmi3OK) {
-        return fmi3Error;
-    }
-    memcpy(&inst->data, &stored->payload.data, sizeof inst->data);
-    inst->mode = stored->payload.mode;
-    return fmi3OK;
+    return inst ? glue_set_state(inst, "fmi3SetFMUState", FMUState) : fmi3Error;
 }
 
 fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 {
     Instance *inst = checked(instance, "fmi3FreeFMUState", ANY_MODE);
-    StoredState *stored;
-    if (!inst) {
-        return fmi3Error;
-    }
-    if (!FMUState || !*FMUState) {
-        return fmi3OK;
-    }
-    stored = own_state(*FMUState);
-    if (!stored) {
-        return fail(inst, "fmi3FreeFMUState: *FMUState is not a state of this FMU");
-    }
-    free_state(stored);
-    *FMUState = NULL;
-    return fmi3OK;
+    return inst ? glue_free_state(inst, "fmi3FreeFMUState", FMUState) : fmi3Error;
 }
-
-/* Bytes of a serialised state: the header, then the payload. */
-#define SERIAL_SIZE (sizeof(SerialHeader) + sizeof(StatePayload))
 
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size)
 {
     Instance *inst = checked(instance, "fmi3SerializedFMUStateSize", ANY_MODE);
     (void)FMUState;
-    if (!inst) {
-        return fmi3Error;
-    }
-    if (!size) {
-        return fail(inst, "fmi3SerializedFMUStateSize: size is NULL");
-    }
-    *size = SERIAL_SIZE;
-    return fmi3OK;
+    return inst ? glue_serialized_size(inst, "fmi3SerializedFMUStateSize", size) : fmi3Error;
 }
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState,
                                  fmi3Byte serializedState[], size_t size)
 {
     Instance *inst = checked(instance, "fmi3SerializeFMUState", ANY_MODE);
-    const StoredState *stored = own_state(FMUState);
-    SerialHeader header;
-    if (!inst) {
-        return fmi3Error;
-    }
-    if (!stored || !serializedState) {
-        return fail(inst, "fmi3SerializeFMUState: NULL buffer, or FMUState is not a state of "
-                          "this FMU");
-    }
-    if (size != SERIAL_SIZE) {
-        return fail(inst, "fmi3SerializeFMUState: buffer holds %lu bytes, the state needs %lu",
-                    (unsigned long)size, (unsigned long)SERIAL_SIZE);
-    }
-    memset(&header, 0, sizeof header);
-    memcpy(header.format, SERIAL_FORMAT, sizeof SERIAL_FORMAT);
-    snprintf(header.token, sizeof header.token, "%s", GT_GUID);
-    header.payload_size = sizeof stored->payload;
-    memcpy(serializedState, &header, sizeof header);
-    memcpy(serializedState + sizeof header, &stored->payload, sizeof stored->payload);
-    return fmi3OK;
-}
-
-/* Why a serialised state's header does not fit this FMU, or NULL. */
-static const char *header_problem(const SerialHeader *header)
-{
-    if (memcmp(header->format, SERIAL_FORMAT, sizeof SERIAL_FORMAT) != 0) {
-        return "not a serialised state of format " SERIAL_FORMAT;
-    }
-    if (strncmp(header->token, GT_GUID, sizeof header->token) != 0) {
-        return "the state is of another FMU (instantiation token differs)";
-    }
-    if (header->payload_size != sizeof(StatePayload)) {
-        return "the payload's size is not this FMU's";
-    }
-    return NULL;
+    return inst ? glue_serialize(inst, "fmi3SerializeFMUState", FMUState, serializedState, size)
+                : fmi3Error;
 }
 
 /* Refused bytes leave *FMUState and the instance as they were. */
@@ -709,44 +361,9 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
                                    size_t size, fmi3FMUState *FMUState)
 {
     Instance *inst = checked(instance, "fmi3DeserializeFMUState", ANY_MODE);
-    SerialHeader header;
-    StoredState *target, *decoded;
-    const char *problem;
-    if (!inst) {
-        return fmi3Error;
-    }
-    if (!serializedState || !FMUState) {
-        return refuse(inst, "fmi3DeserializeFMUState: NULL argument");
-    }
-    target = own_state(*FMUState);
-    if (*FMUState && !target) {
-        return refuse(inst, "fmi3DeserializeFMUState: *FMUState is not a state of this FMU");
-    }
-    if (size != SERIAL_SIZE) {
-        return refuse(inst, "fmi3DeserializeFMUState: %lu bytes given, a state of this FMU has %lu",
-                      (unsigned long)size, (unsigned long)SERIAL_SIZE);
-    }
-    memcpy(&header, serializedState, sizeof header);
-    problem = header_problem(&header);
-    if (problem) {
-        return refuse(inst, "fmi3DeserializeFMUState: %s", problem);
-    }
-    decoded = new_state();
-    if (!decoded) {
-        return refuse(inst, "fmi3DeserializeFMUState: out of memory");
-    }
-    memcpy(&decoded->payload, serializedState + sizeof header, sizeof decoded->payload);
-    if (check_payload(inst, "fmi3DeserializeFMUState", &decoded->payload) != fmi3OK) {
-        free_state(decoded);
-        return fmi3Error;
-    }
-    if (target) {
-        memcpy(&target->payload, &decoded->payload, sizeof target->payload);
-        free_state(decoded);
-        decoded = target;
-    }
-    *FMUState = decoded;
-    return fmi3OK;
+    return inst ? glue_deserialize(inst, "fmi3DeserializeFMUState", serializedState, size,
+                                   FMUState)
+                : fmi3Error;
 }
 
 /* --- simulating the slave -------------------------------------------------------------------- */
@@ -758,29 +375,18 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
                       fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime)
 {
     Instance *inst = checked(instance, "fmi3DoStep", MODE_STEP);
-    PlantMessage msg;
     fmi3Status status;
-    double time_s;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (!inst) {
         return fmi3Error;
     }
     if (!eventHandlingNeeded || !terminateSimulation || !earlyReturn || !lastSuccessfulTime) {
-        return fail(inst, "fmi3DoStep: NULL output argument");
+        return glue_fail(inst, "fmi3DoStep: NULL output argument");
     }
     *eventHandlingNeeded = fmi3False;
     *terminateSimulation = fmi3False;
     *earlyReturn = fmi3False;
-    time_s = inst->data.time_s;
-    *lastSuccessfulTime = time_s;
-    if (!(fabs(currentCommunicationPoint - time_s) <=
-          GT_COMMUNICATION_POINT_RTOL * fmax(1.0, fabs(time_s)))) {
-        return fail(inst,
-                    "fmi3DoStep: currentCommunicationPoint %.17g s differs from the FMU's time "
-                    "%.17g s",
-                    currentCommunicationPoint, time_s);
-    }
-    status = report(inst, plant_do_step(&inst->data, communicationStepSize, &msg), &msg);
+    status = glue_do_step(inst, "fmi3DoStep", currentCommunicationPoint, communicationStepSize);
     *lastSuccessfulTime = inst->data.time_s;
     return status;
 }

@@ -1,13 +1,13 @@
 /* Scheduled ARX(na, nb, nk) dynamics, paper's sign convention:
  *   x(k) = sum_i a_i x(k-i) + sum_j b_j u(k-nk-j+1),
  * stepped at the sample period; a communication step runs a whole number of samples, the input
- * blocks sampled at the start of each. Mirrors PlantSimulator._arx_sample / _arx_pieces in
- * gatetwin/plant/simulate.py.
+ * blocks sampled at the start of each. The sample's arithmetic and the rest state are blocks.c's
+ * gt_arx_sample and gt_arx_equilibrium (generated from gatetwin/plant/blocks.py); the control
+ * flow mirrors PlantSimulator._arx_pieces in gatetwin/plant/simulate.py.
  *
  * Envelope ARX (GT_ENVELOPE): the input is the gate law's steady level at the gate and the
  * step's discharge, the pole a1 scaled by the pool's time constant there and the b rescaled to
- * unit gain (blocks.c: gt_arx_pole_scaled, gt_arx_gain_rescaled); mirrors
- * PlantSimulator._arx_envelope.
+ * unit gain (blocks.c: gt_arx_envelope_coefficients); mirrors PlantSimulator._arx_envelope.
  */
 #include <math.h>
 
@@ -17,6 +17,9 @@
 #if GT_ENVELOPE
 #include "kernel_support.h"
 #define KERNEL(m) (&(m)->real[VR_KERNEL_FIRST])
+#if GT_NA != 1
+#error "an envelope ARX has one a coefficient (gatetwin.plant.model.ArxPlant)"
+#endif
 #endif
 
 /* column of coefficient a_(i+1) / b_(j+1), i and j counted from 0 */
@@ -56,21 +59,15 @@ PlantStatus dynamics_equilibrium(const ModelData *m, double u_mm, const KnotPosi
     return PLANT_OK;
 #else
     double a[GT_NA], b[GT_NB];
-    double sum_a = 0.0, sum_b = 0.0;
-    int i;
+    double sum_a, x0;
     coefficients(m, at, a, b);
-    for (i = 0; i < GT_NA; i++) {
-        sum_a += a[i];
-    }
-    for (i = 0; i < GT_NB; i++) {
-        sum_b += b[i];
-    }
+    gt_arx_equilibrium(a, b, u_mm, GT_NA, GT_NB, &sum_a, &x0);
     if (sum_a == 1.0) {
         plant_message(msg, "arx: no equilibrium at flow_m3h = %.17g (sum of a coefficients is 1)",
                       m->real[VR_FLOW_M3H]);
         return PLANT_ERROR;
     }
-    *x0_mm = sum_b / (1.0 - sum_a) * u_mm;
+    *x0_mm = x0;
     return PLANT_OK;
 #endif
 }
@@ -118,63 +115,74 @@ PlantStatus dynamics_check_step(const ModelData *m, double step_s, double comman
     return samples_in_step(m, step_s, msg) < 0.0 ? PLANT_ERROR : PLANT_OK;
 }
 
-/* One ARX sample with the input u; returns x(k+1). */
+/* One ARX sample with the input u (blocks.c: gt_arx_sample); returns x(k+1). */
 static double sample_step(DynamicsState *d, const double a[GT_NA], const double b[GT_NB],
                           double u_mm)
 {
-    double x_new = 0.0;
-    int i;
-    for (i = GT_ARX_U_LAGS - 1; i > 0; i--) {
-        d->u_hist[i] = d->u_hist[i - 1];
-    }
-    d->u_hist[0] = u_mm;
-    for (i = 0; i < GT_NA; i++) {
-        x_new += a[i] * d->x_hist[i];
-    }
-    for (i = 0; i < GT_NB; i++) {
-        x_new += b[i] * d->u_hist[GT_NK - 1 + i];
-    }
-    for (i = GT_NA - 1; i > 0; i--) {
-        d->x_hist[i] = d->x_hist[i - 1];
-    }
-    d->x_hist[0] = x_new;
-    d->x = x_new;
-    return x_new;
+    d->x = gt_arx_sample(d->x_hist, d->u_hist, a, b, u_mm, GT_NA, GT_NB, GT_NK);
+    return d->x;
 }
 
+void dynamics_derive(const ModelData *m, double flow_m3h, const KnotPosition *at,
+                     DynamicsCache *c)
+{
+    (void)flow_m3h;
+    coefficients(m, at, c->a, c->b);
+    c->level_ref_mm = plant_interp(at, &m->real[VR_COL_LEVEL_REF_MM]);
+#if GT_ENVELOPE
+    c->time_constant_ref_s = plant_interp(at, &m->real[VR_COL_TIME_CONSTANT_REF_S]);
+    c->point_valid = 0;
+#endif
+}
+
+#if GT_ENVELOPE
+/* An envelope ARX's input (the gate law's steady level) and its pole and b at the input
+ * deviation u and the cached discharge: a1 scaled by the pool's time constant there, the b
+ * rescaled to unit gain (an envelope ARX has one a). */
+static void steady_point(const ModelData *m, double u_mm, double *level_mm, double *a1,
+                         double b_now[GT_NB])
+{
+    const DynamicsCache *c = &m->cache.dyn;
+    double tau_s;
+    kernel_envelope_point(KERNEL(m), u_mm + m->real[VR_OPENING_REF_MM], m->cache.flow_m3h,
+                          level_mm, &tau_s);
+    gt_arx_envelope_coefficients(c->a, c->b, a1, b_now, GT_NB, c->time_constant_ref_s, tau_s);
+}
+
+/* One sample of the envelope ARX at the input deviation u; the steady point from the cache
+ * when it holds for u (the bisection only when the input, the discharge or a parameter
+ * changed). */
+static double envelope_sample(ModelData *m, double u_mm)
+{
+    DynamicsCache *c = &m->cache.dyn;
+    if (!c->point_valid || !plant_same_bits(c->point_u_mm, u_mm)) {
+        steady_point(m, u_mm, &c->point_level_mm, &c->point_a1, c->point_b);
+        c->point_u_mm = u_mm;
+        c->point_valid = 1;
+    }
+    return sample_step(&m->dyn, &c->point_a1, c->point_b, c->point_level_mm);
+}
+#endif
+
 /* The input blocks are sampled at the start of every ARX sample (see effects.h). */
-void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPosition *at)
+void dynamics_step(ModelData *m, double step_s, double command_mm)
 {
     PlantMessage unused;
     const double n = samples_in_step(m, step_s, &unused);
     const double ts = m->real[VR_SAMPLE_PERIOD_S];
-    const double level_ref = plant_interp(at, &m->real[VR_COL_LEVEL_REF_MM]);
-    double a[GT_NA], b[GT_NB];
+    const DynamicsCache *c = &m->cache.dyn; /* derived for this step's discharge (plant.c) */
     double sample;
     double duration = GT_HAS_RATE_LIMIT ? 0.0 : ts;
-    coefficients(m, at, a, b);
     for (sample = 0.0; sample < n; sample += 1.0) {
         double x_new;
         effects_actuate(m, &m->fx, command_mm, duration);
         m->fx.held_gate_mm = m->fx.gate_mm;
 #if GT_ENVELOPE
-        {
-            const double tau_ref = plant_interp(at, &m->real[VR_COL_TIME_CONSTANT_REF_S]);
-            double level_mm, tau_s, a_now[GT_NA], b_now[GT_NB];
-            int j;
-            kernel_envelope_point(KERNEL(m),
-                                  effects_input(m, m->fx.gate_mm) + m->real[VR_OPENING_REF_MM],
-                                  m->real[VR_FLOW_M3H], &level_mm, &tau_s);
-            a_now[0] = gt_arx_pole_scaled(a[0], tau_ref, tau_s);
-            for (j = 0; j < GT_NB; j++) {
-                b_now[j] = gt_arx_gain_rescaled(b[j], a[0], a_now[0]);
-            }
-            x_new = sample_step(&m->dyn, a_now, b_now, level_mm);
-        }
+        x_new = envelope_sample(m, effects_input(m, m->fx.gate_mm));
 #else
-        x_new = sample_step(&m->dyn, a, b, effects_input(m, m->fx.gate_mm));
+        x_new = sample_step(&m->dyn, c->a, c->b, effects_input(m, m->fx.gate_mm));
 #endif
-        effects_lag_sample(m, level_ref + x_new, ts);
+        effects_lag_sample(m, c->level_ref_mm + x_new, ts);
         effects_seiche_piece(m, ts, m->fx.gate_mm);
         duration = ts;
     }
@@ -198,5 +206,52 @@ PlantStatus dynamics_check_state(const ModelData *m, PlantMessage *msg)
         plant_message(msg, "ARX state (x or its input and output lags) is not finite");
         return PLANT_ERROR;
     }
+    return PLANT_OK;
+}
+
+/* A restored cache: the coefficients and level_ref those of its discharge; an envelope ARX's
+ * input and coefficients those of its input. */
+PlantStatus dynamics_check_cache(const ModelData *m, PlantMessage *msg)
+{
+    const DynamicsCache *c = &m->cache.dyn;
+    DynamicsCache fresh;
+    int i, same;
+    dynamics_derive(m, m->cache.flow_m3h, &m->cache.at, &fresh);
+    same = plant_same_bits(c->level_ref_mm, fresh.level_ref_mm);
+    for (i = 0; i < GT_NA; i++) {
+        same = same && plant_same_bits(c->a[i], fresh.a[i]);
+    }
+    for (i = 0; i < GT_NB; i++) {
+        same = same && plant_same_bits(c->b[i], fresh.b[i]);
+    }
+#if GT_ENVELOPE
+    same = same && plant_same_bits(c->time_constant_ref_s, fresh.time_constant_ref_s);
+#endif
+    if (!same) {
+        plant_message(msg, "state's cached ARX coefficients are not those of its discharge "
+                           "%.17g m3/h",
+                      m->cache.flow_m3h);
+        return PLANT_ERROR;
+    }
+#if GT_ENVELOPE
+    if (plant_check_flag(c->point_valid, "cached steady-point", msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    if (c->point_valid) {
+        steady_point(m, c->point_u_mm, &fresh.point_level_mm, &fresh.point_a1, fresh.point_b);
+        same = isfinite(c->point_u_mm) &&
+               plant_same_bits(c->point_level_mm, fresh.point_level_mm) &&
+               plant_same_bits(c->point_a1, fresh.point_a1);
+        for (i = 0; i < GT_NB; i++) {
+            same = same && plant_same_bits(c->point_b[i], fresh.point_b[i]);
+        }
+        if (!same) {
+            plant_message(msg, "state's cached steady point (%.17g mm, a1 %.17g) is not the one "
+                               "at its input %.17g mm",
+                          c->point_level_mm, c->point_a1, c->point_u_mm);
+            return PLANT_ERROR;
+        }
+    }
+#endif
     return PLANT_OK;
 }

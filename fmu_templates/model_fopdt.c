@@ -148,17 +148,47 @@ static void prune(DynamicsState *d, double t_now)
     }
 }
 
-/* Parameters of one step: K and T (flow-dependent gain applied), L, and level_ref. */
-typedef struct {
-    double gain;
-    double tau_s;
-    double delay_s;
-    double level_ref_mm;
-} StepParameters;
+void dynamics_derive(const ModelData *m, double flow_m3h, const KnotPosition *at,
+                     DynamicsCache *c)
+{
+    c->gain = plant_interp(at, GAIN(m));
+    c->tau_s = plant_interp(at, TIME_CONSTANT(m));
+    c->delay_s = plant_interp(at, DEAD_TIME(m));
+    c->level_ref_mm = plant_interp(at, &m->real[VR_COL_LEVEL_REF_MM]);
+    effects_fopdt_parameters(m, flow_m3h, &c->gain, &c->tau_s);
+#if GT_ENVELOPE
+    c->point_valid = 0;
+#endif
+}
 
-/* The dynamics over [t_start, t_end) with the input u held (one piece of a step). */
+#if GT_ENVELOPE
+/* The envelope's steady level and time constant at the input deviation u and the cached
+ * discharge. */
+static void steady_point(const ModelData *m, double u_mm, double *level_mm, double *tau_s)
+{
+    kernel_envelope_point(KERNEL(m), u_mm + m->real[VR_OPENING_REF_MM], m->cache.flow_m3h,
+                          level_mm, tau_s);
+}
+
+/* The steady point at u, from the cache when it holds for u (the bisection only when the
+ * arrived input, the discharge or a parameter changed). */
+static void cached_steady_point(ModelData *m, double u_mm, double *level_mm, double *tau_s)
+{
+    DynamicsCache *c = &m->cache.dyn;
+    if (!c->point_valid || !plant_same_bits(c->point_u_mm, u_mm)) {
+        steady_point(m, u_mm, &c->point_level_mm, &c->point_tau_s);
+        c->point_u_mm = u_mm;
+        c->point_valid = 1;
+    }
+    *level_mm = c->point_level_mm;
+    *tau_s = c->point_tau_s;
+}
+#endif
+
+/* The dynamics over [t_start, t_end) with the input u held (one piece of a step); p holds
+ * the step's K, T, L and level_ref. */
 static void piece(ModelData *m, double t_start, double t_end, double u_mm,
-                  const StepParameters *p)
+                  const DynamicsCache *p)
 {
     DynamicsState *d = &m->dyn;
     double t = t_start;
@@ -179,8 +209,7 @@ static void piece(ModelData *m, double t_start, double t_end, double u_mm,
             }
         }
 #if GT_ENVELOPE
-        kernel_envelope_point(KERNEL(m), d->change_u[slot(d, j)] + m->real[VR_OPENING_REF_MM],
-                              m->real[VR_FLOW_M3H], &target, &tau_s);
+        cached_steady_point(m, d->change_u[slot(d, j)], &target, &tau_s);
 #else
         target = p->gain * d->change_u[slot(d, j)];
 #endif
@@ -191,17 +220,12 @@ static void piece(ModelData *m, double t_start, double t_end, double u_mm,
     prune(d, t_end);
 }
 
-void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPosition *at)
+void dynamics_step(ModelData *m, double step_s, double command_mm)
 {
     EffectState *fx = &m->fx;
-    StepParameters p;
+    const DynamicsCache *p = &m->cache.dyn; /* derived for this step's discharge (plant.c) */
     const double t0 = m->time_s;
     const double t1 = t0 + step_s;
-    p.gain = plant_interp(at, GAIN(m));
-    p.tau_s = plant_interp(at, TIME_CONSTANT(m));
-    p.delay_s = plant_interp(at, DEAD_TIME(m));
-    p.level_ref_mm = plant_interp(at, &m->real[VR_COL_LEVEL_REF_MM]);
-    effects_fopdt_parameters(m, m->real[VR_FLOW_M3H], &p.gain, &p.tau_s);
 #if GT_HAS_RATE_LIMIT
     {
         /* the gate moves; the dynamics see it sampled on the grid origin + k * substep */
@@ -213,7 +237,7 @@ void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPos
         for (;;) {
             if (tk > t_start) {
                 const double t_end = tk < t1 ? tk : t1;
-                piece(m, t_start, t_end, effects_input(m, fx->held_gate_mm), &p);
+                piece(m, t_start, t_end, effects_input(m, fx->held_gate_mm), p);
                 effects_seiche_piece(m, t_end - t_start, fx->held_gate_mm);
                 if (!(tk < t1)) {
                     break;
@@ -231,7 +255,7 @@ void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPos
 #else
     effects_actuate(m, fx, command_mm, step_s);
     fx->held_gate_mm = fx->gate_mm;
-    piece(m, t0, t1, effects_input(m, fx->gate_mm), &p);
+    piece(m, t0, t1, effects_input(m, fx->gate_mm), p);
     effects_seiche_piece(m, t1 - t0, fx->gate_mm);
 #endif
 }
@@ -266,5 +290,39 @@ PlantStatus dynamics_check_state(const ModelData *m, PlantMessage *msg)
             return PLANT_ERROR;
         }
     }
+    return PLANT_OK;
+}
+
+/* A restored cache: K, T, L and level_ref those of its discharge; an envelope's steady point
+ * that of its input. */
+PlantStatus dynamics_check_cache(const ModelData *m, PlantMessage *msg)
+{
+    const DynamicsCache *c = &m->cache.dyn;
+    DynamicsCache fresh;
+    dynamics_derive(m, m->cache.flow_m3h, &m->cache.at, &fresh);
+    if (!plant_same_bits(c->gain, fresh.gain) || !plant_same_bits(c->tau_s, fresh.tau_s) ||
+        !plant_same_bits(c->delay_s, fresh.delay_s) ||
+        !plant_same_bits(c->level_ref_mm, fresh.level_ref_mm)) {
+        plant_message(msg, "state's cached K, T, L, level_ref (%.17g, %.17g, %.17g, %.17g) are "
+                           "not those of its discharge",
+                      c->gain, c->tau_s, c->delay_s, c->level_ref_mm);
+        return PLANT_ERROR;
+    }
+#if GT_ENVELOPE
+    if (plant_check_flag(c->point_valid, "cached steady-point", msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    if (c->point_valid) {
+        steady_point(m, c->point_u_mm, &fresh.point_level_mm, &fresh.point_tau_s);
+        if (!isfinite(c->point_u_mm) ||
+            !plant_same_bits(c->point_level_mm, fresh.point_level_mm) ||
+            !plant_same_bits(c->point_tau_s, fresh.point_tau_s)) {
+            plant_message(msg, "state's cached steady point (%.17g mm, %.17g s) is not the one "
+                               "at its input %.17g mm",
+                          c->point_level_mm, c->point_tau_s, c->point_u_mm);
+            return PLANT_ERROR;
+        }
+    }
+#endif
     return PLANT_OK;
 }

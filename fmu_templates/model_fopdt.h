@@ -1,4 +1,5 @@
-/* State of the scheduled FOPDT dynamics (equations in model_fopdt.c). */
+/* State of the scheduled FOPDT dynamics and what a step derives from its inputs alone
+ * (equations in model_fopdt.c). */
 #ifndef GATETWIN_MODEL_FOPDT_H
 #define GATETWIN_MODEL_FOPDT_H
 
@@ -13,5 +14,21 @@ typedef struct {
     int count;                               /* changes held, >= 1 once initialised */
     double max_dead_time_s;                  /* history horizon, fixed at initialisation */
 } DynamicsState;
+
+/* What a step derives from its discharge and the parameters alone (ModelData.cache, see
+ * plant_data.h): the scheduled K, T, L and level_ref, and an envelope's steady point at the
+ * last arrived input it needed. */
+typedef struct {
+    double gain;         /* K, flow-dependent gain applied, mm/mm */
+    double tau_s;        /* T, flow-dependent gain applied, s */
+    double delay_s;      /* L, s */
+    double level_ref_mm; /* level_ref, mm */
+#if GT_ENVELOPE
+    int point_valid;         /* 1: the steady point below holds for point_u_mm */
+    double point_u_mm;       /* the arrived input deviation it is at, mm */
+    double point_level_mm;   /* the gate law's steady level there, mm */
+    double point_tau_s;      /* the storage's time constant there, s */
+#endif
+} DynamicsCache;
 
 #endif

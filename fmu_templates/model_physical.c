@@ -64,13 +64,21 @@ PlantStatus dynamics_check_step(const ModelData *m, double step_s, double comman
     return PLANT_OK;
 }
 
-void dynamics_step(ModelData *m, double step_s, double command_mm, const KnotPosition *at)
+void dynamics_derive(const ModelData *m, double flow_m3h, const KnotPosition *at,
+                     DynamicsCache *c)
+{
+    (void)m;
+    (void)flow_m3h;
+    (void)at;
+    c->none = 0;
+}
+
+void dynamics_step(ModelData *m, double step_s, double command_mm)
 {
     const double flow_m3h = m->real[VR_FLOW_M3H];
     const double target = actuator_target(m, command_mm);
     double n, dt;
     long i;
-    (void)at;
     gt_substep_count(step_s, PHYSICAL(m), &n);
     dt = step_s / n;
     for (i = 0; i < (long)n; i++) {
@@ -89,6 +97,16 @@ PlantStatus dynamics_check_state(const ModelData *m, PlantMessage *msg)
     if (!(isfinite(d->x) && isfinite(d->depth_m) && isfinite(d->gate_mm))) {
         plant_message(msg, "physical state (level %g mm, depth %g m, gate %g mm) is not finite",
                       d->x, d->depth_m, d->gate_mm);
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
+}
+
+/* A restored cache: nothing derived, so nothing but its placeholder to check. */
+PlantStatus dynamics_check_cache(const ModelData *m, PlantMessage *msg)
+{
+    if (m->cache.dyn.none != 0) {
+        plant_message(msg, "state's step cache placeholder is %d, not 0", m->cache.dyn.none);
         return PLANT_ERROR;
     }
     return PLANT_OK;

@@ -9,4 +9,10 @@ typedef struct {
     double gate_mm; /* gate position, mm */
 } DynamicsState;
 
+/* The physical family derives nothing from the discharge alone (the steady depth is only its
+ * initial state): the step cache (plant_data.h) holds the knot position only. */
+typedef struct {
+    int none; /* C wants a member: always 0 */
+} DynamicsCache;
+
 #endif

@@ -5,9 +5,10 @@
  * This file only orders calls: every number is computed by the functions casadi generated from
  * the observer's Python code (observer_generated.c, gatetwin.mpc.observer_codegen): start,
  * riccati, correct, advance, level, predict. Per sample, as OnlineObserver.step: correct with
- * the measured level (model of the last prediction; the innovation, its normalised value and
- * the anomaly run come with it), forecast horizon_s ahead with the inputs held (advance, that
- * many samples, then level), predict with the opening over the next sample.
+ * the measured level (model of the last prediction; the innovation, its normalised value,
+ * the anomaly rules' outputs and their next state come with it), forecast horizon_s ahead
+ * with the inputs held (advance, that many samples, then level), predict with the opening
+ * over the next sample.
  *
  * Timing: doStep(t, h) takes the inputs at t as the measurements of the sample at t; after it
  * the outputs are the estimate at t and the forecast from t. h must be a whole number of
@@ -36,6 +37,8 @@ static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
 {
     const double horizon = m->real[VR_HORIZON_S], band = m->real[VR_ANOMALY_BAND_SIGMA];
     const double run = m->real[VR_ANOMALY_RUN_SAMPLES];
+    const double slack = m->real[VR_ANOMALY_CUSUM_SLACK_SIGMA];
+    const double threshold = m->real[VR_ANOMALY_CUSUM_THRESHOLD];
     if (plant_check_parameter_values(m->real, msg) != PLANT_OK ||
         gt_check_schedule(m, "observer", msg) != PLANT_OK) {
         return PLANT_ERROR;
@@ -52,6 +55,11 @@ static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
     }
     if (!(run >= 1.0 && run <= 1e6 && run == floor(run))) {
         plant_message(msg, "anomaly_run_samples = %.17g must be a whole number in [1, 1e6]", run);
+        return PLANT_ERROR;
+    }
+    if (!(slack >= 0.0) || !(threshold > 0.0)) {
+        plant_message(msg, "anomaly_cusum_slack_sigma = %.17g must be >= 0 and "
+                           "anomaly_cusum_threshold = %.17g > 0", slack, threshold);
         return PLANT_ERROR;
     }
     return PLANT_OK;
@@ -94,21 +102,24 @@ static double forecast(ModelData *m, double q, const double *z, double d, double
 /* One sample: correct with the level y, forecast, predict with opening e at discharge q. */
 static void sample(ModelData *m, double y, double e, double q)
 {
-    double z[GT_GEN_NZ], d, p[GT_GEN_NP], est[GT_OBS_N_ESTIMATE];
-    const double band = m->real[VR_ANOMALY_BAND_SIGMA], n_run = m->real[VR_ANOMALY_RUN_SAMPLES];
-    {
-        const double *in[9] = {gt_theta(m), &m->flow_model_m3h, m->z, &m->d, m->p, &y,
-                               &m->run, &band, &n_run};
-        double *out[4] = {z, &d, p, est};
-        gt_call(m, gt_obs_correct, in, 9, out, 4);
+    static const int estimate_vr[GT_OBS_N_ESTIMATE] = GT_OBS_ESTIMATE_VRS;
+    static const int limit_vr[GT_OBS_N_LIMITS] = GT_OBS_LIMIT_VRS;
+    double z[GT_GEN_NZ], d, p[GT_GEN_NP], est[GT_OBS_N_ESTIMATE], limits[GT_OBS_N_LIMITS];
+    double monitor[GT_OBS_N_MONITOR];
+    int i;
+    for (i = 0; i < GT_OBS_N_LIMITS; i++) {
+        limits[i] = m->real[limit_vr[i]];
     }
-    m->real[VR_FILTERED_LEVEL_MM] = est[0];
-    m->real[VR_DISTURBANCE_MM] = est[1];
-    m->real[VR_INNOVATION_MM] = est[2];
-    m->real[VR_INNOVATION_NORMALISED] = est[3];
-    m->real[VR_ANOMALY_SAMPLES] = est[4];
-    m->real[VR_ANOMALY] = est[5];
-    m->run = est[4];
+    {
+        const double *in[8] = {gt_theta(m), &m->flow_model_m3h, m->z, &m->d, m->p, &y,
+                               m->monitor, limits};
+        double *out[5] = {z, &d, p, est, monitor};
+        gt_call(m, gt_obs_correct, in, 8, out, 5);
+    }
+    for (i = 0; i < GT_OBS_N_ESTIMATE; i++) {
+        m->real[estimate_vr[i]] = est[i];
+    }
+    memcpy(m->monitor, monitor, sizeof monitor);
     m->real[VR_PREDICTED_LEVEL_MM] = forecast(m, q, z, d, e);
     {
         const double *in[7] = {gt_theta(m), &m->flow_model_m3h, &q, z, &d, p, &e};
@@ -135,30 +146,31 @@ void plant_set_defaults(ModelData *m)
 /* At rest at the opening, level and discharge measured now, as OnlineObserver.reset. */
 PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
 {
+    static const int estimate_vr[GT_OBS_N_ESTIMATE] = GT_OBS_ESTIMATE_VRS;
     double q = m->real[VR_FLOW_M3H], y = m->real[VR_LEVEL], e = m->real[VR_OPENING_MM];
     double level;
+    int i;
     if (check_parameters(m, msg) != PLANT_OK || check_inputs(m, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     m->parameters_changed = 0;
     {
         const double *in[4] = {gt_theta(m), &q, &e, &y};
-        double *out[3] = {m->z, &m->d, &level};
-        gt_call(m, gt_obs_start, in, 4, out, 3);
+        double *out[4] = {m->z, &m->d, &level, m->monitor};
+        gt_call(m, gt_obs_start, in, 4, out, 4);
     }
     if (gt_steady_covariance(m, gt_obs_riccati, q, msg) != PLANT_OK ||
         gt_finite_estimate(m, "at the start", "observer", msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     m->flow_model_m3h = q;
-    m->run = 0.0;
+    for (i = 0; i < GT_OBS_N_ESTIMATE; i++) {
+        m->real[estimate_vr[i]] = 0.0;
+    }
     m->real[VR_FILTERED_LEVEL_MM] = level;
     m->real[VR_DISTURBANCE_MM] = m->d;
-    m->real[VR_INNOVATION_MM] = 0.0;
-    m->real[VR_INNOVATION_NORMALISED] = 0.0;
+    m->real[VR_INNOVATION_SCALE] = 1.0;
     m->real[VR_PREDICTED_LEVEL_MM] = forecast(m, q, m->z, m->d, e);
-    m->real[VR_ANOMALY] = 0.0;
-    m->real[VR_ANOMALY_SAMPLES] = 0.0;
     m->initialized = 1;
     return PLANT_OK;
 }
@@ -214,9 +226,11 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
         return PLANT_ERROR;
     }
     {
-        const double scalars[3] = {m->d, m->flow_model_m3h, m->run};
-        if (!gt_all_finite(scalars, 3) || !gt_all_finite(m->z, GT_GEN_NZ) ||
-            !gt_all_finite(m->p, GT_GEN_NP) || !(m->run >= 0.0 && m->run == floor(m->run))) {
+        const double scalars[2] = {m->d, m->flow_model_m3h};
+        const double run = m->monitor[0];
+        if (!gt_all_finite(scalars, 2) || !gt_all_finite(m->z, GT_GEN_NZ) ||
+            !gt_all_finite(m->p, GT_GEN_NP) || !gt_all_finite(m->monitor, GT_OBS_N_MONITOR) ||
+            !(run >= 0.0 && run == floor(run))) {
             plant_message(msg, "state of the observer is not finite or its run is not a count");
             return PLANT_ERROR;
         }

@@ -19,7 +19,7 @@ typedef struct {
     double d;
     double p[GT_GEN_NP];
     double flow_model_m3h; /* discharge of the observer's model (the last prediction's) */
-    double run;            /* consecutive samples with the innovation outside the band */
+    double monitor[GT_OBS_N_MONITOR]; /* anomaly rules' state (gatetwin.mpc.online.MONITOR) */
     /* scratch of one call: the generated code's work arrays */
     casadi_int iw[GT_GEN_SZ_IW];
     casadi_real w[GT_GEN_SZ_W];

@@ -56,6 +56,7 @@ static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
 static PlantStatus check_parameters_if_changed(ModelData *m, PlantMessage *msg)
 {
     if (m->parameters_changed) {
+        m->cache.valid = 0; /* derived from the parameters that were in force */
         if (check_parameters(m, msg) != PLANT_OK) {
             return PLANT_ERROR;
         }
@@ -142,6 +143,20 @@ static double level_offset(const ModelData *m, const KnotPosition *at)
 #endif
 }
 
+/* The step cache for the discharge flow_m3h (checked parameters): kept if it holds for it,
+ * else derived anew. */
+static const StepCache *step_cache(ModelData *m, double flow_m3h)
+{
+    StepCache *c = &m->cache;
+    if (!c->valid || !plant_same_bits(c->flow_m3h, flow_m3h)) {
+        c->flow_m3h = flow_m3h;
+        c->at = plant_locate(m, flow_m3h);
+        dynamics_derive(m, flow_m3h, &c->at, &c->dyn);
+        c->valid = 1;
+    }
+    return c;
+}
+
 /* --- the glue's entry points ----------------------------------------------------------------- */
 
 void plant_set_defaults(ModelData *m)
@@ -177,6 +192,7 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
         return PLANT_ERROR;
     }
     dynamics_initialize(m, u, x0);
+    m->cache.valid = 0; /* a restored state's cache may hold other parameters */
     effects_initialize(m, m->real[VR_OPENING_MM], m->real[VR_FLOW_M3H],
                        level_offset(m, &at) + x0);
     m->flow_in_force_m3h = m->real[VR_FLOW_M3H];
@@ -212,13 +228,13 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     if (dynamics_check_step(m, step_s, opening_mm, msg) != PLANT_OK) {
         return PLANT_ERROR; /* nothing has changed: a refused step leaves the state as it was */
     }
-    const KnotPosition at = plant_locate(m, flow_m3h);
-    dynamics_step(m, step_s, opening_mm, &at);
+    const StepCache *cache = step_cache(m, flow_m3h);
+    dynamics_step(m, step_s, opening_mm);
     effects_step_end(m, step_s, flow_m3h);
     m->flow_in_force_m3h = flow_m3h;
     m->time_s += step_s;
     double level_mm;
-    if (finite_output(m, &at, "after the step", &level_mm, msg) != PLANT_OK) {
+    if (finite_output(m, &cache->at, "after the step", &level_mm, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     return check_validity(m, opening_mm, flow_m3h, level_mm, msg);
@@ -277,6 +293,31 @@ static PlantStatus check_kept_output(const ModelData *m, PlantMessage *msg)
     return PLANT_OK;
 }
 
+/* A restored state's step cache must be what its discharge and parameters give (bit for bit),
+ * unless it is dropped before any use: before initialisation (plant_initialize drops it) and
+ * after a parameter change (the next step drops it). */
+static PlantStatus check_cache(const ModelData *m, PlantMessage *msg)
+{
+    const StepCache *c = &m->cache;
+    KnotPosition at;
+    if (plant_check_flag(c->valid, "step cache", msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    if (!c->valid || !m->initialized || m->parameters_changed) {
+        return PLANT_OK;
+    }
+    at = plant_locate(m, c->flow_m3h);
+    if (!isfinite(c->flow_m3h) || at.index != c->at.index || at.clamped != c->at.clamped ||
+        !plant_same_bits(at.weight, c->at.weight)) {
+        plant_message(msg,
+                      "state's step cache (knot %d, weight %.17g, clamped %d) is not what its "
+                      "discharge %.17g m3/h gives",
+                      c->at.index, c->at.weight, c->at.clamped, c->flow_m3h);
+        return PLANT_ERROR;
+    }
+    return dynamics_check_cache(m, msg);
+}
+
 /* --- restored states --------------------------------------------------------------------- */
 
 static PlantStatus check_flags(const ModelData *m, int initialized, PlantMessage *msg)
@@ -319,7 +360,8 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
     if (!m->parameters_changed && check_parameters(m, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
-    if (dynamics_check_state(m, msg) != PLANT_OK || effects_check_state(m, msg) != PLANT_OK) {
+    if (dynamics_check_state(m, msg) != PLANT_OK || effects_check_state(m, msg) != PLANT_OK ||
+        check_cache(m, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     return check_kept_output(m, msg);

@@ -35,3 +35,12 @@ double plant_interp(const KnotPosition *at, const double *column)
     }
     return column[at->index] + at->weight * (column[at->index + 1] - column[at->index]);
 }
+
+PlantStatus plant_check_flag(int flag, const char *what, PlantMessage *msg)
+{
+    if (flag != 0 && flag != 1) {
+        plant_message(msg, "state's %s flag is %d, not 0 or 1", what, flag);
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
+}

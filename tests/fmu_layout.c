@@ -7,17 +7,51 @@
  * `parameters_changed` (every component, component.h), and the fields of the components this
  * file knows (a plant, the PI and MPC controllers, the observer); another component gets
  * parameters_changed only.
+ *
+ * With the argument `cache` (a plant only) it prints `NAME OFFSET` for the fields of the step
+ * cache (plant_data.h) that tests/test_fmu_cache.py tampers with instead.
  */
 #include <stddef.h>
 #include <stdio.h>
+#include <string.h>
 
 #include "component.h"
 
 #define INT_FIELD(field) \
     printf("int_field %s %lu\n", #field, (unsigned long)offsetof(ModelData, field))
+#define FIELD(field) printf("%s %lu\n", #field, (unsigned long)offsetof(ModelData, field))
 
-int main(void)
+#if defined(GATETWIN_PLANT_DATA_H) && GT_ENVELOPE
+#define ENVELOPE_CACHE 1 /* an envelope FOPDT or ARX: its cache holds a steady point */
+#else
+#define ENVELOPE_CACHE 0
+#endif
+
+static int cache_fields(void)
 {
+#ifdef GATETWIN_PLANT_DATA_H
+    FIELD(cache.valid);
+    FIELD(cache.flow_m3h);
+    FIELD(cache.at.index);
+    FIELD(cache.at.weight);
+#if ENVELOPE_CACHE
+    FIELD(cache.dyn.point_valid);
+    FIELD(cache.dyn.point_u_mm);
+    FIELD(cache.dyn.point_level_mm);
+#endif
+    FIELD(cache.dyn);
+    return 0;
+#else
+    fprintf(stderr, "not a plant: no step cache\n");
+    return 1;
+#endif
+}
+
+int main(int argc, char **argv)
+{
+    if (argc > 1 && strcmp(argv[1], "cache") == 0) {
+        return cache_fields();
+    }
     printf("data_size %lu\n", (unsigned long)sizeof(ModelData));
     INT_FIELD(parameters_changed);
 #if defined(GATETWIN_PLANT_DATA_H) || defined(GATETWIN_CONTROLLER_DATA_H) || \
@@ -29,6 +63,12 @@ int main(void)
 #endif
 #ifdef GATETWIN_PLANT_DATA_H
     INT_FIELD(warned_validity);
+    INT_FIELD(cache.valid);
+    INT_FIELD(cache.at.index);
+    INT_FIELD(cache.at.clamped);
+#endif
+#if ENVELOPE_CACHE
+    INT_FIELD(cache.dyn.point_valid);
 #endif
 #ifdef GATETWIN_MODEL_FOPDT_H
     INT_FIELD(dyn.head);

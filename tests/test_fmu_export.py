@@ -102,6 +102,7 @@ def test_c_fmu_ships_sources_that_rebuild(fmus, tmp_path):
     listed = [f.get("name") for f in _xml(path).iter("File")]
     assert listed == [
         "fmi2_glue.c",
+        "glue_core.c",
         "component.c",
         "plant.c",
         "support.c",

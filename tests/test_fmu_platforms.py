@@ -1,7 +1,9 @@
 """C FMUs for other platforms, cross-compiled with Zig: the binaries are what they say, and
 the foreign ones compute what the host's computes (Windows under wine, 64-bit ARM Linux under
 qemu-user; macOS checked statically). FMI 3.0 FMUs carry the same binaries in FMI 3.0's
-folders, exporting the fmi3 functions."""
+folders, exporting the fmi3 functions; driven by the same host built for FMI 3.0, they
+compute what the host's FMI 3.0 binary computes and what the FMI 2.0 binary of their platform
+computes."""
 
 from __future__ import annotations
 
@@ -160,8 +162,10 @@ def _trace(command: list[str], inputs: Path) -> np.ndarray:
     return np.array([float(v) for v in done.stdout.split()])
 
 
-def _host(root: Path, target: str | None, out: Path) -> Path:
+def _host(root: Path, target: str | None, out: Path, version: str = "2.0") -> Path:
+    """tests/fmu_trace.c built for ``version`` against the FMU's sources/ (its headers)."""
     flags = ["-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", "-I", str(root / "sources")]
+    flags += ["-DTRACE_FMI3"] if version == "3.0" else []
     cc = [compiler()] if target is None else [sys.executable, "-m", "ziglang", "cc", "-target",
                                               target]  # fmt: skip
     libs = [] if target and "windows" in target else ["-ldl"]
@@ -170,41 +174,76 @@ def _host(root: Path, target: str | None, out: Path) -> Path:
     return out
 
 
+#: Where the trace host runs, by the FMU binary's format: its (FMI 2.0, FMI 3.0) folder, the
+#: Zig target of the host (None: the system compiler) and what runs it.
+TRACED = {
+    "x86_64 ELF": (FOLDERS["x86_64 ELF"], None, ()),
+    "AArch64 ELF": (FOLDERS["AArch64 ELF"], "aarch64-linux-gnu.2.17",
+                    ("qemu-aarch64", "-L", "/usr/aarch64-linux-gnu")),
+    "AMD64 PE": (FOLDERS["AMD64 PE"], "x86_64-windows-gnu", (WINE,)),
+}  # fmt: skip
+needs_qemu = pytest.mark.skipif(
+    shutil.which("qemu-aarch64") is None or not Path("/usr/aarch64-linux-gnu").is_dir(),
+    reason="qemu-user or the arm64 C library (libc6-arm64-cross) absent",
+)
+needs_wine = pytest.mark.skipif(WINE is None, reason="wine absent")
+
+
 @pytest.fixture(scope="module")
-def native(fmu_all, tmp_path_factory):
-    _, root = fmu_all
-    args, inputs = _trace_inputs(root)
-    host = _host(root, None, tmp_path_factory.mktemp("native") / "trace")
-    binary = next((root / "binaries" / "linux64").iterdir())
-    return args, inputs, _trace([str(host), str(binary), *args], inputs)
+def traces(fmu_all, fmu3_all, tmp_path_factory):
+    """``trace(version, format)``: the levels the FMU binary of that FMI version and format
+    computes on the bundled record, driven by tests/fmu_trace.c (each run once)."""
+    done: dict[tuple[str, str], np.ndarray] = {}
+
+    def trace(version: str, what: str) -> np.ndarray:
+        if (version, what) not in done:
+            root = (fmu_all if version == "2.0" else fmu3_all)[1]
+            folders, target, runner = TRACED[what]
+            args, inputs = _trace_inputs(root)
+            suffix = ".exe" if target and "windows" in target else ""
+            out = tmp_path_factory.mktemp("trace") / f"trace{suffix}"
+            host = _host(root, target, out, version)
+            binary = next((root / "binaries" / folders[0 if version == "2.0" else 1]).iterdir())
+            done[version, what] = _trace([*runner, str(host), str(binary), *args], inputs)
+        return done[version, what]
+
+    return trace
 
 
 @needs_zig
-@pytest.mark.skipif(shutil.which("qemu-aarch64") is None or not Path("/usr/aarch64-linux-gnu")
-                    .is_dir(), reason="qemu-user or the arm64 C library (libc6-arm64-cross) "
-                    "absent")  # fmt: skip
-def test_the_arm64_linux_binary_under_qemu_equals_the_host_to_the_bit(fmu_all, native, tmp_path):
-    _, root = fmu_all
-    args, inputs, expected = native
-    host = _host(root, "aarch64-linux-gnu.2.17", tmp_path / "trace")
-    binary = next((root / "binaries" / "aarch64-linux").iterdir())
-    got = _trace(["qemu-aarch64", "-L", "/usr/aarch64-linux-gnu", str(host), str(binary), *args],
-                 inputs)  # fmt: skip
-    assert got.size == expected.size and np.array_equal(got, expected)
+@needs_qemu
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+def test_the_arm64_linux_binary_under_qemu_equals_the_host_to_the_bit(traces, version):
+    expected = traces(version, "x86_64 ELF")
+    got = traces(version, "AArch64 ELF")
+    assert expected.size > 1000 and got.size == expected.size and np.array_equal(got, expected)
 
 
 @needs_zig
-@pytest.mark.skipif(WINE is None, reason="wine absent")
-def test_the_windows_binary_under_wine_equals_the_host(fmu_all, native, tmp_path):
+@needs_wine
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+def test_the_windows_binary_under_wine_equals_the_host(traces, version):
     """Windows' C library computes exp, log and sin in its own way, so the binaries agree
     within the renderings' tolerance (1e-9 mm; measured 1.0e-10 mm on this record), not to
     the bit like the ARM one built on the same glibc."""
-    _, root = fmu_all
-    args, inputs, expected = native
-    host = _host(root, "x86_64-windows-gnu", tmp_path / "trace.exe")
-    binary = next((root / "binaries" / "win64").iterdir())
-    got = _trace([WINE, str(host), str(binary), *args], inputs)
-    assert got.size == expected.size and np.max(np.abs(got - expected)) <= 1e-9
+    expected = traces(version, "x86_64 ELF")
+    got = traces(version, "AMD64 PE")
+    assert expected.size > 1000 and got.size == expected.size
+    assert np.max(np.abs(got - expected)) <= 1e-9
+
+
+@needs_zig
+@pytest.mark.parametrize(
+    "what",
+    ["x86_64 ELF", pytest.param("AArch64 ELF", marks=needs_qemu),
+     pytest.param("AMD64 PE", marks=needs_wine)],
+)  # fmt: skip
+def test_fmi3_binaries_compute_what_the_fmi2_ones_compute_to_the_bit(traces, what):
+    """The two versions compile the same component with the same flags for the same target
+    and link the same C library; only the glue differs, and it moves no value: equal bits,
+    Windows' too."""
+    fmi2, fmi3 = traces("2.0", what), traces("3.0", what)
+    assert fmi2.size > 1000 and np.array_equal(fmi3, fmi2)
 
 
 def test_unknown_platforms_and_a_missing_cross_compiler_are_one_line(tmp_path, monkeypatch):

@@ -218,3 +218,82 @@ def test_twenty_week_long_histories_within_10_percent(tmp_path) -> None:
     summary = [(g.gate, round(k, 3), round(t, 3), len(i.windows)) for g, (k, t, _, i)
                in zip(gates, rows, strict=True)]  # fmt: skip
     assert np.mean(ok) >= 0.9, summary
+
+
+def _parquet_history(csv: Path, out: Path) -> Path:
+    """The CSV history as Parquet beside its sidecar (the same rows and values)."""
+    import pyarrow.csv
+    import pyarrow.parquet
+
+    pq = out / "routine.parquet"
+    pyarrow.parquet.write_table(pyarrow.csv.read_csv(csv), pq)
+    (out / "routine.json").write_text(csv.with_suffix(".json").read_text())
+    return pq
+
+
+@pytest.mark.parametrize("index", [0, 3])
+def test_history_read_in_chunks_equals_the_whole_history(short_district, tmp_path,
+                                                         index) -> None:  # fmt: skip
+    from gatetwin.identify.routine_chunks import identify_routine_chunked
+
+    gate = district_gates(4, seed=11)[index]
+    pq = _parquet_history(short_district / gate.gate / "routine.csv", tmp_path)
+    record = read_record(pq, test="routine")
+    whole = identify_routine(record)
+    # 1000 rows are 20 min at 1.2 s, shorter than one window (pre 5 min + up to 20 min
+    # after the move): windows must straddle chunk boundaries and be carried over
+    rows = 1000
+    straddle = [w for w in whole.windows
+                if np.searchsorted(record.time_s, w.start_time_s) // rows
+                != np.searchsorted(record.time_s, w.end_time_s) // rows]  # fmt: skip
+    assert straddle
+    for chunk_rows in (rows, 65536):
+        chunked = identify_routine_chunked(pq, chunk_rows=chunk_rows)
+        assert chunked.to_dict() == whole.to_dict()
+        assert chunked.windows == whole.windows
+
+
+def test_folder_of_day_files_equals_the_whole_history(short_district, tmp_path) -> None:
+    import pyarrow.parquet
+
+    from gatetwin.identify.routine_chunks import identify_routine_chunked
+
+    gate = district_gates(4, seed=11)[1]
+    pq = _parquet_history(short_district / gate.gate / "routine.csv", tmp_path)
+    table = pyarrow.parquet.read_table(pq)
+    folder = tmp_path / "days"
+    folder.mkdir()
+    third = table.num_rows // 3
+    for k in range(3):  # three 8-hour files, read one at a time
+        part = table.slice(k * third, third if k < 2 else None)
+        pyarrow.parquet.write_table(part, folder / f"day{k}.parquet")
+    (tmp_path / "days.json").write_text((tmp_path / "routine.json").read_text())
+    whole = identify_routine(read_record(pq, test="routine")).to_dict()
+    chunked = identify_routine_chunked(folder).to_dict()
+    assert chunked.pop("record") == str(folder) and whole.pop("record") == str(pq)
+    assert chunked == whole
+
+
+def test_chunked_history_without_window_refuses_as_the_whole_one(tmp_path) -> None:
+    from gatetwin.identify.routine_chunks import identify_routine_chunked
+
+    gate = district_gates(1, seed=2)[0]
+    write_routine_gate(gate, tmp_path, RoutineSettings(days=0.1, hold_s=(1e6, 2e6), gaps=0))
+    pq = _parquet_history(tmp_path / "routine.csv", tmp_path)
+    with pytest.raises(IdentificationError) as whole:
+        identify_routine(read_record(pq, test="routine"))
+    with pytest.raises(IdentificationError) as chunked:
+        identify_routine_chunked(pq, chunk_rows=500)
+    assert str(chunked.value) == str(whole.value)
+
+
+def test_cli_routine_max_memory_writes_the_same_json(short_district, tmp_path) -> None:
+    gate = district_gates(4, seed=11)[0]
+    pq = _parquet_history(short_district / gate.gate / "routine.csv", tmp_path)
+    assert main(["routine", str(pq), "--json", str(tmp_path / "a.json")]) == 0
+    assert main(["routine", str(pq), "--json", str(tmp_path / "b.json"),
+                 "--max-memory", "400"]) == 0  # fmt: skip
+    assert (tmp_path / "a.json").read_bytes() == (tmp_path / "b.json").read_bytes()
+    assert main(["routine", str(pq), "--json", str(tmp_path / "c.json"),
+                 "--max-memory", "250"]) == 2  # fmt: skip
+    assert not (tmp_path / "c.json").exists()

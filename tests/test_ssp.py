@@ -120,8 +120,12 @@ def test_bad_packages_and_requests_are_one_line_without_output(package, tmp_path
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("gatetwin: error:") and str(bad) in err[0]
         assert not out.exists()
-    for argv in (["--controller", "mpc"], ["--observer"], ["--horizon", "20"],
-                 ["--controller", "mpc", "--horizon", "0", "--without-effects"]):
+    for argv in (
+        ["--controller", "mpc"],
+        ["--observer"],
+        ["--horizon", "20"],
+        ["--controller", "mpc", "--horizon", "0", "--without-effects"],
+    ):
         assert main(["ssp", str(MODEL), "--out", str(tmp_path / "m.ssp"), *argv]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("gatetwin: error:"), (argv, err)

@@ -73,3 +73,18 @@ def test_a_record_that_cannot_be_validated_fails_in_one_line_without_output(fmu,
     assert main(["validate", str(fmu), str(RECORDS[0]), "--json", str(out), "--workers", "2",
                  "--scheduler", "tcp://127.0.0.1:1"]) == 2  # fmt: skip
     assert not out.exists()
+
+
+def test_the_runs_matrix_on_a_pool_is_the_serial_matrix(fmu):
+    from types import SimpleNamespace
+
+    from gatetwin.fleet.execute import FleetSettings
+    from gatetwin.run.stages import MATRIX_FAIL_UNDER, fmu_matrix
+    from gatetwin.validate import parse_thresholds
+
+    thresholds = parse_thresholds(MATRIX_FAIL_UNDER)
+    serial = fmu_matrix(SimpleNamespace(fleet=None), fmu, RECORDS, thresholds)
+    pooled = fmu_matrix(SimpleNamespace(fleet=FleetSettings(workers=2)), fmu, RECORDS,
+                        thresholds)  # fmt: skip
+    assert [c["record"] for c in pooled] == [p.name for p in RECORDS]
+    assert pooled == serial

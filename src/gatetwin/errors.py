@@ -27,6 +27,10 @@ class IdentificationError(GatetwinError, ValueError):
     """A record cannot support the requested identification method."""
 
 
+class NoWindowError(IdentificationError):
+    """A routine operation history without any informative window (no model from it)."""
+
+
 class ModelFileError(GatetwinError, ValueError):
     """A model file does not follow the model-file schema."""
 

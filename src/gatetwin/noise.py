@@ -3,14 +3,29 @@
 ``sigma`` is the standard deviation of the level around a quadratic in time, fitted to the
 *last half* of every steady stretch (hold samples at one opening with no step of the
 discharge and no logging gap, at least :data:`MIN_STRETCH_SAMPLES` long), pooled over the
-stretches (sum of squares over degrees of freedom), stretches more than three times the median
-SD dropped. Why this one: the last half of a long hold is past the transient of the move that
-began it, the quadratic takes out what is left of it and any slow drift, and unlike the SD of
-first differences it keeps correlated noise (the surface waves of a flume are correlated over
-seconds; first differences see only their fast part). What it cannot separate is an
-oscillation still ringing in the second half of a hold (a slowly decaying seiche): that raises
-``sigma``. Without any such stretch it falls back to the robust SD of first differences of
-hold samples divided by ``sqrt(2)``, and says so.
+stretches, stretches more than three times the median SD dropped. Why this one: the last half
+of a long hold is past the transient of the move that began it, the quadratic takes out what
+is left of it and any slow drift, and unlike the SD of first differences it keeps correlated
+noise (the surface waves of a flume are correlated over seconds; first differences see only
+their fast part).
+
+**Correlated noise.** A quadratic fitted to ``m`` samples of correlated noise takes out more
+than three samples' worth of its variance: with noise covariance ``sigma^2 R`` and ``M`` the
+residual projection, ``E[r'r] = sigma^2 trace(M R)``, which falls short of
+``sigma^2 (m - 3)`` the more, the shorter the stretch and the slower the noise. On the
+PRBS records (stretches of 15–35 samples, surface waves correlated over ~1.5 s at 1.2 s
+sampling) the plain ``r'r / (m - 3)`` is 7–11 % low. So the noise is modelled as AR(1) plus
+white, ``R = (1 - w) phi^|i-j| + w I``; ``phi`` and ``w`` are fitted to the residuals'
+autocovariances at lags 0..:data:`CORRELATION_LAGS` pooled over the stretches (their
+expectations are ``trace(M R M S_k)``), and ``sigma^2 = sum r'r / sum trace(M R)``. White
+noise gives ``phi = 0`` or ``w = 1`` and the plain pooled SD back. Checked against the
+virtual flume's noise-free level (``tests/test_noise_correlated.py``): over the 75 bundled
+record × gauge cells the floor's fit is the truth's within -2.8..+0.4 points, mean -0.5
+(the plain pool: -1.3..+4.7, and +2.0 on average on the PRBS records C and D).
+
+What it cannot separate is an oscillation still ringing in the second half of a hold (a
+slowly decaying seiche): that raises ``sigma``. Without any such stretch it falls back to the
+robust SD of first differences of hold samples divided by ``sqrt(2)``, and says so.
 
 Plain functions on arrays, used by the diagnosis (:mod:`gatetwin.diagnose.noise`) and by the
 validation harness (:mod:`gatetwin.validate.harness`); :func:`record_noise_floor` applies them
@@ -24,6 +39,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy import optimize
 
 from gatetwin.records import Record
 
@@ -32,7 +48,13 @@ MAD_TO_SD = 1.4826
 #: A time step longer than this many nominal periods ends a steady stretch (a logging gap).
 STRETCH_GAP_FACTOR = 1.5
 
-METHOD_HOLDS = "SD around a quadratic over the last half of steady holds"
+#: Autocovariance lags the noise's correlation is fitted to.
+CORRELATION_LAGS = 2
+#: Largest AR(1) coefficient considered (a correlation time of ~20 samples).
+PHI_MAX = 0.95
+
+METHOD_HOLDS = ("SD around a quadratic over the last half of steady holds, "
+                "corrected for the noise's correlation (AR(1) plus white)")  # fmt: skip
 METHOD_DIFFERENCES = ("robust SD of first differences of hold samples / sqrt(2) "
                       "(no steady stretch long enough)")  # fmt: skip
 
@@ -49,16 +71,23 @@ class NoiseFloor:
         How it was obtained (module docstring).
     n_stretches, n_samples : int
         Steady stretches and samples it rests on.
+    ar1_coefficient, white_fraction : float
+        The noise's correlation model ``R = (1 - w) phi^|i-j| + w I`` per sample
+        (NaN for the first-differences fallback).
     """
 
     sigma_mm: float
     method: str
     n_stretches: int
     n_samples: int
+    ar1_coefficient: float = math.nan
+    white_fraction: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         return {"sigma_mm": self.sigma_mm, "method": self.method,
-                "n_stretches": self.n_stretches, "n_samples": self.n_samples}  # fmt: skip
+                "n_stretches": self.n_stretches, "n_samples": self.n_samples,
+                "ar1_coefficient": self.ar1_coefficient,
+                "white_fraction": self.white_fraction}  # fmt: skip
 
 
 def flow_steps(flow_m3h: np.ndarray) -> np.ndarray:
@@ -107,6 +136,89 @@ def steady_stretches(
     return [(a, b) for a, b in out if b - a >= MIN_STRETCH_SAMPLES]
 
 
+@dataclass(frozen=True)
+class _Stretch:
+    """The last half of one steady stretch: its residual around the quadratic ``r = M y``.
+
+    ``M = I - Q X'`` with ``X`` the quadratic's design and ``Q = X (X'X)^-1``; sums along
+    ``M``'s diagonals are taken from ``Q`` and ``X`` without forming ``M``.
+    """
+
+    residual_mm: np.ndarray
+    design: np.ndarray  # X, (m, 3)
+    hat: np.ndarray  # Q, (m, 3)
+
+    def lag_sums(self) -> np.ndarray:
+        """``sum_t r_t r_(t+k)`` for ``k = 0..CORRELATION_LAGS``."""
+        r = self.residual_mm
+        return np.array([r[: r.size - k] @ r[k:] for k in range(CORRELATION_LAGS + 1)])
+
+    def expected_lag_sums(self, phi: float) -> np.ndarray:
+        """``trace(M R M S_k)`` per unit AR(1) variance and ``trace(M S_k)`` per unit white.
+
+        ``S_k`` picks the ``k``-th superdiagonal; rows ``k = 0..CORRELATION_LAGS``.
+        """
+        x, q = self.design, self.hat
+        m = x.shape[0]
+        i = np.arange(m)
+        rx = (phi ** np.abs(i[:, None] - i[None, :])) @ x  # R X
+        qb = q @ (x.T @ rx)  # Q X'R X
+        out = np.empty((CORRELATION_LAGS + 1, 2))
+        for k in range(CORRELATION_LAGS + 1):
+            lo, hi = slice(0, m - k), slice(k, m)
+            ar = ((m - k) * phi**k - np.sum(q[lo] * rx[hi]) - np.sum(rx[lo] * q[hi])
+                  + np.sum(qb[lo] * q[hi]))  # fmt: skip
+            out[k] = (ar, (m if k == 0 else 0) - np.sum(q[lo] * x[hi]))
+        return out
+
+
+def _stretch(time_s: np.ndarray, level_mm: np.ndarray, start: int, stop: int) -> _Stretch | None:
+    idx = np.arange(start + (stop - start) // 2, stop)
+    idx = idx[np.isfinite(level_mm[idx])]
+    if idx.size < 8:
+        return None
+    x = np.vander(time_s[idx] - time_s[idx].mean(), 3)
+    q = x @ np.linalg.pinv(x.T @ x)
+    y = level_mm[idx]
+    return _Stretch(y - q @ (x.T @ y), x, q)
+
+
+def _expected_lag_sums(stretches: list[_Stretch], phi: float) -> np.ndarray:
+    """Columns: the lag sums' expectations per unit AR(1) and per unit white variance."""
+    return np.sum([s.expected_lag_sums(phi) for s in stretches], axis=0)
+
+
+def _correlation(stretches: list[_Stretch]) -> tuple[float, float]:
+    """``(phi, w)`` whose expected lag sums best match the observed ones (module docstring)."""
+    observed = np.sum([s.lag_sums() for s in stretches], axis=0)
+
+    def misfit(phi: float) -> tuple[float, np.ndarray]:
+        design = _expected_lag_sums(stretches, phi)
+        var, residual = optimize.nnls(design, observed)
+        return residual, var
+
+    found = optimize.minimize_scalar(lambda phi: misfit(phi)[0], bounds=(0.0, PHI_MAX),
+                                     method="bounded", options={"xatol": 1e-3})  # fmt: skip
+    phi = float(found.x)
+    var = misfit(phi)[1]
+    total = float(np.sum(var))
+    return phi, (float(var[1]) / total if total > 0 else 1.0)
+
+
+def plain_pooled_sd(
+    time_s: np.ndarray, level_mm: np.ndarray, stretches: list[tuple[int, int]]
+) -> float:
+    """The uncorrected pool ``sqrt(sum r'r / sum (m - 3))`` over the stretches' last halves.
+
+    Right for white noise only; :func:`noise_floor` corrects it for correlated noise. Kept
+    to show what the correction changes (``benchmarks/bench_noise_floor.py``).
+    """
+    found = [s for a, b in stretches if (s := _stretch(time_s, level_mm, a, b)) is not None]
+    rss = sum(float(s.lag_sums()[0]) for s in found)
+    dof = sum(s.residual_mm.size - 3 for s in found)
+    return math.sqrt(rss / dof) if dof > 0 else math.nan
+
+
 def noise_floor(
     time_s: np.ndarray, level_mm: np.ndarray, hold: np.ndarray, stretches: list[tuple[int, int]]
 ) -> NoiseFloor:
@@ -123,23 +235,15 @@ def noise_floor(
     stretches : list of (int, int)
         From :func:`steady_stretches`.
     """
-    sums, dofs = [], []
-    for start, stop in stretches:
-        idx = np.arange(start + (stop - start) // 2, stop)
-        idx = idx[np.isfinite(level_mm[idx])]
-        if idx.size < 8:
-            continue
-        t = time_s[idx] - time_s[idx].mean()
-        coef = np.polyfit(t, level_mm[idx], 2)
-        resid = level_mm[idx] - np.polyval(coef, t)
-        sums.append(float(resid @ resid))
-        dofs.append(idx.size - 3)
-    if sums:
-        ss, dof = np.array(sums), np.array(dofs)
-        keep = np.sqrt(ss / dof) <= 3.0 * np.median(np.sqrt(ss / dof))
-        sigma = float(np.sqrt(np.sum(ss[keep]) / np.sum(dof[keep])))
-        used = int(np.sum(dof[keep]) + 3 * np.count_nonzero(keep))
-        return NoiseFloor(sigma, METHOD_HOLDS, int(np.count_nonzero(keep)), used)
+    found = [s for a, b in stretches if (s := _stretch(time_s, level_mm, a, b)) is not None]
+    if found:
+        sd = np.array([math.sqrt(s.lag_sums()[0] / (s.residual_mm.size - 3)) for s in found])
+        kept = [s for s, v in zip(found, sd, strict=True) if v <= 3.0 * np.median(sd)]
+        phi, white = _correlation(kept)
+        rss = sum(float(s.lag_sums()[0]) for s in kept)
+        dof = sum(_expected_lag_sums([s], phi)[0] @ (1.0 - white, white) for s in kept)
+        used = sum(s.residual_mm.size for s in kept)
+        return NoiseFloor(math.sqrt(rss / dof), METHOD_HOLDS, len(kept), used, phi, white)
     y = np.where(hold, level_mm, np.nan)
     d = np.diff(y)
     d = d[np.isfinite(d)]

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
+from typing import Any
 
 from gatetwin._io import write_json_atomic
 from gatetwin.errors import GatetwinError
 
 
 def add_diagnose_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("record", metavar="RECORD.csv", help="measured record (CSV)")
+    parser.add_argument("record", metavar="RECORD.csv", nargs="+",
+                        help="measured record (CSV); several are diagnosed one record per "
+                        "task and OUT.json lists them under 'diagnoses'")  # fmt: skip
     parser.add_argument(
         "--model", metavar="MODEL.json",
         help="model file of the baseline (default: identify one from the record)",
@@ -27,6 +31,36 @@ def add_diagnose_arguments(parser: argparse.ArgumentParser) -> None:
         "--input", choices=("command", "reconstructed"), default="command",
         help="drive the models with the commanded opening (default) or the reconstructed ramp",
     )  # fmt: skip
+    add_spread_arguments(parser, "diagnose")
+
+
+def add_spread_arguments(parser: argparse.ArgumentParser, verb: str) -> None:
+    """``--workers N`` and ``--scheduler ADDRESS``: where the records' tasks run."""
+    parser.add_argument(
+        "--workers", metavar="N", type=int, default=1,
+        help=f"{verb} the records on N local processes, one record per task (default 1: "
+        "record after record in this process)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--scheduler", metavar="ADDRESS",
+        help=f"{verb} one record per task on this dask.distributed scheduler "
+        "(tcp://host:8786); the workers must read the input files by the same paths",
+    )  # fmt: skip
+
+
+def spread_settings(args: argparse.Namespace, verb: str) -> Any:
+    """The :class:`~gatetwin.fleet.execute.FleetSettings` of ``--workers``/``--scheduler``;
+    ``None`` for record after record in this process."""
+    if args.workers < 1:
+        raise GatetwinError(f"--workers: expected a whole number >= 1, got {args.workers}")
+    if args.scheduler and args.workers != 1:
+        raise GatetwinError(f"--workers applies to a local run; the dask workers {verb} the "
+                            "records when --scheduler is given")  # fmt: skip
+    if not args.scheduler and args.workers == 1:
+        return None
+    from gatetwin.fleet.execute import FleetSettings
+
+    return FleetSettings(scheduler=args.scheduler, workers=args.workers)
 
 
 def _describe(result: dict) -> list[str]:
@@ -49,21 +83,38 @@ def _describe(result: dict) -> list[str]:
     return lines
 
 
-def run_diagnose(args: argparse.Namespace) -> int:
+def _diagnoses(args: argparse.Namespace, fmu_dir: Path) -> list[dict[str, Any]]:
     from gatetwin.diagnose import DiagnosisSettings, diagnose_record
+    from gatetwin.diagnose.spread import DiagnoseTask, diagnose_records
 
+    settings = DiagnosisSettings(gauge=args.gauge, input=args.input)
+    spread = spread_settings(args, "diagnose")
+    if spread is None:
+        return [diagnose_record(record, args.model, plots_dir=args.plots, fmu_dir=fmu_dir,
+                                settings=settings) for record in args.record]  # fmt: skip
+    tasks = [DiagnoseTask(record, args.model, args.plots, str(fmu_dir), settings)
+             for record in args.record]  # fmt: skip
+    return diagnose_records(tasks, spread, progress=_to_stderr)
+
+
+def _to_stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def run_diagnose(args: argparse.Namespace) -> int:
     out = Path(args.json)
     fmu_dir = Path(args.fmu_dir) if args.fmu_dir else out.parent
-    settings = DiagnosisSettings(gauge=args.gauge, input=args.input)
-    result = diagnose_record(args.record, args.model, plots_dir=args.plots, fmu_dir=fmu_dir,
-                             settings=settings)  # fmt: skip
+    results = _diagnoses(args, fmu_dir)
+    doc = results[0] if len(results) == 1 else {"diagnoses": results}
     try:
-        write_json_atomic(out, result)
+        write_json_atomic(out, doc)
     except OSError as exc:
         raise GatetwinError(f"{out}: cannot write ({exc.strerror or exc})") from None
-    print("\n".join(_describe(result)))
-    for path in [result["augmented_model"], *(f["path"] for f in result["fmus"]),
-                 *result["plots"], str(out)]:  # fmt: skip
-        if path:
-            print(f"wrote {path}")
+    for result in results:
+        print("\n".join(_describe(result)))
+        for path in [result["augmented_model"], *(f["path"] for f in result["fmus"]),
+                     *result["plots"]]:  # fmt: skip
+            if path:
+                print(f"wrote {path}")
+    print(f"wrote {out}")
     return 0

@@ -7,6 +7,7 @@ import argparse
 import sys
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from gatetwin._io import check_writable, write_json_atomic
 from gatetwin.errors import GatetwinError, IdentificationError
@@ -78,7 +79,9 @@ def run_identify(args: argparse.Namespace) -> int:
 
 
 def add_routine_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("path", metavar="RECORD.csv", help="routine operation history")
+    parser.add_argument("path", metavar="RECORD.csv",
+                        help="routine operation history (CSV or Parquet), or a folder of "
+                        "its day files (read a file at a time)")  # fmt: skip
     parser.add_argument("--gauge", help="gauge (default: the record's only gauge)")
     parser.add_argument(
         "--pre-s", type=float, default=300.0,
@@ -91,23 +94,43 @@ def add_routine_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument("--json", metavar="OUT.json", required=True,
                         help="windows, schedule on Q and overall estimate")  # fmt: skip
+    parser.add_argument(
+        "--max-memory", metavar="MIB", type=float,
+        help="read a Parquet history a chunk at a time, window by window, to stay within "
+        "this many MiB (same result as reading it whole); a folder of day files is always "
+        "read a file at a time",
+    )  # fmt: skip
     parser.epilog = (
         "exit status 0 with at least one informative window; 2 when the history has none "
         "(one line saying why the moves were rejected; nothing is written) or cannot be read"
     )
 
 
-def run_routine(args: argparse.Namespace) -> int:
-    from gatetwin.identify.routine import WindowCriteria, identify_routine
+def _routine_result(args: argparse.Namespace, criteria: Any) -> Any:
+    """The whole history read at once, or chunk by chunk (``--max-memory`` or a folder)."""
+    from gatetwin.identify.routine import identify_routine
+    from gatetwin.identify.routine_chunks import (
+        DEFAULT_CHUNK_ROWS,
+        chunk_rows_for,
+        identify_routine_chunked,
+    )
     from gatetwin.records import read_record
+
+    if args.max_memory is None and not Path(args.path).is_dir():
+        return identify_routine(read_record(args.path, test="routine"), args.gauge, criteria)
+    rows = DEFAULT_CHUNK_ROWS if args.max_memory is None else chunk_rows_for(args.max_memory)
+    return identify_routine_chunked(args.path, args.gauge, criteria, chunk_rows=rows)
+
+
+def run_routine(args: argparse.Namespace) -> int:
+    from gatetwin.identify.routine import WindowCriteria
 
     check_writable(args.json)
     if not (args.pre_s > 0 and args.post_s > 0):
         raise GatetwinError("--pre-s and --post-s: expected durations > 0 s")
     criteria = WindowCriteria(pre_s=args.pre_s, post_min_s=args.post_s,
                               post_max_s=max(1200.0, args.post_s))  # fmt: skip
-    record = read_record(args.path, test="routine")
-    res = identify_routine(record, args.gauge, criteria)
+    res = _routine_result(args, criteria)
     o = res.overall
     print(f"{res.gauge}: {len(res.windows)} informative window(s) of {res.n_moves} observed "
           f"move(s); K {o['gain_mm_per_mm']:.2f} mm/mm, T {o['time_constant_s']:.1f} s, "
@@ -175,7 +198,8 @@ def _run_fleet(args: argparse.Namespace) -> int:
     doc = run_fleet(sources, args.out, settings, fmu_backend=args.fmus,
                     progress=_print_to_stderr)  # fmt: skip
     print(f"wrote {doc['n_ok']} model sets of {doc['n_gates']} gates and the summary "
-          f"{Path(args.out) / 'fleet.json'}; {doc['n_failed']} failed")  # fmt: skip
+          f"{Path(args.out) / 'fleet.json'}; {doc['n_failed']} failed, "
+          f"{doc['n_no_window']} without an informative window")  # fmt: skip
     return 1 if doc["n_failed"] else 0
 
 
@@ -304,7 +328,13 @@ def run_export_controller(args: argparse.Namespace) -> int:
 
 
 def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
-    from gatetwin.mpc.online import ANOMALY_BAND_SIGMA, ANOMALY_RUN_SAMPLES, DEFAULT_HORIZON_S
+    from gatetwin.mpc.online import (
+        ANOMALY_BAND_SIGMA,
+        ANOMALY_RUN_SAMPLES,
+        CUSUM_SLACK_SIGMA,
+        CUSUM_THRESHOLD,
+        DEFAULT_HORIZON_S,
+    )
 
     parser.add_argument("model", metavar="MODEL.json")
     parser.add_argument("--out", metavar="NAME.fmu", required=True)
@@ -312,11 +342,18 @@ def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
                         help="how far ahead predicted_level_mm looks, s: a whole multiple of "
                         f"the 1.2 s sample period (default {DEFAULT_HORIZON_S:g})")  # fmt: skip
     parser.add_argument("--band", metavar="SIGMA", type=float, default=ANOMALY_BAND_SIGMA,
-                        help="band of the normalised innovation, standard deviations "
-                        f"(default {ANOMALY_BAND_SIGMA:g})")  # fmt: skip
+                        help="band of the normalised innovation, standard deviations times "
+                        f"its scale (default {ANOMALY_BAND_SIGMA:g})")  # fmt: skip
     parser.add_argument("--run-samples", metavar="N", type=int, default=ANOMALY_RUN_SAMPLES,
                         help="consecutive samples outside the band that raise the anomaly "
                         f"flag (default {ANOMALY_RUN_SAMPLES})")  # fmt: skip
+    parser.add_argument("--cusum-slack", metavar="SIGMA", type=float,
+                        default=CUSUM_SLACK_SIGMA,
+                        help="slack of the innovation's two-sided CUSUM, standard deviations "
+                        f"per sample (default {CUSUM_SLACK_SIGMA:g})")  # fmt: skip
+    parser.add_argument("--cusum-threshold", metavar="H", type=float, default=CUSUM_THRESHOLD,
+                        help="CUSUM value that raises the anomaly flag "
+                        f"(default {CUSUM_THRESHOLD:g})")  # fmt: skip
     parser.add_argument("--without-effects", action="store_true",
                         help="observe with the model's FOPDT alone, its effect blocks dropped "
                         "(a model with effect blocks is refused otherwise)")  # fmt: skip
@@ -329,7 +366,9 @@ def run_export_observer(args: argparse.Namespace) -> int:
     from gatetwin.modelfile import read_model_file
     from gatetwin.mpc.online import AnomalySettings
 
-    anomaly = AnomalySettings(band_sigma=args.band, run_samples=args.run_samples)
+    anomaly = AnomalySettings(band_sigma=args.band, run_samples=args.run_samples,
+                              cusum_slack_sigma=args.cusum_slack,
+                              cusum_threshold=args.cusum_threshold)  # fmt: skip
     model = read_model_file(args.model)
     check_writable(args.out)
     path = export_observer(model.plant, args.out, horizon_s=args.horizon, anomaly=anomaly,

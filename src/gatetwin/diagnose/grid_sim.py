@@ -5,9 +5,10 @@ that change only at the points of a uniform grid of step ``step_s`` (a record's 
 sample period): the FOPDT with its dead time is then an exact two-tap recursion per grid
 interval (``L = n dt + theta``: the input of interval ``j - n - 1`` acts for ``theta``, that of
 interval ``j - n`` for the rest), and the effect blocks run per interval, the rate-limited
-actuator on its sub-step grid. Loops are compiled with numba around the effect blocks' own
-arithmetic (:mod:`gatetwin.plant.blocks`, compiled as it is). Tests hold it equal to the
-reference to round-off; it is a faster rendering of the same plant, not another model.
+actuator on its sub-step grid. Loops are compiled with numba around the effect blocks' and
+the ARX sample's own arithmetic (:mod:`gatetwin.plant.blocks`, compiled as it is). Tests hold
+it equal to the reference to round-off; it is a faster rendering of the same plant, not
+another model.
 
 The grid starts at the first record sample; a record's samples are mapped to the nearest grid
 point (:func:`grid_index`), and inputs are held from one sample to the next, as the FMU
@@ -79,8 +80,9 @@ def grid_inputs(
 # --------------------------------------------------------------------------- kernels
 
 
-# The effect blocks' arithmetic, compiled: the very functions the reference simulator and
-# the pythonfmu FMU run (:mod:`gatetwin.plant.blocks`), so this module only loops.
+# The effect blocks' and the ARX sample's arithmetic, compiled: the very functions the
+# reference simulator and the pythonfmu FMU run (:mod:`gatetwin.plant.blocks`), so this
+# module only loops.
 _move_toward = njit(cache=True)(blocks.move_toward)
 _play = njit(cache=True)(blocks.play)
 _relax = njit(cache=True)(blocks.first_order)
@@ -90,6 +92,9 @@ _seiche_equilibrium = njit(cache=True)(blocks.seiche_equilibrium)
 _seiche_output = njit(cache=True)(blocks.seiche_output)
 _gain_map = njit(cache=True)(blocks.gain_map)
 _flow_scaled = njit(cache=True)(blocks.flow_scaled)
+# inlined: a call per sample would pass the coefficient rows as array views, which costs more
+# than the sample itself (benchmarks/bench_arx.py)
+_arx_sample = njit(cache=True, inline="always")(blocks.arx_sample)
 
 
 @njit(cache=True)
@@ -143,23 +148,12 @@ def _arx(u, a, b, nk, level_ref, x0, u0, dt, lag):  # pragma: no cover - numba
     n, na, nb = u.size, a.shape[1], b.shape[1]
     lags = nk + nb - 1
     x_hist = np.full(na, x0)
-    u_hist = np.full(max(lags, 1), u0)
+    u_hist = np.full(lags, u0)
     out = np.empty(n + 1)
     z = level_ref[0] + x0
     out[0] = z if lag > 0.0 else level_ref[0] + x0
-    x = x0
     for j in range(n):
-        for i in range(lags - 1, 0, -1):
-            u_hist[i] = u_hist[i - 1]
-        u_hist[0] = u[j]
-        x = 0.0
-        for i in range(na):
-            x += a[j, i] * x_hist[i]
-        for i in range(nb):
-            x += b[j, i] * (u[j] if nk - 1 + i == 0 else u_hist[nk - 1 + i])
-        for i in range(na - 1, 0, -1):
-            x_hist[i] = x_hist[i - 1]
-        x_hist[0] = x
+        x = _arx_sample(x_hist, u_hist, a[j], b[j], u[j], na, nb, nk)
         if lag > 0.0:
             z = _relax(z, level_ref[j] + x, dt, lag)
         out[j + 1] = z if lag > 0.0 else level_ref[j] + x
@@ -250,10 +244,10 @@ def _bulk(plant: Plant, fx: EffectSet, u: np.ndarray, flow: np.ndarray, dt: floa
         return _fopdt(u, gain, tau, delay, level_ref, dt, gain[0] * u[0], lag)
     a = np.column_stack([_column(plant, f"a{i}", flow) for i in range(1, plant.na + 1)])
     b = np.column_stack([_column(plant, f"b{j}", flow) for j in range(1, plant.nb + 1)])
-    sum_a = float(np.sum(a[0]))
+    sum_a, x0 = blocks.arx_equilibrium(a[0].tolist(), b[0].tolist(), float(u[0]), plant.na,
+                                       plant.nb)  # fmt: skip
     if sum_a == 1.0:
         raise IdentificationError("arx: no equilibrium (sum of a coefficients is 1)")
-    x0 = float(np.sum(b[0])) / (1.0 - sum_a) * u[0]
     return _arx(u, a, b, plant.nk, level_ref, x0, u[0], dt, lag)
 
 

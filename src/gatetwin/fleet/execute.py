@@ -66,6 +66,7 @@ def _crashed(job: GateJob, exc: BaseException) -> dict[str, Any]:
         "status": "failed",
         "models": {},
         "fmus": {},
+        "routine": {},
         "summary": failed_summary(job.gate, reason, len(job.paths)),
         "seconds": 0.0,
     }
@@ -183,6 +184,9 @@ def run_gates(jobs: Iterable[GateJob], settings: FleetSettings,
 
 def _progress_line(k: int, n: int, res: dict[str, Any]) -> str:
     head = f"fleet: [{k}/{n}] {res['gate']}"
+    if res["status"] == "no_window":
+        return f"{head} no informative window: {res['summary']['error']}"
     if res["status"] != "ok":
         return f"{head} FAILED: {res['summary']['error']}"
-    return f"{head} ok, {len(res['models'])} models in {res['seconds']:.1f} s"
+    histories = f", routine histories: {len(res['routine'])}" if res.get("routine") else ""
+    return f"{head} ok, {len(res['models'])} models{histories} in {res['seconds']:.1f} s"

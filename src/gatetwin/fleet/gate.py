@@ -10,6 +10,7 @@ records but never to share an output folder.
 
 from __future__ import annotations
 
+import json
 import tempfile
 import time
 import warnings
@@ -44,28 +45,111 @@ class GateJob:
 
 def identify_gate(job: GateJob) -> dict[str, Any]:
     """Identify one gate; a plain dict with ``gate``, ``status``, ``models``, ``fmus``,
-    ``summary`` and ``seconds`` (never raises for a bad gate)."""
-    from gatetwin.identify.suite import identify_records
+    ``routine``, ``summary`` and ``seconds`` (never raises for a bad gate).
 
+    Records whose sidecar says ``test: "routine"`` are routine operation histories: each
+    gives its FOPDT from :func:`~gatetwin.identify.routine.identify_routine` (``routine``:
+    the identification documents by record name). A gate of histories only, none with an
+    informative window, has ``status`` ``no_window``; the other records build the model
+    set as designed tests do.
+    """
     start = time.perf_counter()
     models: dict[str, dict[str, Any]] = {}
     fmus: dict[str, bytes] = {}
+    routine: dict[str, dict[str, Any]] = {}
+    histories = tuple(p for p in job.paths if is_routine_history(p))
+    tests = [Path(p) for p in job.paths if p not in histories]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            ident = identify_records([Path(p) for p in job.paths], f"gate {job.gate}")
-            models = ident.models
-            if job.fmu_backend:
-                fmus = _export_fmus(models, job.fmu_backend)
-            summary = gate_summary(job.gate, ident, _messages(caught))
+            routine = identify_histories(histories)
+            if tests:
+                ident = _identify_tests(tests, job.gate)
+                models = ident.models
+                if job.fmu_backend:
+                    fmus = _export_fmus(models, job.fmu_backend)
+                summary = gate_summary(job.gate, ident, _messages(caught))
+            else:
+                summary = routine_summary(job.gate, routine, _messages(caught))
+            summary["routine"] = {name: _routine_entry(doc) for name, doc in routine.items()}
+            summary["samples"] += sum(int(d["n_samples"]) for d in routine.values())
         except GatetwinError as exc:
             summary = failed_summary(job.gate, str(exc), len(job.paths))
         except Exception as exc:  # one gate's crash is reported, not fatal
             summary = failed_summary(job.gate, f"{type(exc).__name__}: {exc}", len(job.paths))
     ok = summary["status"] == "ok"
     return {"gate": job.gate, "status": summary["status"], "models": models if ok else {},
-            "fmus": fmus if ok else {}, "summary": summary,
+            "fmus": fmus if ok else {}, "routine": routine if ok else {}, "summary": summary,
             "seconds": time.perf_counter() - start}  # fmt: skip
+
+
+def _identify_tests(paths: list[Path], gate: str) -> Any:
+    from gatetwin.identify.suite import identify_records
+
+    return identify_records(paths, f"gate {gate}")
+
+
+def is_routine_history(path: str) -> bool:
+    """Whether the record's sidecar says ``test: "routine"`` (read from the sidecar alone)."""
+    try:
+        data = json.loads(Path(path).with_suffix(".json").read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return False
+    return isinstance(data, dict) and data.get("test") == "routine"
+
+
+def identify_histories(paths: tuple[str, ...]) -> dict[str, dict[str, Any]]:
+    """Each routine history's identification document by record name; a history without
+    an informative window gives ``{"test": "routine", "no_window": REASON}``; each with
+    the history's ``n_samples``.
+
+    Raises
+    ------
+    GatetwinError
+        A history that cannot be read (the gate fails: bad input, not a lack of moves).
+    """
+    from gatetwin.errors import NoWindowError
+    from gatetwin.identify.routine import identify_routine
+    from gatetwin.records import read_record
+
+    out: dict[str, dict[str, Any]] = {}
+    for path in paths:
+        record = read_record(path, test="routine")
+        try:
+            doc = identify_routine(record).to_dict()
+        except NoWindowError as exc:
+            doc = {"test": "routine", "record": path, "no_window": " ".join(str(exc).split())}
+        out[Path(path).stem] = {**doc, "n_samples": record.n_samples}
+    return out
+
+
+def _routine_entry(doc: dict[str, Any]) -> dict[str, Any]:
+    """A history's line in the fleet summary: its FOPDT (overall medians) or why none."""
+    if "no_window" in doc:
+        return {"n_windows": 0, "no_window": doc["no_window"]}
+    o = doc["overall"]
+    return {"n_moves": doc["n_moves"], "n_windows": doc["n_windows"],
+            "n_closed_loop_windows": doc["n_closed_loop_windows"],
+            "gain_mm_per_mm": o["gain_mm_per_mm"], "time_constant_s": o["time_constant_s"],
+            "dead_time_s": o["dead_time_s"],
+            "flow_m3h": [o["flow_min_m3h"], o["flow_max_m3h"]]}  # fmt: skip
+
+
+def routine_summary(gate: str, routine: dict[str, dict[str, Any]],
+                    messages: list[str]) -> dict[str, Any]:  # fmt: skip
+    """The summary entry of a gate of routine histories only: ``ok`` with its FOPDT from the
+    histories' windows, else ``no_window`` with every history's reason."""
+    found = [d for d in routine.values() if "no_window" not in d]
+    status = "ok" if found else "no_window"
+    error = "" if found else "; ".join(d["no_window"] for d in routine.values())
+    warns = list(messages) + [w for d in found for w in d["warnings"]]
+    return {
+        "gate": gate, "status": status, "error": error, "files": len(routine),
+        "records": sorted(routine), "samples": 0,
+        "families": ["fopdt"] if found else [], "models": [],
+        "fopdt_source": "routine" if found else "", "validity": {}, "held_out": {},
+        "warnings": warns,
+    }  # fmt: skip
 
 
 def _messages(caught: list[warnings.WarningMessage]) -> list[str]:
@@ -79,7 +163,7 @@ def failed_summary(gate: str, error: str, n_files: int) -> dict[str, Any]:
     """The summary entry of a gate that produced no model set."""
     return {"gate": gate, "status": "failed", "error": " ".join(error.split()),
             "files": n_files, "records": [], "samples": 0, "families": [], "models": [],
-            "validity": {}, "held_out": {}, "warnings": []}  # fmt: skip
+            "validity": {}, "held_out": {}, "warnings": [], "routine": {}}  # fmt: skip
 
 
 def _held_out(name: str, doc: dict[str, Any]) -> dict[str, dict[str, float]]:
@@ -115,6 +199,7 @@ def gate_summary(gate: str, ident: Any, messages: list[str]) -> dict[str, Any]:
         "files": len(ident.records) + (1 if ident.static is not None else 0),
         "records": sorted(ident.records), "samples": samples,
         "families": [f for f in FAMILIES if any(n.startswith(f + "_") for n in models)],
+        "fopdt_source": "step tests" if any(n.startswith("fopdt_") for n in models) else "",
         "models": sorted(models),
         "validity": {n: _validity(d) for n, d in sorted(models.items())},
         "held_out": held,

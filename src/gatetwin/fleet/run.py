@@ -27,11 +27,14 @@ from gatetwin.fleet.summary import (
 
 
 def write_gate_outputs(result: dict[str, Any], out: Path) -> list[Path]:
-    """Write one identified gate's model files (and FMUs) into ``out/<gate>/``."""
+    """Write one identified gate's model files (and FMUs) into ``out/<gate>/``, and each
+    routine history's identification as ``routine_<record>.json``."""
     from gatetwin.modelfile import write_model_files as write_models
 
     folder = out / result["gate"]
-    paths = write_models(result["models"], folder)
+    paths = write_models(result["models"], folder) if result["models"] else []
+    for name, doc in sorted(result.get("routine", {}).items()):
+        paths.append(write_json_atomic(folder / f"routine_{name}.json", doc))
     for name, data in sorted(result["fmus"].items()):
         paths.append(write_bytes_atomic(folder / "fmus" / f"{name}.fmu", data))
     return paths

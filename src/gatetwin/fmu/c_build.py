@@ -57,6 +57,11 @@ GENERATED_SUPPORT_SOURCES = ("component.c", "generated_support.c")
 GENERATED_SUPPORT_FILES = (*GENERATED_SUPPORT_SOURCES, "generated_support.h")
 
 
+#: What both FMI glues build on (the instance, logging, modes, FMU states, the step).
+GLUE_CORE_SOURCES = ("glue_core.c",)
+GLUE_CORE_HEADERS = ("glue_core.h",)
+
+
 @dataclass(frozen=True)
 class FmiApi:
     """What one FMI version adds to the component: its glue, headers and their licence."""
@@ -65,6 +70,16 @@ class FmiApi:
     glue: str
     headers: tuple[str, ...]
     license: str
+
+    @property
+    def glue_sources(self) -> tuple[str, ...]:
+        """The C files of the glue, in compile order: the version's own, then the core."""
+        return (self.glue, *GLUE_CORE_SOURCES)
+
+    @property
+    def glue_headers(self) -> tuple[str, ...]:
+        """The headers the glue includes: the version's, then the core's."""
+        return (*self.headers, *GLUE_CORE_HEADERS)
 
 
 #: The FMI APIs a C FMU can carry, by ``fmiVersion``.
@@ -128,7 +143,7 @@ def source_files(
 ) -> tuple[str, ...]:
     """The C files compiled for one family, in compile order."""
     kernel = KERNEL_SOURCES if with_kernel or family == "physical" else ()
-    return (FMI_APIS[fmi_version].glue, *COMMON_SOURCES, *kernel, f"model_{family}.c")
+    return (*FMI_APIS[fmi_version].glue_sources, *COMMON_SOURCES, *kernel, f"model_{family}.c")
 
 
 def generated_kernel() -> dict[str, str]:
@@ -159,7 +174,7 @@ def write_sources(
     api = FMI_APIS[fmi_version]
     c_files = source_files(desc.family, with_kernel, fmi_version)
     generated = {**generated_blocks(), **(generated_kernel() if with_kernel else {})}
-    headers = (*api.headers, *COMMON_HEADERS, *(KERNEL_HEADERS if with_kernel else ()))
+    headers = (*api.glue_headers, *COMMON_HEADERS, *(KERNEL_HEADERS if with_kernel else ()))
     for name in (*c_files, *headers, f"model_{desc.family}.h", api.license):
         if name not in generated:
             shutil.copyfile(templates / name, sources_dir / name)
@@ -233,10 +248,11 @@ def build_generated_component(
 
     api = FMI_APIS[fmi_version]
     sources = fmu_dir / "sources"
-    c_files = (api.glue, *GENERATED_SUPPORT_SOURCES, component_files[0], f"{generated_stem}.c")
+    c_files = (*api.glue_sources, *GENERATED_SUPPORT_SOURCES, component_files[0],
+               f"{generated_stem}.c")  # fmt: skip
     templates = templates_dir()
-    for name in (api.glue, *GENERATED_SUPPORT_FILES, *component_files, *api.headers,
-                 "component.h", api.license):  # fmt: skip
+    for name in (*api.glue_sources, *GENERATED_SUPPORT_FILES, *component_files,
+                 *api.glue_headers, "component.h", api.license):  # fmt: skip
         shutil.copyfile(templates / name, sources / name)
     (sources / "model_config.h").write_text(config_header, encoding="utf-8")
     line = " ".join(["cc", *CFLAGS, "-o", f"{desc.model_identifier}.so", *c_files, "-lm"])

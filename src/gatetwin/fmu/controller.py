@@ -76,8 +76,8 @@ PI_COMPONENT_HEADERS = ("component.h", "controller_data.h", "pi_law.h")
 #: The files :func:`generated_pi_law` writes.
 PI_GENERATED = ("pi_law.c", "pi_law.h")
 #: The C files of the FMI 2.0 PI controller FMU, in compile order, and its headers.
-PI_SOURCES = (FMI_API.glue, *PI_COMPONENT_SOURCES)
-PI_HEADERS = (*FMI_API.headers, *PI_COMPONENT_HEADERS)
+PI_SOURCES = (*FMI_API.glue_sources, *PI_COMPONENT_SOURCES)
+PI_HEADERS = (*FMI_API.glue_headers, *PI_COMPONENT_HEADERS)
 #: Prefix of the generated C functions (as blocks.c's).
 PREFIX = "gt_"
 #: A communication step may be this far (relative) from a whole number of samples (the ARX's
@@ -133,7 +133,7 @@ def pi_files(fmi_version: str = "2.0") -> tuple[tuple[str, ...], tuple[str, ...]
     """The C files (in compile order) and the headers of the PI controller FMU that carries
     ``fmi_version``'s API; raises :class:`ExportError` for a version no glue exists for."""
     api = FMI_APIS[check_fmi_version(fmi_version)]
-    return (api.glue, *PI_COMPONENT_SOURCES), (*api.headers, *PI_COMPONENT_HEADERS)
+    return (*api.glue_sources, *PI_COMPONENT_SOURCES), (*api.glue_headers, *PI_COMPONENT_HEADERS)
 
 
 def _export_mpc(model: ModelFile, out_path: str | os.PathLike[str],

@@ -20,7 +20,13 @@ from pathlib import Path
 from typing import Any
 
 from gatetwin.errors import ExportError, OutputError
-from gatetwin.fmu.c_build import FMI_APIS, GENERATED_SUPPORT_FILES, templates_dir
+from gatetwin.fmu.c_build import (
+    FMI_APIS,
+    GENERATED_SUPPORT_FILES,
+    GLUE_CORE_HEADERS,
+    GLUE_CORE_SOURCES,
+    templates_dir,
+)
 from gatetwin.fmu.description import (
     FmuDescription,
     VariableSpec,
@@ -79,10 +85,11 @@ def generated_guid(facts: Any) -> str:
 
 
 def code_digest(component_files: tuple[str, ...], mpc_modules: tuple[str, ...]) -> str:
-    """sha256 (16 hex digits) of the fixed C the FMU is built from (either FMI glue: one GUID
-    for both) and of the :mod:`gatetwin.mpc` modules its arithmetic is generated from."""
+    """sha256 (16 hex digits) of the fixed C the FMU is built from (either FMI glue and the
+    core both stand on: one GUID for both) and of the :mod:`gatetwin.mpc` modules its
+    arithmetic is generated from."""
     digest = hashlib.sha256()
-    glues = tuple(api.glue for api in FMI_APIS.values())
+    glues = (*(api.glue for api in FMI_APIS.values()), *GLUE_CORE_SOURCES, *GLUE_CORE_HEADERS)
     for n in (*glues, *component_files, *GENERATED_SUPPORT_FILES, "component.h"):
         digest.update((templates_dir() / n).read_bytes())
     mpc = Path(__file__).resolve().parents[1] / "mpc"

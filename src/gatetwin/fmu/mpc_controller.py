@@ -101,8 +101,10 @@ def export_mpc_controller(
     if settings.level_band_mm is None:
         raise ExportError("mpc controller FMU: the settings need a level band")
     target = fmu_target(out_path)
-    return write_atomically(target, lambda work, file: _build(
-        plant, settings, max_iter, model_name, work, file, fmi_version))
+    return write_atomically(
+        target,
+        lambda work, file: _build(plant, settings, max_iter, model_name, work, file, fmi_version),
+    )
 
 
 def _load(model_or_path: Any) -> FopdtPlant:
@@ -207,8 +209,9 @@ def describe_controller(
 
 
 def _code_digest() -> str:
-    return code_digest(COMPONENT_FILES, ("codegen.py", "discrete.py", "observer.py", "qp.py",
-                                         "statespace.py"))
+    return code_digest(
+        COMPONENT_FILES, ("codegen.py", "discrete.py", "observer.py", "qp.py", "statespace.py")
+    )
 
 
 def controller_config_header(
@@ -227,8 +230,16 @@ def controller_config_header(
         f"#define GT_MPC_OPENING_MIN_MM {c_double(lo)}",
         f"#define GT_MPC_OPENING_MAX_MM {c_double(hi)}",
     ]
-    names = ("flow_m3h", "setpoint_mm", "opening_mm", "predicted_level_mm",
-             "active_constraints", "solver_status", "solver_iterations", "start_opening_mm")
+    names = (
+        "flow_m3h",
+        "setpoint_mm",
+        "opening_mm",
+        "predicted_level_mm",
+        "active_constraints",
+        "solver_status",
+        "solver_iterations",
+        "start_opening_mm",
+    )
     refs = {"LEVEL": output_name(plant.gauge), **{n.upper(): n for n in names}}
     return config_header(desc, "mpc_data.h", layout, sizes, settings.sample_period_s, own, refs)
 

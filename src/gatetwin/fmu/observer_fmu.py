@@ -11,8 +11,10 @@ either API (one description, one GUID; FMI 3.0 adds the independent variable ``t
 Variables: inputs ``level_<gauge>_mm``, ``opening_mm``, ``flow_m3h`` (measured now);
 outputs ``filtered_level_mm``, ``disturbance_mm``, ``innovation_mm``,
 ``innovation_normalised``, ``predicted_level_mm`` (``horizon_s`` ahead, inputs held),
-``anomaly`` and ``anomaly_samples``; fixed parameters ``horizon_s``, ``anomaly_band_sigma``,
-``anomaly_run_samples`` and the schedule (``schedule.flow_m3h[k]``, ``schedule.<column>[k]``,
+``anomaly``, ``anomaly_samples``, ``anomaly_kind``, ``cusum_high``, ``cusum_low`` and
+``innovation_scale``; fixed parameters ``horizon_s``, ``anomaly_band_sigma``,
+``anomaly_run_samples``, ``anomaly_cusum_slack_sigma``, ``anomaly_cusum_threshold`` and the
+schedule (``schedule.flow_m3h[k]``, ``schedule.<column>[k]``,
 ``opening_ref_mm``). The observer starts at rest on the inputs set in initialisation mode;
 ``doStep(t, h)`` takes the inputs at ``t`` as the sample at ``t`` (``h`` a whole number of
 sample periods, at most :data:`MAX_SAMPLES_PER_STEP`, each taking the held inputs); after it
@@ -47,10 +49,16 @@ from gatetwin.fmu.generated_component import (
 from gatetwin.mpc.codegen import Layout
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S, register_length
 from gatetwin.mpc.errors import ControlError
-from gatetwin.mpc.observer_codegen import ESTIMATE, build_observer_functions, generate_observer_c
+from gatetwin.mpc.observer_codegen import (
+    ESTIMATE,
+    LIMITS,
+    build_observer_functions,
+    generate_observer_c,
+)
 from gatetwin.mpc.online import (
     DEFAULT_HORIZON_S,
     MAX_HORIZON_S,
+    MONITOR,
     MONITORING,
     AnomalySettings,
     checked_plant,
@@ -104,7 +112,9 @@ def export_observer(
         Noise levels of the Kalman filter (:data:`gatetwin.mpc.online.MONITORING` by
         default).
     anomaly : AnomalySettings, optional
-        Start values of ``anomaly_band_sigma`` and ``anomaly_run_samples``.
+        Start values of ``anomaly_band_sigma``, ``anomaly_run_samples``,
+        ``anomaly_cusum_slack_sigma`` and ``anomaly_cusum_threshold``; its
+        ``move_uncertainty`` and ``scale_window_samples`` are built into the code.
     without_effects : bool
         Drop the model's effect blocks (the observer covers the FOPDT alone); without it a
         model with effect blocks is refused.
@@ -132,8 +142,7 @@ def export_observer(
                   anomaly or AnomalySettings(), model_name)  # fmt: skip
     target = fmu_target(out_path)
     desc = describe_observer(cfg)
-    return write_atomically(target, lambda work, file: _build(cfg, desc, work, file,
-                                                              fmi_version))
+    return write_atomically(target, lambda work, file: _build(cfg, desc, work, file, fmi_version))
 
 
 def _load(model_or_path: Any, without_effects: bool) -> Any:
@@ -153,7 +162,7 @@ def _build(cfg: _Config, desc: FmuDescription, work: Path, file: str, fmi_versio
     sources.mkdir(parents=True)
     register = register_length(cfg.plant, SAMPLE_PERIOD_S)
     fns, layout = build_observer_functions(len(cfg.plant.schedule.flow_m3h), register,
-                                           cfg.settings, SAMPLE_PERIOD_S)  # fmt: skip
+                                           cfg.settings, SAMPLE_PERIOD_S, cfg.anomaly)  # fmt: skip
     sizes = generate_observer_c(fns, sources, "observer_generated")
     build_generated_component(
         fmu_dir, desc, component_files=COMPONENT_FILES, generated_stem="observer_generated",
@@ -201,10 +210,19 @@ def _rows(cfg: _Config) -> list[Row]:
         ("predicted_level_mm", "output", "continuous", "calculated", "mm",
          "Level predicted horizon_s ahead with the inputs held", None),
         ("anomaly", "output", "discrete", "calculated", "1",
-         "1: the normalised innovation has stayed outside the band for anomaly_run_samples "
-         "samples or more", None),
+         "1 while anomaly_kind > 0", None),
         ("anomaly_samples", "output", "discrete", "calculated", "1",
-         "Consecutive samples with the normalised innovation outside the band", None),
+         "Consecutive samples with the normalised innovation outside the band (times its "
+         "scale)", None),
+        ("anomaly_kind", "output", "discrete", "calculated", "1",
+         "0 none; 1 fast (anomaly_run_samples outside the band); 2 persistent (a CUSUM "
+         "beyond anomaly_cusum_threshold)", None),
+        ("cusum_high", "output", "continuous", "calculated", "1",
+         "CUSUM of a level above the model's prediction", None),
+        ("cusum_low", "output", "continuous", "calculated", "1",
+         "CUSUM of a level below the model's prediction", None),
+        ("innovation_scale", "output", "continuous", "calculated", "1",
+         "RMS of the normalised innovation over its window (>= 1)", None),
         ("horizon_s", "parameter", "fixed", "exact", "s",
          "Forecast horizon of predicted_level_mm (a whole multiple of the sample period)",
          cfg.horizon_s),
@@ -213,6 +231,11 @@ def _rows(cfg: _Config) -> list[Row]:
         ("anomaly_run_samples", "parameter", "fixed", "exact", "1",
          "Consecutive samples outside the band that raise the anomaly flag",
          float(cfg.anomaly.run_samples)),
+        ("anomaly_cusum_slack_sigma", "parameter", "fixed", "exact", "1",
+         "Slack of the two-sided CUSUM, standard deviations per sample",
+         float(cfg.anomaly.cusum_slack_sigma)),
+        ("anomaly_cusum_threshold", "parameter", "fixed", "exact", "1",
+         "CUSUM value that raises the anomaly flag", float(cfg.anomaly.cusum_threshold)),
     ]  # fmt: skip
 
 
@@ -242,14 +265,24 @@ def describe_observer(cfg: _Config) -> FmuDescription:
         step_size_s=SAMPLE_PERIOD_S,
         summary=(f"gatetwin observer of gauge {cfg.plant.gauge}: scheduled FOPDT over "
                  f"{n_knots} knot(s), forecast {cfg.horizon_s:g} s, anomaly beyond "
-                 f"{cfg.anomaly.band_sigma:g} sigma for {cfg.anomaly.run_samples} samples, "
-                 f"sample period {SAMPLE_PERIOD_S:g} s"),
+                 f"{cfg.anomaly.band_sigma:g} sigma for {cfg.anomaly.run_samples} samples or "
+                 f"a CUSUM beyond {cfg.anomaly.cusum_threshold:g}, sample period "
+                 f"{SAMPLE_PERIOD_S:g} s"),
     )  # fmt: skip
 
 
 def _code_digest() -> str:
-    return code_digest(COMPONENT_FILES, ("codegen.py", "observer_codegen.py", "online.py",
-                                         "discrete.py", "observer.py", "statespace.py"))
+    return code_digest(
+        COMPONENT_FILES,
+        (
+            "codegen.py",
+            "observer_codegen.py",
+            "online.py",
+            "discrete.py",
+            "observer.py",
+            "statespace.py",
+        ),
+    )
 
 
 def run_observer_fmu(
@@ -339,14 +372,20 @@ def observer_config_header(
     desc: FmuDescription, layout: Layout, sizes: dict[str, dict[str, int]]
 ) -> str:
     """``model_config.h`` of the observer FMU."""
+    vr = {v.name: v.vr for v in desc.variables}
+    limits = tuple(f"anomaly_{n}" for n in LIMITS)
     own = [
         "/* the observer */",
         f"#define GT_OBS_N_ESTIMATE {len(ESTIMATE)}",
+        f"#define GT_OBS_N_MONITOR {len(MONITOR)}",
+        f"#define GT_OBS_N_LIMITS {len(LIMITS)}",
         f"#define GT_OBS_MAX_HORIZON_S {c_double(MAX_HORIZON_S)}",
         f"#define GT_OBS_MAX_SAMPLES_PER_STEP {MAX_SAMPLES_PER_STEP}",
+        "/* value references of the generated correct's estimate and limits, in order */",
+        "#define GT_OBS_ESTIMATE_VRS {" + ", ".join(str(vr[n]) for n in ESTIMATE) + "}",
+        "#define GT_OBS_LIMIT_VRS {" + ", ".join(str(vr[n]) for n in limits) + "}",
     ]
-    named = ("opening_mm", "flow_m3h", *ESTIMATE, "predicted_level_mm", "horizon_s",
-             "anomaly_band_sigma", "anomaly_run_samples")  # fmt: skip
+    named = ("opening_mm", "flow_m3h", *ESTIMATE, "predicted_level_mm", "horizon_s", *limits)
     refs = {"LEVEL": output_name(desc.gauge), **{n.upper(): n for n in named}}
     return config_header(desc, "observer_data.h", layout, sizes, SAMPLE_PERIOD_S, own, refs)
 

@@ -3,9 +3,9 @@
 Self-contained on purpose: the FMU runs where gatetwin is not installed, so this file uses the
 standard library and pythonfmu only. It mirrors gatetwin.plant.simulate.PlantSimulator and the
 C FMU (fmu_templates/plant.c, model_fopdt.c, model_arx.c, effects.c) operation by operation.
-The effect blocks' arithmetic is gatetwin/plant/blocks.py itself, and the physical family's is
-gatetwin/plant/physical_kernel.py: at export their sources replace the imports between the
-BEGIN/END markers below, so the FMU carries them.
+The effect blocks' and the ARX sample's arithmetic is gatetwin/plant/blocks.py itself, and
+the physical family's is gatetwin/plant/physical_kernel.py: at export their sources replace
+the imports between the BEGIN/END markers below, so the FMU carries them.
 
 The FMI callbacks themselves are gatetwin/fmu/slave_guard.py's GuardedSlave (embedded the same
 way): it answers every refusal with a status and a log line and keeps pythonfmu's wrapper from
@@ -36,8 +36,9 @@ from gatetwin.plant import physical_kernel  # replaced at export by the module's
 # END gatetwin.plant.physical_kernel
 # BEGIN gatetwin.plant.blocks
 from gatetwin.plant.blocks import (  # replaced by the module's source at export
-    arx_gain_rescaled,
-    arx_pole_scaled,
+    arx_envelope_coefficients,
+    arx_equilibrium,
+    arx_sample,
     first_order,
     flow_scaled,
     gain_map,
@@ -611,19 +612,15 @@ class GatetwinPlant(GuardedSlave):
     def _arx_equilibrium(self, u: float, q: float) -> float:
         if self._envelope():
             return self._envelope_point(u, q)[0]
+        na, nb, _ = CONFIG["arx_orders"]
         a, b = self._arx_coefficients(q)
-        sum_a = 0.0
-        for value in a:
-            sum_a += value
-        sum_b = 0.0
-        for value in b:
-            sum_b += value
+        sum_a, x0 = arx_equilibrium(a, b, u, na, nb)
         if sum_a == 1.0:
             raise PlantError(
                 f"arx: no equilibrium at flow_m3h = {_g(self.real[self.vr_flow])} "
                 "(sum of a coefficients is 1)"
             )
-        return sum_b / (1.0 - sum_a) * u
+        return x0
 
     def _arx_initialize(self, u: float, x0: float) -> None:
         na, nb, nk = CONFIG["arx_orders"]
@@ -634,8 +631,10 @@ class GatetwinPlant(GuardedSlave):
                       ) -> tuple[float, list[float], list[float]]:  # fmt: skip
         """The gate law's steady level and the coefficients scaled there (model_arx.c)."""
         level, tau = self._envelope_point(u, q)
-        a1 = arx_pole_scaled(a[0], self._at("time_constant_ref_s", q), tau)
-        return level, [a1], [arx_gain_rescaled(b_j, a[0], a1) for b_j in b]
+        a_now, b_now = [0.0], [0.0] * len(b)
+        arx_envelope_coefficients(a, b, a_now, b_now, len(b), self._at("time_constant_ref_s", q),
+                                  tau)  # fmt: skip
+        return level, a_now, b_now
 
     def _arx_samples(self, h: float) -> int:
         period = self.real[self._vr("sample_period_s")]
@@ -654,7 +653,7 @@ class GatetwinPlant(GuardedSlave):
         return n
 
     def _arx_step(self, n: int, command: float, q: float) -> None:
-        _, _, nk = CONFIG["arx_orders"]
+        na, nb, nk = CONFIG["arx_orders"]
         a, b = a0, b0 = self._arx_coefficients(q)
         d, fx = self.dyn, self.fx
         ts = self.real[self._vr("sample_period_s")]
@@ -667,13 +666,7 @@ class GatetwinPlant(GuardedSlave):
             u = self._effective_input(fx["gate_mm"])
             if self._envelope():
                 u, a, b = self._arx_envelope(u, q, a0, b0)
-            d["u_hist"] = [u, *d["u_hist"][:-1]]
-            x_new = 0.0
-            for i, a_i in enumerate(a):
-                x_new += a_i * d["x_hist"][i]
-            for j, b_j in enumerate(b):
-                x_new += b_j * d["u_hist"][nk - 1 + j]
-            d["x_hist"] = [x_new, *d["x_hist"][:-1]]
+            x_new = arx_sample(d["x_hist"], d["u_hist"], a, b, u, na, nb, nk)
             d["x"] = x_new
             if self._has("sensor_lag"):
                 fx["sensed_mm"] = first_order(fx["sensed_mm"], level_ref + x_new, ts,

@@ -18,7 +18,8 @@ Layout (one concept per module):
   :mod:`~gatetwin.identify.bj` -- output-error, ARMAX and Box-Jenkins fits;
 * :mod:`~gatetwin.identify.discrete_select` -- the structure that simulates best;
 * :mod:`~gatetwin.identify.routine` -- FOPDT windows and a schedule on Q from a routine
-  operation history (no designed test).
+  operation history (no designed test); :mod:`~gatetwin.identify.routine_chunks` -- the
+  same from a history read a chunk at a time.
 """
 
 from gatetwin.identify.armax import fit_armax
@@ -54,6 +55,7 @@ from gatetwin.identify.preprocess import (
     split_segments,
 )
 from gatetwin.identify.routine import RoutineIdentification, WindowCriteria, identify_routine
+from gatetwin.identify.routine_chunks import identify_routine_chunked
 from gatetwin.identify.step import GaugeStep, StepIdentification, identify_step
 
 __all__ = [
@@ -89,6 +91,7 @@ __all__ = [
     "holdout_split",
     "identify_prbs",
     "identify_routine",
+    "identify_routine_chunked",
     "identify_step",
     "is_stable",
     "one_step_metrics",

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from gatetwin.errors import IdentificationError
+from gatetwin.errors import IdentificationError, NoWindowError
 from gatetwin.identify.fopdt_driven import fit_fopdt_driven
 from gatetwin.identify.preprocess import hampel_filter, reconstructed_opening
 from gatetwin.identify.serial import finite_or_none
@@ -318,7 +318,8 @@ def _overall(windows: list[RoutineWindow]) -> dict[str, float]:
     }  # fmt: skip
 
 
-def _gauge(record: Record, gauge: str | None) -> str:
+def gauge_of(record: Record, gauge: str | None) -> str:
+    """The gauge to identify: ``gauge`` checked, else the record's only one."""
     where = record.path or "record"
     if gauge is None:
         if len(record.gauges) != 1:
@@ -331,12 +332,11 @@ def _gauge(record: Record, gauge: str | None) -> str:
     return gauge
 
 
-def _no_window_message(record: Record, rejected: dict[str, int]) -> str:
-    where = record.path or "record"
-    n = len(record.steps)
+def no_window_message(where: str, n: int, unobserved: int, rejected: dict[str, int]) -> str:
+    """Why a history of ``n`` observed moves has no informative window (one line)."""
     if n == 0:
-        hidden = (f" ({record.unobserved_steps} opening change(s) fall inside logging gaps)"
-                  if record.unobserved_steps else "")  # fmt: skip
+        hidden = (f" ({unobserved} opening change(s) fall inside logging gaps)"
+                  if unobserved else "")  # fmt: skip
         return f"{where}: no informative window: the gate never moves while logged{hidden}"
     why = ", ".join(f"{reason} {count}" for reason, count in sorted(rejected.items()))
     return (
@@ -368,29 +368,45 @@ def identify_routine(record: Record, gauge: str | None = None,
         No such gauge, or no informative window (the message says why the moves failed).
     """
     crit = criteria or WindowCriteria()
-    name = _gauge(record, gauge)
-    controller = isinstance(record.metadata.get("level_control"), dict)
+    name = gauge_of(record, gauge)
+    controller = has_level_controller(record)
     rejected: dict[str, int] = {}
     windows: list[RoutineWindow] = []
-    events = move_events(record, crit.post_min_s)
-    for event in events:
-        outcome: Any = _candidate(record, event, crit)
-        if isinstance(outcome, _Candidate):
-            scr = _screen(record, outcome, name, crit)
-            outcome = scr if isinstance(scr, str) else _fit_window(record, outcome, scr,
-                                                                     crit, controller)  # fmt: skip
-        if isinstance(outcome, str):
-            rejected[outcome] = rejected.get(outcome, 0) + len(event)
-        else:
-            windows.append(outcome)
+    for event in move_events(record, crit.post_min_s):
+        tally_event(record, event, name, crit, controller, windows, rejected)
+    where = record.path or "record"
     if not windows:
-        raise IdentificationError(_no_window_message(record, rejected))
-    return _assemble(record, name, windows, rejected, crit, controller)
+        raise NoWindowError(no_window_message(where, len(record.steps),
+                                                    record.unobserved_steps, rejected))  # fmt: skip
+    return assemble(record.path, len(record.steps), record.unobserved_steps, name, windows,
+                    rejected, crit, controller)  # fmt: skip
 
 
-def _assemble(record: Record, gauge: str, windows: list[RoutineWindow],
-              rejected: dict[str, int], crit: WindowCriteria,
-              controller: bool) -> RoutineIdentification:  # fmt: skip
+def has_level_controller(record: Record) -> bool:
+    """Whether the record's sidecar names a level controller (``level_control``)."""
+    return isinstance(record.metadata.get("level_control"), dict)
+
+
+def tally_event(record: Record, event: tuple[StepOnset, ...], gauge: str, crit: WindowCriteria,
+                controller: bool, windows: list[RoutineWindow],
+                rejected: dict[str, int]) -> None:  # fmt: skip
+    """Screen and fit one move event: its window joins ``windows``, or its moves are counted
+    in ``rejected`` under the reason."""
+    outcome: Any = _candidate(record, event, crit)
+    if isinstance(outcome, _Candidate):
+        scr = _screen(record, outcome, gauge, crit)
+        outcome = scr if isinstance(scr, str) else _fit_window(record, outcome, scr,
+                                                                 crit, controller)  # fmt: skip
+    if isinstance(outcome, str):
+        rejected[outcome] = rejected.get(outcome, 0) + len(event)
+    else:
+        windows.append(outcome)
+
+
+def assemble(path: str, n_moves: int, unobserved: int, gauge: str,
+             windows: list[RoutineWindow], rejected: dict[str, int], crit: WindowCriteria,
+             controller: bool) -> RoutineIdentification:  # fmt: skip
+    """The identification from its windows (at least one) and the history's move counts."""
     open_loop = [w for w in windows if not w.closed_loop]
     used = open_loop or windows
     warnings = []
@@ -408,8 +424,8 @@ def _assemble(record: Record, gauge: str, windows: list[RoutineWindow],
         warnings.append(f"{n_closed} of {len(windows)} windows move against a level trend "
                         f"before the move (closed-loop moves): {use}")  # fmt: skip
     return RoutineIdentification(
-        record=record.path, gauge=gauge, n_moves=len(record.steps),
-        unobserved_moves=record.unobserved_steps, windows=tuple(windows),
+        record=path, gauge=gauge, n_moves=n_moves,
+        unobserved_moves=unobserved, windows=tuple(windows),
         rejected=rejected, schedule=schedule_bins(used, crit.bin_fraction),
         overall=_overall(used), warnings=tuple(warnings),
     )  # fmt: skip

@@ -225,8 +225,14 @@ def generate_c(fns: dict[str, casadi.Function], folder: Path, stem: str) -> dict
         raise ControlError("mpc codegen: casadi's generated qrqp changed; cannot read its "
                            "iteration count")  # fmt: skip
     text = text.replace(_ITER_ANCHOR, _ITER_ANCHOR + _ITER_HOOK)
-    write_generated(folder, stem, text, "gatetwin.mpc.codegen",
-                    [f"{PREFIX}{name}" for name in FUNCTIONS], "the MPC controller")
+    write_generated(
+        folder,
+        stem,
+        text,
+        "gatetwin.mpc.codegen",
+        [f"{PREFIX}{name}" for name in FUNCTIONS],
+        "the MPC controller",
+    )
     return {name: work_sizes(f) for name, f in fns.items()}
 
 

@@ -6,10 +6,14 @@ simulator compiles these functions with numba (:mod:`gatetwin.diagnose.grid_sim`
 FMU's ``blocks.c`` is generated from their syntax tree (:mod:`gatetwin.plant.ast_render`), so
 the Python reference (:mod:`gatetwin.plant.simulate`), both FMUs and the fast simulator run the
 very same operations. Keep to the subset ``ast_render`` translates (scalar arithmetic,
-``math`` functions, ``if``/``while``, early returns).
+``math`` functions, ``if``/``while``, early returns, ``for i in range(n)`` over arrays passed
+in: ``list[float]`` arguments, written in place, with ``int`` counts; calls of the other
+rendered functions of numbers).
 
 What the blocks mean (inputs, outputs, parameters, state) is documented in
-:mod:`gatetwin.plant.effects`; this module only advances them.
+:mod:`gatetwin.plant.effects`; this module only advances them. The ARX family's sample
+(:func:`arx_sample`, :func:`arx_equilibrium`, and for the envelope form
+:func:`arx_envelope_coefficients`) lives here too, for the same renderings.
 """
 
 from __future__ import annotations
@@ -19,7 +23,8 @@ import math
 #: The functions rendered into the C FMU's generated ``blocks.c`` (prefix ``gt_``).
 RENDERED_C = ("move_toward", "play", "gain_map", "gain_map_inverse", "flow_scaled", "first_order",
               "seiche_advance", "seiche_equilibrium", "seiche_output", "lag_interval",
-              "grid_index_at_or_after", "arx_pole_scaled", "arx_gain_rescaled")  # fmt: skip
+              "grid_index_at_or_after", "arx_pole_scaled", "arx_gain_rescaled",
+              "arx_envelope_coefficients", "arx_sample", "arx_equilibrium")  # fmt: skip
 
 
 def move_toward(position_mm: float, command_mm: float, max_travel_mm: float) -> float:
@@ -80,6 +85,62 @@ def arx_gain_rescaled(b: float, a1: float, a1_scaled: float) -> float:
     """An envelope ARX's input coefficient at the scaled pole: unit steady gain is kept, so
     the steady level stays the gate law's."""
     return b * (1.0 - a1_scaled) / (1.0 - a1)
+
+
+def arx_envelope_coefficients(
+    a: list[float], b: list[float], a_now: list[float], b_now: list[float], nb: int,
+    time_constant_ref_s: float, time_constant_s: float,
+) -> float:  # fmt: skip
+    """An envelope ARX's coefficients where the pool's time constant is ``time_constant_s``:
+    ``a_now[0]`` the pole ``a[0]`` scaled (:func:`arx_pole_scaled`), ``b_now[j]`` the ``b[j]``
+    rescaled to it (:func:`arx_gain_rescaled`). Returns the scaled pole. (Calls the two
+    blocks, so numba compiles it only with them compiled.)"""
+    a_now[0] = arx_pole_scaled(a[0], time_constant_ref_s, time_constant_s)
+    for j in range(nb):
+        b_now[j] = arx_gain_rescaled(b[j], a[0], a_now[0])
+    return a_now[0]
+
+
+def arx_sample(
+    x_hist: list[float], u_hist: list[float], a: list[float], b: list[float], u: float,
+    na: int, nb: int, nk: int,
+) -> float:  # fmt: skip
+    """One sample of ARX(na, nb, nk), paper's sign convention:
+    ``x(k) = sum_i a_i x(k-i) + sum_j b_j u(k-nk-j+1)`` (``i``, ``j`` from 1).
+
+    ``u`` is ``u(k-1)``, the input held over the sample. On entry ``x_hist[i]`` holds
+    ``x(k-1-i)`` (``na`` values) and ``u_hist[m]`` holds ``u(k-2-m)`` (``nk + nb - 1``
+    values); both are shifted in place by one sample (``x_hist[0] = x(k)``,
+    ``u_hist[0] = u``). Returns ``x(k)``; the sums run left to right from 0.
+    """
+    for m in range(nk + nb - 2):
+        u_hist[nk + nb - 2 - m] = u_hist[nk + nb - 3 - m]
+    u_hist[0] = u
+    x = 0.0
+    for i in range(na):
+        x += a[i] * x_hist[i]
+    for j in range(nb):
+        x += b[j] * u_hist[nk - 1 + j]
+    for i in range(na - 1):
+        x_hist[na - 1 - i] = x_hist[na - 2 - i]
+    x_hist[0] = x
+    return x
+
+
+def arx_equilibrium(a: list[float], b: list[float], u: float, na: int, nb: int
+                    ) -> tuple[float, float]:  # fmt: skip
+    """The sum of the ``a`` coefficients, and the state at rest under the held input ``u``:
+    ``sum(b) / (1 - sum(a)) * u`` (NaN where ``sum(a)`` is 1: no rest state). Sums run left
+    to right from 0."""
+    sum_a = 0.0
+    for i in range(na):
+        sum_a += a[i]
+    sum_b = 0.0
+    for j in range(nb):
+        sum_b += b[j]
+    if sum_a == 1.0:
+        return sum_a, math.nan
+    return sum_a, sum_b / (1.0 - sum_a) * u
 
 
 def first_order(state: float, target: float, duration_s: float, time_constant_s: float) -> float:

@@ -122,11 +122,11 @@ class PlantSimulator:
                 x0 = u_in = self._envelope_point(u, flow_m3h)[0]
             else:
                 a, b = p.coefficients(flow_m3h)
-                sum_a = _sum_in_order(a)
+                sum_a, x0 = blocks.arx_equilibrium(a.tolist(), b.tolist(), u, p.na, p.nb)
                 if sum_a == 1.0:
                     raise SimulationError(f"arx: no equilibrium at flow_m3h = {flow_m3h} (sum "
                                           "of a coefficients is 1)")  # fmt: skip
-                x0, u_in = _sum_in_order(b) / (1.0 - sum_a) * u, u
+                u_in = u
             self.x = x0
             self.x_hist = [x0] * p.na
             self.u_hist = [u_in] * (p.nk + p.nb - 1)
@@ -196,7 +196,7 @@ class PlantSimulator:
                 self._seiche_piece(t_end - t_start, gate)
         else:
             n = self._arx_samples(h)
-            a, b = self.plant.coefficients(flow_m3h)
+            a, b = (c.tolist() for c in self.plant.coefficients(flow_m3h))
             level_ref = self.plant.schedule.at("level_ref_mm", flow_m3h)
             for gate in self._arx_pieces(n, opening_mm):
                 u = self._effective_input(gate)
@@ -376,34 +376,24 @@ class PlantSimulator:
             )
         return n
 
-    def _arx_sample(self, u: float, a: np.ndarray, b: np.ndarray, level_ref: float) -> None:
+    def _arx_sample(self, u: float, a: list[float], b: list[float], level_ref: float) -> None:
         p = self.plant
-        # u_hist[0] is u(k) (the held input), u_hist[m] is u(k-m)
-        self.u_hist = [u, *self.u_hist[:-1]] if self.u_hist else []
-        x_new = 0.0
-        for i in range(p.na):
-            x_new += a[i] * self.x_hist[i]
-        for j in range(p.nb):
-            x_new += b[j] * self._u_lag(p.nk - 1 + j, u)
-        self.x_hist = [x_new, *self.x_hist[:-1]]
+        x_new = blocks.arx_sample(self.x_hist, self.u_hist, a, b, u, p.na, p.nb, p.nk)
         self.x = x_new
         if self.fx.lag:
             self.es.sensed_mm = blocks.first_order(self.es.sensed_mm, level_ref + x_new,
                                                    p.sample_period_s,
                                                    self.fx.lag.time_constant_s)  # fmt: skip
 
-    def _arx_envelope(self, u: float, q: float, a: np.ndarray, b: np.ndarray
-                      ) -> tuple[float, np.ndarray, np.ndarray]:  # fmt: skip
+    def _arx_envelope(self, u: float, q: float, a: list[float], b: list[float]
+                      ) -> tuple[float, list[float], list[float]]:  # fmt: skip
         """An envelope ARX's input (the gate law's steady level) and coefficients at the
         steady point of ``u`` and ``q``: the pole scaled by the time constant there."""
         level, tau = self._envelope_point(u, q)
         tau_ref = self.plant.schedule.at("time_constant_ref_s", q)
-        a1 = blocks.arx_pole_scaled(float(a[0]), tau_ref, tau)
-        scaled = np.array([blocks.arx_gain_rescaled(float(bj), float(a[0]), a1) for bj in b])
-        return level, np.array([a1]), scaled
-
-    def _u_lag(self, m: int, u: float) -> float:
-        return u if m == 0 else self.u_hist[m]
+        a_now, b_now = [0.0], [0.0] * len(b)
+        blocks.arx_envelope_coefficients(a, b, a_now, b_now, len(b), tau_ref, tau)
+        return level, a_now, b_now
 
     def _check_range(self, flow_m3h: float) -> None:
         lo, hi = self.plant.schedule.flow_range_m3h
@@ -439,14 +429,6 @@ def _last_arrived_index(times: list[float], delay: float, t: float) -> int:
     while i > 0 and times[i] + delay > t:
         i -= 1
     return i
-
-
-def _sum_in_order(values: np.ndarray) -> float:
-    """Left-to-right sum (numpy's pairwise ``sum`` reorders from 8 terms on; C does not)."""
-    total = 0.0
-    for v in values:
-        total += float(v)
-    return total
 
 
 def simulator_for(plant: Plant) -> PlantSimulator | PhysicalSimulator:

@@ -53,6 +53,9 @@ class PipelineContext:
         records.
     progress : callable
         Takes one line of progress text.
+    fleet : FleetSettings or None
+        Where the per-record work of validation and diagnosis runs, one record per task
+        (a local process pool or a dask scheduler); ``None`` for record after record here.
     """
 
     out_dir: Path
@@ -60,6 +63,7 @@ class PipelineContext:
     records: list[Path] = field(default_factory=list)
     results: dict[str, Any] = field(default_factory=dict)
     progress: Callable[[str], None] = print
+    fleet: Any = None
 
 
 @dataclass(frozen=True)
@@ -260,6 +264,7 @@ def run_pipeline(
     *,
     stages: Sequence[PipelineStage] = STAGES,
     records_dir: str | os.PathLike[str] | None = None,
+    fleet: Any = None,
 ) -> Path:
     """Run ``stages`` and move their output to ``out_dir`` only if all succeed.
 
@@ -275,6 +280,10 @@ def run_pipeline(
         The stages to run (default :data:`STAGES`).
     records_dir : path, optional
         Input directory (default: the bundled records, :func:`bundled_records_dir`).
+    fleet : FleetSettings, optional
+        Validate and diagnose one record per task on a local process pool or a dask
+        scheduler (:class:`~gatetwin.fleet.execute.FleetSettings`); the outputs are those
+        of the default, record after record in this process.
 
     Returns
     -------
@@ -295,7 +304,7 @@ def run_pipeline(
     clean_stale_work(target, say)
     work = make_work_dir(target)
     try:
-        ctx = PipelineContext(out_dir=work, records_dir=inputs, progress=say)
+        ctx = PipelineContext(out_dir=work, records_dir=inputs, progress=say, fleet=fleet)
         for number, stage in enumerate(stages, 1):
             say(f"[{number}/{len(stages)}] {stage.title} ...")
             stage.run(ctx)

@@ -19,7 +19,7 @@ MATRIX_FAIL_UNDER = ("fit_percent=70",)
 def validate_all(ctx: Any) -> None:
     """Validate every exported FMU against every bundled record; ``validation.json``."""
     from gatetwin._io import write_json_atomic
-    from gatetwin.validate import matrix_markdown, parse_thresholds, validate_matrix
+    from gatetwin.validate import matrix_markdown, parse_thresholds
 
     thresholds = parse_thresholds(MATRIX_FAIL_UNDER)
     pairs, outside = applicable_pairs(ctx)
@@ -29,7 +29,7 @@ def validate_all(ctx: Any) -> None:
         ctx.progress(f"      {backend}: {n_pairs} applicable FMU × record pair(s)")
         for fmu in fmus:
             records = [ctx.records_dir / f"{r}.csv" for r in pairs[fmu.stem]]
-            for cell in validate_matrix([fmu], records, thresholds=thresholds):
+            for cell in fmu_matrix(ctx, fmu, records, thresholds):
                 cells.append({"backend": backend, **cell})
                 if cell["failure_cause"]:
                     ctx.progress(f"      {backend} {cell['fmu']} on {cell['record']}: FMU run "
@@ -54,6 +54,17 @@ def validate_all(ctx: Any) -> None:
         + skipped
         + "\n"
     )
+
+
+def fmu_matrix(ctx: Any, fmu: Any, records: list[Any], thresholds: Any) -> list[dict[str, Any]]:
+    """One FMU's matrix cells: here, or one record per task where ``ctx.fleet`` says."""
+    from gatetwin.validate import validate_matrix
+    from gatetwin.validate.harness import matrix_cells
+    from gatetwin.validate.spread import validate_fmu_spread
+
+    if ctx.fleet is None or not records:
+        return validate_matrix([fmu], records, thresholds=thresholds)
+    return matrix_cells(validate_fmu_spread(fmu, records, ctx.fleet, thresholds=thresholds))
 
 
 #: What the fit / floor pair and the validity column of the matrix mean.
@@ -301,24 +312,30 @@ DIAGNOSE = (("A", None), ("B", None), ("C", None), ("D", None), ("Q55", None),
 
 
 def diagnose_records(ctx: Any) -> None:
-    """Diagnose the bundled records: ``diagnose.json``, augmented models and their FMUs."""
+    """Diagnose the bundled records: ``diagnose.json``, augmented models and their FMUs
+    (one record per task where ``ctx.fleet`` says; the same outputs)."""
     from gatetwin._io import write_json_atomic
-    from gatetwin.diagnose import diagnose_record
+    from gatetwin.diagnose import DiagnosisSettings, diagnose_record
+    from gatetwin.diagnose.spread import DiagnoseTask, diagnose_records
 
+    plots = str(ctx.out_dir / "figures" / "diagnose")
+    chosen = [(r, m) for r, m in DIAGNOSE if (ctx.records_dir / f"{r}.csv").exists()]
+    tasks = [DiagnoseTask(str(ctx.records_dir / f"{r}.csv"),
+                          str(ctx.out_dir / "models" / f"{m}.json") if m else None, plots,
+                          str(ctx.out_dir / "diagnose" / f"{r}_{m or 'own'}"),
+                          DiagnosisSettings()) for r, m in chosen]  # fmt: skip
+    if ctx.fleet is None:
+        found = [diagnose_record(t.record, t.model, plots_dir=t.plots_dir, fmu_dir=t.fmu_dir)
+                 for t in tasks]  # fmt: skip
+    else:
+        found = diagnose_records(tasks, ctx.fleet)
     results = []
-    for record, model in DIAGNOSE:
-        path = ctx.records_dir / f"{record}.csv"
-        if not path.exists():
-            continue
-        label = f"{record} vs {model or 'own baseline'}"
-        model_path = ctx.out_dir / "models" / f"{model}.json" if model else None
-        out_dir = ctx.out_dir / "diagnose" / f"{record}_{model or 'own'}"
-        res = diagnose_record(path, model_path, plots_dir=ctx.out_dir / "figures" / "diagnose",
-                              fmu_dir=out_dir)  # fmt: skip
+    for (record, model), res in zip(chosen, found, strict=True):
         results.append({**res, "record": record,
                         "baseline_source": model or "identified from the record"})  # fmt: skip
-        ctx.progress(f"      {label}: {res['named_effect']} (RMSE {res['rmse_before_mm']:.2f} "
-                     f"→ {res['rmse_after_mm']:.2f} mm)")  # fmt: skip
+        before, after = res["rmse_before_mm"], res["rmse_after_mm"]
+        ctx.progress(f"      {record} vs {model or 'own baseline'}: {res['named_effect']} "
+                     f"(RMSE {before:.2f} → {after:.2f} mm)")  # fmt: skip
     skipped = not_diagnosed(ctx)
     for s in skipped:
         ctx.progress(f"      {s['record']}: not diagnosed ({s['reason']})")

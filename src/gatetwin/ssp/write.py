@@ -69,7 +69,8 @@ CONTROLLER_PARAMETERS = ("start_opening_mm", "gain_mm_per_mm", "integral_time_s"
 OBSERVER_OUTPUTS = (("filtered_level_mm", "mm"), ("disturbance_mm", "mm"),
                     ("innovation_mm", "mm"), ("innovation_normalised", "1"),
                     ("predicted_level_mm", "mm"), ("anomaly", "1"),
-                    ("anomaly_samples", "1"))  # fmt: skip
+                    ("anomaly_samples", "1"), ("anomaly_kind", "1"), ("cusum_high", "1"),
+                    ("cusum_low", "1"), ("innovation_scale", "1"))  # fmt: skip
 #: Unit of each signal the system carries.
 SIGNAL_UNITS = {"setpoint_mm": "mm", "flow_m3h": "m3/h"}
 

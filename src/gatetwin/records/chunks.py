@@ -1,0 +1,198 @@
+"""A long history read a chunk of rows at a time, never whole.
+
+A *history* is one Parquet record (read ``rows`` at a time with ``iter_batches``) or a
+folder of record files, one per day or any other span, taken in file-name order, each read
+whole in turn (CSV or Parquet). The sidecar is the record's own (``NAME.json``), for a
+folder ``FOLDER.json`` next to it, else that of the folder's first file. Each chunk's
+columns pass the reader's type checks; the values are checked when a chunk becomes a
+record (:func:`~gatetwin.records.record_from_arrays`).
+
+This module only reads: it neither segments nor identifies.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from gatetwin.errors import RecordError
+from gatetwin.records import checks, segments
+from gatetwin.records.checks import Origin
+from gatetwin.records.columns import (
+    TableColumns,
+    arrow_columns,
+    gauge_names,
+    is_record_column,
+    require_record_columns,
+)
+from gatetwin.records.limits import ReadLimits
+from gatetwin.records.parquet import PARQUET_SUFFIXES
+from gatetwin.records.sidecar import Sidecar, read_sidecar
+from gatetwin.records.table import read_table
+
+#: File name endings of the record files a history folder may hold.
+HISTORY_SUFFIXES = (".csv", *PARQUET_SUFFIXES)
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Consecutive rows of a history: raw columns, ``hold`` from ``state``.
+
+    ``opening_mm`` is as logged (empty hold openings are still NaN); ``first_row`` is the
+    global row number (from 0) of the chunk's first row.
+    """
+
+    first_row: int
+    time_s: np.ndarray
+    opening_mm: np.ndarray
+    hold: np.ndarray
+    flow_m3h: np.ndarray
+    levels_mm: dict[str, np.ndarray]
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.time_s.size)
+
+
+@dataclass(frozen=True)
+class History:
+    """Where a history's rows come from: its files, in order, and its sidecar."""
+
+    path: str
+    files: tuple[Path, ...]
+    sidecar: Sidecar
+
+    @property
+    def is_folder(self) -> bool:
+        return Path(self.path).is_dir()
+
+
+def open_history(path: str | os.PathLike[str]) -> History:
+    """The history at ``path``: one Parquet file, or a folder of record files.
+
+    Raises
+    ------
+    RecordError
+        No such file or folder, a single file that is not Parquet, or a folder without
+        record files.
+    """
+    where = Path(path)
+    if where.is_dir():
+        files = tuple(sorted(p for p in where.iterdir()
+                             if p.is_file() and p.suffix.lower() in HISTORY_SUFFIXES))  # fmt: skip
+        if not files:
+            raise RecordError(f"{path}: no record files (.csv, .parquet, .pq) in the folder; "
+                              "expected one file per day of the history")  # fmt: skip
+        own = where.with_suffix(".json") if where.name else None
+        side = read_sidecar(where) if own is not None and own.is_file() else read_sidecar(files[0])
+        return History(str(path), files, side)
+    if not where.is_file():
+        raise RecordError(f"{path}: no such file or folder")
+    if where.suffix.lower() not in PARQUET_SUFFIXES:
+        raise RecordError(f"{path}: a history read in chunks is a Parquet file (.parquet, "
+                          ".pq) or a folder of record files")  # fmt: skip
+    return History(str(path), (where,), read_sidecar(where))
+
+
+def _chunk(origin: Origin, table: TableColumns, first_row: int) -> Chunk:
+    state = table.words("state")
+    return Chunk(
+        first_row=first_row,
+        time_s=table.floats("time_s"),
+        opening_mm=table.floats("opening_mm"),
+        hold=checks.hold_from_codes(origin, state.vocabulary, state.codes),
+        flow_m3h=table.floats("flow_m3h"),
+        levels_mm={g: table.floats(f"level_{g}_mm") for g in gauge_names(table.header)},
+    )
+
+
+def _parquet_chunks(path: Path, rows: int, first_row: int) -> Iterator[Chunk]:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    name = str(path)
+    try:
+        parquet = pq.ParquetFile(path)
+        header = tuple(parquet.schema_arrow.names)
+        kept = [c for c in header if is_record_column(c.strip())]
+        batches = parquet.iter_batches(batch_size=rows, columns=kept)
+        for batch in batches:
+            table = arrow_columns(name, pa.Table.from_batches([batch]), keep=is_record_column,
+                                  text_columns=("state",), first_row=first_row + 1)  # fmt: skip
+            require_record_columns(name, table.header, tuple(table.columns))
+            yield _chunk(Origin(name, first_line=first_row + 1), table, first_row)
+            first_row += table.n_rows
+    except RecordError:
+        raise
+    except (pa.ArrowException, OSError, ValueError) as exc:
+        text = " ".join(str(exc).split())[:160]
+        raise RecordError(f"{name}: not a readable Parquet file ({text}); expected a Parquet "
+                          "record with the columns of the data format") from None  # fmt: skip
+
+
+def iter_chunks(history: History, rows: int,
+                limits: ReadLimits | None = None) -> Iterator[Chunk]:  # fmt: skip
+    """The history's rows, ``rows`` at a time from a Parquet file, a file at a time from a
+    folder (a day file is read whole)."""
+    if not rows >= 1:
+        raise RecordError(f"{history.path}: chunk of {rows!r} rows; expected at least 1")
+    first_row = 0
+    for path in history.files:
+        if path.suffix.lower() in PARQUET_SUFFIXES:
+            for chunk in _parquet_chunks(path, rows, first_row):
+                first_row += chunk.n_rows
+                yield chunk
+            continue
+        table = read_table(path, keep=is_record_column, text_columns=("state",), limits=limits)
+        require_record_columns(table.path, table.header, tuple(table.columns))
+        chunk = _chunk(Origin(table.path, first_line=table.first_line), table, first_row)
+        first_row += chunk.n_rows
+        yield chunk
+
+
+def history_sample_period(history: History, rows: int) -> float:
+    """The nominal sample period of the whole history, as :func:`read_record` finds it for
+    one file (the sidecar's ``sample_period_s``, checked, else the median time step), from
+    the time column alone, a chunk at a time.
+
+    The median is exact: the time steps are counted by value (a logger has few distinct
+    steps), so memory grows with the distinct steps, not with the rows.
+    """
+    counts: dict[float, int] = {}
+    last = None
+    for chunk in iter_chunks(history, rows):
+        t = chunk.time_s if last is None else np.concatenate(([last], chunk.time_s))
+        values, n = np.unique(np.diff(t), return_counts=True)
+        for v, c in zip(values.tolist(), n.tolist(), strict=True):
+            counts[v] = counts.get(v, 0) + c
+        if chunk.n_rows:
+            last = float(chunk.time_s[-1])
+    total = sum(counts.values())
+    if total < 1:
+        raise RecordError(f"{history.path}: fewer than 2 samples; expected at least 2")
+    ordered = sorted(counts.items())
+    low, high = _ranked(ordered, (total - 1) // 2), _ranked(ordered, total // 2)
+    median_s = float(np.mean([low, high]))
+    given = history.sidecar.sample_period_s
+    if given is None:
+        return median_s
+    if median_s > segments.GAP_FACTOR * given:
+        raise RecordError(
+            f"{history.path}: sample period {given:g} s (sidecar field 'sample_period_s') but "
+            f"the median time step is {median_s:g} s; expected the nominal sample period"
+        )
+    return given
+
+
+def _ranked(ordered: list[tuple[float, int]], rank: int) -> float:
+    """The value at 0-based ``rank`` in the sorted multiset ``ordered`` (value, count)."""
+    seen = 0
+    for value, count in ordered:
+        seen += count
+        if rank < seen:
+            return value
+    raise IndexError(rank)
