@@ -37,6 +37,10 @@ void plant_message(PlantMessage *msg, const char *format, ...)
 #endif
     ;
 
+/* Every tunable and fixed parameter in `real` (indexed by value reference) finite and within
+ * GT_PARAMETER_MAX_ABS; else PLANT_ERROR naming the first that is not. */
+PlantStatus plant_check_parameter_values(const double *real, PlantMessage *msg);
+
 #include GT_COMPONENT_HEADER /* ModelData */
 
 /* Called by the glue. */

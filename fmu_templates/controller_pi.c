@@ -23,15 +23,8 @@
 static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
 {
     const double *r = m->real;
-    int vr;
-    for (vr = 0; vr < GT_N_REAL; vr++) {
-        const VariableKind kind = plant_variables[vr].kind;
-        if ((kind == GT_KIND_TUNABLE || kind == GT_KIND_FIXED) &&
-            !(fabs(r[vr]) <= GT_PARAMETER_MAX_ABS)) {
-            plant_message(msg, "parameter %s = %.17g must be finite with |value| <= %g",
-                          plant_variables[vr].name, r[vr], GT_PARAMETER_MAX_ABS);
-            return PLANT_ERROR;
-        }
+    if (plant_check_parameter_values(r, msg) != PLANT_OK) {
+        return PLANT_ERROR;
     }
     if (!(r[VR_INTEGRAL_TIME_S] > 0.0 && r[VR_TRACKING_TIME_S] > 0.0 &&
           r[VR_SAMPLE_PERIOD_S] > 0.0 && r[VR_OPENING_RATE_MM_S] > 0.0)) {

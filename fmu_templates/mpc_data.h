@@ -9,8 +9,6 @@
 #include "model_config.h"
 #include "mpc_generated.h" /* casadi_int, casadi_real and the generated functions */
 
-#define GT_MPC_NP ((GT_MPC_NZ + 1) * (GT_MPC_NZ + 1))
-
 typedef struct {
     double time_s;          /* time of the state, s */
     double real[GT_N_REAL]; /* every Real variable, indexed by value reference */
@@ -18,9 +16,9 @@ typedef struct {
     int parameters_changed; /* parameters were set since they were last checked */
     int have_matrices;      /* h and a hold the QP's matrices at flow_matrices_m3h */
     /* the observer: state, input disturbance (mm of opening), prior covariance of [z, d] */
-    double z[GT_MPC_NZ];
+    double z[GT_GEN_NZ];
     double d;
-    double p[GT_MPC_NP];
+    double p[GT_GEN_NP];
     double opening_mm;        /* opening held since the last sample (the rate limit's anchor) */
     double flow_model_m3h;    /* discharge of the observer's model (the last prediction's) */
     double flow_matrices_m3h; /* discharge h and a were formed at */
@@ -30,8 +28,8 @@ typedef struct {
     double x[GT_MPC_NV];
     /* scratch of one sample: the QP's vectors and the generated code's work arrays */
     double g[GT_MPC_NV], lba[GT_MPC_NC], uba[GT_MPC_NC], lbx[GT_MPC_NV], ubx[GT_MPC_NV];
-    casadi_int iw[GT_MPC_SZ_IW];
-    casadi_real w[GT_MPC_SZ_W];
+    casadi_int iw[GT_GEN_SZ_IW];
+    casadi_real w[GT_GEN_SZ_W];
 } ModelData;
 
 #endif

@@ -15,76 +15,17 @@
  * sample periods; each sample of the step takes the same (held) inputs.
  */
 #include <math.h>
-#include <stdarg.h>
-#include <stdio.h>
 #include <string.h>
 
-#include "component.h"
-
-#define GT_VARIABLE_ENTRY(name, kind, start) {name, kind, start},
-const PlantVariable plant_variables[GT_N_REAL] = {GT_VARIABLES(GT_VARIABLE_ENTRY)};
-#undef GT_VARIABLE_ENTRY
-
-void plant_message(PlantMessage *msg, const char *format, ...)
-{
-    va_list args;
-    va_start(args, format);
-    vsnprintf(msg->text, sizeof msg->text, format, args);
-    va_end(args);
-}
-
-typedef int (*GeneratedFunction)(const casadi_real **arg, casadi_real **res, casadi_int *iw,
-                                 casadi_real *w, int mem);
-
-/* One call of a generated function on ModelData's work arrays. */
-static void call(ModelData *m, GeneratedFunction f, const double *const *in, int n_in,
-                 double *const *out, int n_out)
-{
-    const casadi_real *arg[GT_OBS_SZ_ARG];
-    casadi_real *res[GT_OBS_SZ_RES];
-    int i;
-    for (i = 0; i < GT_OBS_SZ_ARG; i++) {
-        arg[i] = i < n_in ? in[i] : NULL;
-    }
-    for (i = 0; i < GT_OBS_SZ_RES; i++) {
-        res[i] = i < n_out ? out[i] : NULL;
-    }
-    (void)f(arg, res, m->iw, m->w, 0);
-}
-
-static const double *theta(const ModelData *m)
-{
-    return &m->real[VR_THETA];
-}
-
-static int all_finite(const double *v, int n)
-{
-    int i;
-    for (i = 0; i < n; i++) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
-static double max_abs(const double *v, int n)
-{
-    double out = 0.0;
-    int i;
-    for (i = 0; i < n; i++) {
-        out = fmax(out, fabs(v[i]));
-    }
-    return out;
-}
+#include "generated_support.h"
 
 /* A whole number of sample periods in `span_s`, or -1 when it is not one. */
 static long whole_samples(double span_s)
 {
-    const double n = floor(span_s / GT_OBS_SAMPLE_PERIOD_S + 0.5);
+    const double n = floor(span_s / GT_GEN_SAMPLE_PERIOD_S + 0.5);
     if (!(n >= 0.0 && n <= 1e9) ||
-        !(fabs(n * GT_OBS_SAMPLE_PERIOD_S - span_s) <=
-          GT_COMMUNICATION_POINT_RTOL * fmax(span_s, GT_OBS_SAMPLE_PERIOD_S))) {
+        !(fabs(n * GT_GEN_SAMPLE_PERIOD_S - span_s) <=
+          GT_COMMUNICATION_POINT_RTOL * fmax(span_s, GT_GEN_SAMPLE_PERIOD_S))) {
         return -1;
     }
     return (long)n;
@@ -92,59 +33,19 @@ static long whole_samples(double span_s)
 
 /* --- parameters ------------------------------------------------------------------------------ */
 
-static PlantStatus check_schedule(const ModelData *m, PlantMessage *msg)
-{
-    const double *knots = &m->real[VR_COL_FLOW_M3H];
-    int k;
-    for (k = 1; k < GT_N_KNOTS; k++) {
-        if (!(knots[k] > knots[k - 1])) {
-            plant_message(msg, "schedule knots must increase strictly: %s = %.17g <= %.17g",
-                          plant_variables[VR_COL_FLOW_M3H + k].name, knots[k], knots[k - 1]);
-            return PLANT_ERROR;
-        }
-    }
-    for (k = 0; k < GT_N_KNOTS; k++) {
-        const double tau = m->real[VR_COL_TIME_CONSTANT_S + k];
-        const double delay = m->real[VR_COL_DEAD_TIME_S + k];
-        if (!(tau > 0.0)) {
-            plant_message(msg, "%s = %.17g must be > 0",
-                          plant_variables[VR_COL_TIME_CONSTANT_S + k].name, tau);
-            return PLANT_ERROR;
-        }
-        if (!(delay >= 0.0 && delay <= GT_OBS_MAX_DEAD_TIME_S)) {
-            plant_message(msg,
-                          "%s = %.17g must lie in [0, %.17g] s (the register of past openings "
-                          "this observer was generated with)",
-                          plant_variables[VR_COL_DEAD_TIME_S + k].name, delay,
-                          GT_OBS_MAX_DEAD_TIME_S);
-            return PLANT_ERROR;
-        }
-    }
-    return PLANT_OK;
-}
-
 static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
 {
     const double horizon = m->real[VR_HORIZON_S], band = m->real[VR_ANOMALY_BAND_SIGMA];
     const double run = m->real[VR_ANOMALY_RUN_SAMPLES];
     const double slack = m->real[VR_ANOMALY_CUSUM_SLACK_SIGMA];
     const double threshold = m->real[VR_ANOMALY_CUSUM_THRESHOLD];
-    int vr;
-    for (vr = 0; vr < GT_N_REAL; vr++) {
-        const VariableKind kind = plant_variables[vr].kind;
-        if ((kind == GT_KIND_TUNABLE || kind == GT_KIND_FIXED) &&
-            !(fabs(m->real[vr]) <= GT_PARAMETER_MAX_ABS)) {
-            plant_message(msg, "parameter %s = %.17g must be finite with |value| <= %g",
-                          plant_variables[vr].name, m->real[vr], GT_PARAMETER_MAX_ABS);
-            return PLANT_ERROR;
-        }
-    }
-    if (check_schedule(m, msg) != PLANT_OK) {
+    if (plant_check_parameter_values(m->real, msg) != PLANT_OK ||
+        gt_check_schedule(m, "observer", msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     if (!(horizon >= 0.0 && horizon <= GT_OBS_MAX_HORIZON_S) || whole_samples(horizon) < 0) {
         plant_message(msg, "horizon_s = %.17g must be a whole multiple of the sample period "
-                           "%g s in [0, %g] s", horizon, GT_OBS_SAMPLE_PERIOD_S,
+                           "%g s in [0, %g] s", horizon, GT_GEN_SAMPLE_PERIOD_S,
                       GT_OBS_MAX_HORIZON_S);
         return PLANT_ERROR;
     }
@@ -172,74 +73,30 @@ static PlantStatus check_inputs(const ModelData *m, PlantMessage *msg)
                       plant_variables[VR_LEVEL].name, m->real[VR_LEVEL], m->real[VR_OPENING_MM]);
         return PLANT_ERROR;
     }
-    if (!(GT_OBS_FLOW_MIN_M3H <= q && q <= GT_OBS_FLOW_MAX_M3H)) {
-        plant_message(msg, "flow_m3h = %.17g is outside [%g, %g]", q, GT_OBS_FLOW_MIN_M3H,
-                      GT_OBS_FLOW_MAX_M3H);
-        return PLANT_ERROR;
-    }
-    return PLANT_OK;
+    return gt_check_flow(q, msg);
 }
 
 /* --- the steps of one sample --------------------------------------------------------------- */
-
-/* The steady prior covariance at discharge q: the observer's correct-and-predict iterated to
- * its fixed point (the Riccati equation's solution, which the Python observer takes from
- * scipy's solver). */
-static PlantStatus steady_covariance(ModelData *m, double q, PlantMessage *msg)
-{
-    double next[GT_OBS_NP], diff[GT_OBS_NP];
-    int it, i;
-    memset(m->p, 0, sizeof m->p);
-    for (it = 0; it < GT_OBS_RICCATI_MAX_ITER; it++) {
-        const double *in[3] = {theta(m), &q, m->p};
-        double *out[1] = {next};
-        call(m, gt_obs_riccati, in, 3, out, 1);
-        for (i = 0; i < GT_OBS_NP; i++) {
-            diff[i] = next[i] - m->p[i];
-        }
-        memcpy(m->p, next, sizeof next);
-        if (!all_finite(next, GT_OBS_NP)) {
-            break;
-        }
-        if (max_abs(diff, GT_OBS_NP) <= GT_OBS_RICCATI_RTOL * max_abs(next, GT_OBS_NP)) {
-            return PLANT_OK;
-        }
-    }
-    plant_message(msg,
-                  "the observer's covariance did not settle in %d iterations at flow_m3h = %g "
-                  "(the model at this discharge is not observable or not stable)",
-                  GT_OBS_RICCATI_MAX_ITER, q);
-    return PLANT_ERROR;
-}
 
 /* The level horizon_s ahead of state z at discharge q, opening e and disturbance d held. */
 static double forecast(ModelData *m, double q, const double *z, double d, double e)
 {
     const long n = whole_samples(m->real[VR_HORIZON_S]);
-    double a[GT_OBS_NZ], b[GT_OBS_NZ], level;
+    double a[GT_GEN_NZ], b[GT_GEN_NZ], level;
     long k;
     memcpy(a, z, sizeof a);
     for (k = 0; k < n; k++) {
-        const double *in[5] = {theta(m), &q, a, &d, &e};
+        const double *in[5] = {gt_theta(m), &q, a, &d, &e};
         double *out[1] = {b};
-        call(m, gt_obs_advance, in, 5, out, 1);
+        gt_call(m, gt_obs_advance, in, 5, out, 1);
         memcpy(a, b, sizeof a);
     }
     {
-        const double *in[3] = {theta(m), &q, a};
+        const double *in[3] = {gt_theta(m), &q, a};
         double *out[1] = {&level};
-        call(m, gt_obs_level, in, 3, out, 1);
+        gt_call(m, gt_obs_level, in, 3, out, 1);
     }
     return level;
-}
-
-static PlantStatus finite_estimate(const ModelData *m, const char *when, PlantMessage *msg)
-{
-    if (all_finite(m->z, GT_OBS_NZ) && isfinite(m->d) && all_finite(m->p, GT_OBS_NP)) {
-        return PLANT_OK;
-    }
-    plant_message(msg, "the observer's estimate is not finite %s; reset the observer", when);
-    return PLANT_ERROR;
 }
 
 /* One sample: correct with the level y, forecast, predict with opening e at discharge q. */
@@ -247,17 +104,17 @@ static void sample(ModelData *m, double y, double e, double q)
 {
     static const int estimate_vr[GT_OBS_N_ESTIMATE] = GT_OBS_ESTIMATE_VRS;
     static const int limit_vr[GT_OBS_N_LIMITS] = GT_OBS_LIMIT_VRS;
-    double z[GT_OBS_NZ], d, p[GT_OBS_NP], est[GT_OBS_N_ESTIMATE], limits[GT_OBS_N_LIMITS];
+    double z[GT_GEN_NZ], d, p[GT_GEN_NP], est[GT_OBS_N_ESTIMATE], limits[GT_OBS_N_LIMITS];
     double monitor[GT_OBS_N_MONITOR];
     int i;
     for (i = 0; i < GT_OBS_N_LIMITS; i++) {
         limits[i] = m->real[limit_vr[i]];
     }
     {
-        const double *in[8] = {theta(m), &m->flow_model_m3h, m->z, &m->d, m->p, &y,
+        const double *in[8] = {gt_theta(m), &m->flow_model_m3h, m->z, &m->d, m->p, &y,
                                m->monitor, limits};
         double *out[5] = {z, &d, p, est, monitor};
-        call(m, gt_obs_correct, in, 8, out, 5);
+        gt_call(m, gt_obs_correct, in, 8, out, 5);
     }
     for (i = 0; i < GT_OBS_N_ESTIMATE; i++) {
         m->real[estimate_vr[i]] = est[i];
@@ -265,9 +122,9 @@ static void sample(ModelData *m, double y, double e, double q)
     memcpy(m->monitor, monitor, sizeof monitor);
     m->real[VR_PREDICTED_LEVEL_MM] = forecast(m, q, z, d, e);
     {
-        const double *in[7] = {theta(m), &m->flow_model_m3h, &q, z, &d, p, &e};
+        const double *in[7] = {gt_theta(m), &m->flow_model_m3h, &q, z, &d, p, &e};
         double *out[3] = {m->z, &m->d, m->p};
-        call(m, gt_obs_predict, in, 7, out, 3);
+        gt_call(m, gt_obs_predict, in, 7, out, 3);
     }
     m->flow_model_m3h = q;
 }
@@ -298,12 +155,12 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
     }
     m->parameters_changed = 0;
     {
-        const double *in[4] = {theta(m), &q, &e, &y};
+        const double *in[4] = {gt_theta(m), &q, &e, &y};
         double *out[4] = {m->z, &m->d, &level, m->monitor};
-        call(m, gt_obs_start, in, 4, out, 4);
+        gt_call(m, gt_obs_start, in, 4, out, 4);
     }
-    if (steady_covariance(m, q, msg) != PLANT_OK ||
-        finite_estimate(m, "at the start", msg) != PLANT_OK) {
+    if (gt_steady_covariance(m, gt_obs_riccati, q, msg) != PLANT_OK ||
+        gt_finite_estimate(m, "at the start", "observer", msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     m->flow_model_m3h = q;
@@ -324,7 +181,12 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     long k;
     if (n < 1) {
         plant_message(msg, "communication step %.17g s must be a whole multiple of the "
-                           "observer's sample period %.17g s", step_s, GT_OBS_SAMPLE_PERIOD_S);
+                           "observer's sample period %.17g s", step_s, GT_GEN_SAMPLE_PERIOD_S);
+        return PLANT_ERROR;
+    }
+    if (n > GT_OBS_MAX_SAMPLES_PER_STEP) {
+        plant_message(msg, "communication step %.17g s spans %ld samples; at most %d per step",
+                      step_s, n, GT_OBS_MAX_SAMPLES_PER_STEP);
         return PLANT_ERROR;
     }
     if (!(fabs(m->time_s + step_s) <= GT_MAX_TIME_S)) {
@@ -339,7 +201,10 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
         sample(m, m->real[VR_LEVEL], m->real[VR_OPENING_MM], m->real[VR_FLOW_M3H]);
     }
     m->time_s += step_s;
-    return finite_estimate(m, "after the step", msg);
+    if (gt_finite_estimate(m, "after the step", "observer", msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    return gt_finite_outputs(m, "observer", msg);
 }
 
 PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMessage *msg)
@@ -357,28 +222,14 @@ PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMe
 PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage *msg)
 {
     const int flags[2] = {m->initialized, m->parameters_changed};
-    int i;
-    for (i = 0; i < 2; i++) {
-        if (flags[i] != 0 && flags[i] != 1) {
-            plant_message(msg, "state flag %d is %d, not 0 or 1", i, flags[i]);
-            return PLANT_ERROR;
-        }
-    }
-    if (m->initialized != initialized) {
-        plant_message(msg, "state says initialised = %d, its mode needs %d", m->initialized,
-                      initialized);
-        return PLANT_ERROR;
-    }
-    if (!(fabs(m->time_s) <= GT_MAX_TIME_S) || !all_finite(m->real, GT_N_REAL)) {
-        plant_message(msg, "state time %g s or a variable is not finite or beyond %g s",
-                      m->time_s, GT_MAX_TIME_S);
+    if (gt_check_state_head(m, flags, 2, initialized, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     {
         const double scalars[2] = {m->d, m->flow_model_m3h};
         const double run = m->monitor[0];
-        if (!all_finite(scalars, 2) || !all_finite(m->z, GT_OBS_NZ) ||
-            !all_finite(m->p, GT_OBS_NP) || !all_finite(m->monitor, GT_OBS_N_MONITOR) ||
+        if (!gt_all_finite(scalars, 2) || !gt_all_finite(m->z, GT_GEN_NZ) ||
+            !gt_all_finite(m->p, GT_GEN_NP) || !gt_all_finite(m->monitor, GT_OBS_N_MONITOR) ||
             !(run >= 0.0 && run == floor(run))) {
             plant_message(msg, "state of the observer is not finite or its run is not a count");
             return PLANT_ERROR;

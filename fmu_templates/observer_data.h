@@ -9,22 +9,20 @@
 #include "model_config.h"
 #include "observer_generated.h" /* casadi_int, casadi_real and the generated functions */
 
-#define GT_OBS_NP ((GT_OBS_NZ + 1) * (GT_OBS_NZ + 1))
-
 typedef struct {
     double time_s;          /* time of the state, s */
     double real[GT_N_REAL]; /* every Real variable, indexed by value reference */
     int initialized;        /* plant_initialize succeeded */
     int parameters_changed; /* parameters were set since they were last checked */
     /* the observer: state, input disturbance (mm of opening), prior covariance of [z, d] */
-    double z[GT_OBS_NZ];
+    double z[GT_GEN_NZ];
     double d;
-    double p[GT_OBS_NP];
+    double p[GT_GEN_NP];
     double flow_model_m3h; /* discharge of the observer's model (the last prediction's) */
     double monitor[GT_OBS_N_MONITOR]; /* anomaly rules' state (gatetwin.mpc.online.MONITOR) */
     /* scratch of one call: the generated code's work arrays */
-    casadi_int iw[GT_OBS_SZ_IW];
-    casadi_real w[GT_OBS_SZ_W];
+    casadi_int iw[GT_GEN_SZ_IW];
+    casadi_real w[GT_GEN_SZ_W];
 } ModelData;
 
 #endif

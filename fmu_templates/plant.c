@@ -36,14 +36,8 @@ static PlantStatus check_inputs(double opening_mm, double flow_m3h, PlantMessage
 static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
 {
     int vr;
-    for (vr = 0; vr < GT_N_REAL; vr++) {
-        const VariableKind kind = plant_variables[vr].kind;
-        if ((kind == GT_KIND_TUNABLE || kind == GT_KIND_FIXED) &&
-            !(fabs(m->real[vr]) <= GT_PARAMETER_MAX_ABS)) {
-            plant_message(msg, "parameter %s = %.17g must be finite with |value| <= %g",
-                          plant_variables[vr].name, m->real[vr], GT_PARAMETER_MAX_ABS);
-            return PLANT_ERROR;
-        }
+    if (plant_check_parameter_values(m->real, msg) != PLANT_OK) {
+        return PLANT_ERROR;
     }
     for (vr = VR_COL_FLOW_M3H + 1; vr < VR_COL_FLOW_M3H + GT_N_KNOTS; vr++) {
         if (!(m->real[vr] > m->real[vr - 1])) {

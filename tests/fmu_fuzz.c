@@ -11,6 +11,7 @@
  *   range VR LO HI             optional, after its var: an input's plausible values
  *                              (default START +- max(|START|, 1))
  *   sample_period VR           optional: communication steps are whole multiples of it
+ *   sample_period_s SECONDS    optional, instead: a fixed sample period no variable holds
  *   data_size BYTES            sizeof(ModelData): a serialised state ends with it
  *   int_field NAME OFFSET      optional, repeated: an int of ModelData (flag, index, count)
  *
@@ -71,6 +72,7 @@ typedef struct {
     unsigned *inputs, n_inputs;
     unsigned *outputs, n_outputs;
     long period_vr;           /* sample period's value reference, -1: none */
+    double period_s;          /* a fixed sample period, s; 0: none */
     size_t data_size;         /* sizeof(ModelData) */
     size_t int_fields[MAX_INT_FIELDS]; /* offsets of ints in ModelData */
     unsigned n_int_fields;
@@ -170,6 +172,11 @@ static void spec_line(const char *text, const char *path, unsigned line)
             bad_spec(path, line, "expected 'sample_period VR'");
         }
         spec.period_vr = (long)value;
+    } else if (strcmp(key, "sample_period_s") == 0) {
+        if (sscanf(text + used, "%lf", &spec.period_s) != 1 || !(spec.period_s > 0.0) ||
+            !isfinite(spec.period_s)) {
+            bad_spec(path, line, "expected 'sample_period_s SECONDS', a positive number");
+        }
     } else if (strcmp(key, "data_size") == 0) {
         if (sscanf(text + used, "%lu", &value) != 1 || value < 8) {
             bad_spec(path, line, "expected 'data_size BYTES'");
@@ -182,8 +189,8 @@ static void spec_line(const char *text, const char *path, unsigned line)
         }
         spec.int_fields[spec.n_int_fields++] = (size_t)value;
     } else {
-        bad_spec(path, line, "unknown item (guid, var, range, sample_period, data_size, "
-                             "int_field)");
+        bad_spec(path, line, "unknown item (guid, var, range, sample_period, sample_period_s, "
+                             "data_size, int_field)");
     }
 }
 
@@ -591,6 +598,8 @@ static void op_step(Fuzz *f)
         if (api->get_real(f->c, &period_vr, 1, &h) == fmi2OK) {
             h *= 1 + below(below(8) ? 10 : 20000);
         }
+    } else if (spec.period_s > 0.0 && below(4)) { /* one sample, often: what some take only */
+        h = spec.period_s * (below(2) ? 1 : 1 + below(below(8) ? 10 : 20000));
     }
     status = CALL(f, api->do_step(f->c, now, h, below(2)));
     if (status == fmi2OK || status == fmi2Warning) {

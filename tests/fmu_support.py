@@ -353,12 +353,14 @@ _FUZZ_KINDS = {("input", None): "input", ("output", None): "output",
 
 
 def fuzz_spec(
-    extracted: Path, out: Path, ranges: dict[str, tuple[float, float]] | None = None
-) -> Path:
+    extracted: Path, out: Path, ranges: dict[str, tuple[float, float]] | None = None,
+    sampled: bool = False,
+) -> Path:  # fmt: skip
     """The SPEC file tests/fmu_fuzz.c reads for the extracted FMI 2.0 FMU, written to ``out``:
     GUID, value references, kinds and start values from its modelDescription.xml, the
     plausible values of the inputs named in ``ranges``; the state's size and int fields from
-    tests/fmu_layout.c compiled against its ``sources/``."""
+    tests/fmu_layout.c compiled against its ``sources/``. ``sampled``: the FMU steps whole
+    samples of its default experiment's step size (the MPC controller, the observer)."""
     md = read_model_description(str(extracted))
     lines = [f"guid {md.guid}"]
     for v in sorted(md.modelVariables, key=lambda v: v.valueReference):
@@ -370,6 +372,8 @@ def fuzz_spec(
             lines.append(f"range {v.valueReference} {float(lo)!r} {float(hi)!r}")
         if v.name == "sample_period_s":
             lines.append(f"sample_period {v.valueReference}")
+    if sampled:
+        lines.append(f"sample_period_s {float(md.defaultExperiment.stepSize)!r}")
     probe = out.with_suffix(".layout")
     subprocess.run(
         [compiler(), "-std=c99", "-Wall", "-Wextra", "-Werror", "-I", str(extracted / "sources"),

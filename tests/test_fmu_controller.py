@@ -222,8 +222,8 @@ def test_export_controller_refuses_what_it_does_not_build_without_output(tmp_pat
     assert main(["export-controller", str(bad), "--out", str(tmp_path / "c.fmu")]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
-    with pytest.raises(ExportError, match="FMI 2.0 only"):
-        export_controller(read_model_file(MODEL), "mpc", tmp_path / "c.fmu", fmi_version="3.0")
+    with pytest.raises(ExportError, match="fmi_version must be one of 2.0, 3.0"):
+        export_controller(read_model_file(MODEL), "mpc", tmp_path / "c.fmu", fmi_version="4.0")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
 
 

@@ -7,8 +7,9 @@ cycles) and checks what every call returns; any sanitizer report, crash, hang or
 fails the test. The fuzzer is built once and knows an FMU only by the SPEC file written from
 its modelDescription.xml (and its state's layout, tests/fmu_layout.c). One FMU per plant
 family: the envelope FOPDT and the physical model of the repository (with their validity
-envelopes), a FOPDT and an ARX plant carrying every effect block; and the PI controller FMU
-of the envelope FOPDT.
+envelopes), a FOPDT and an ARX plant carrying every effect block; the PI controller FMU
+of the envelope FOPDT; the MPC controller FMU and the observer FMU of its FOPDT (without the
+seiche they do not cover), both with casadi-generated arithmetic.
 """
 
 from __future__ import annotations
@@ -41,10 +42,18 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 #: A validity envelope for the test plants (their knots span 30..85 m3/h).
 VALIDITY = {"validity": {"opening_mm": [10.0, 40.0], "flow_m3h": [30.0, 85.0],
                          "level_mm": [150.0, 450.0]}}  # fmt: skip
-#: case -> sequences in the default run (15,000 in all, a few seconds of fuzzing on one core;
-#: a physical step of 1e5 s integrates 1.7e5 RK4 sub-steps, so the physical FMU gets fewer).
+#: case -> sequences in the default run (16,150 in all, seconds of fuzzing on one core; a
+#: physical step of 1e5 s integrates 1.7e5 RK4 sub-steps, so the physical FMU gets fewer; the
+#: MPC's initialisation iterates the Riccati map and every sample solves a QP, ~70 ms a
+#: sequence under the sanitizers, so it gets fewest).
 SEQUENCES = {"fopdt_envelope": 4000, "fopdt_effects": 4000, "arx_effects": 3000,
-             "physical": 1000, "pi_controller": 3000}  # fmt: skip
+             "physical": 1000, "pi_controller": 3000, "mpc_controller": 150,
+             "observer": 1000}  # fmt: skip
+#: The MPC controller FMU's horizon: short, to keep its build and its samples quick (the
+#: code paths are those of any horizon).
+MPC_HORIZON = 10
+#: Cases that step whole samples of their default step size only (no variable holds it).
+SAMPLED = ("mpc_controller", "observer")
 CASES = tuple(SEQUENCES)
 #: Plausible values of the plants' inputs (gate up to 90 mm, discharge up to 150 m3/h: inside
 #: and beyond the test plants' envelope); another input (the controller's level and set-point)
@@ -69,12 +78,28 @@ class Fuzzed(NamedTuple):
 
 def _export(case: str, folder: Path) -> Path:
     """The FMI 2.0 C FMU of ``case``."""
+    if case in ("mpc_controller", "observer"):
+        return _export_generated(case, folder)
     if case == "pi_controller":
         model = read_model_file(MODELS / "fopdt_3F.json")
         return export_controller(model, "pi", folder / f"{case}.fmu", model_name=f"fuzz_{case}")
     plant, provenance = _plant_and_provenance(case)
     return export_fmu(plant, folder / f"{case}.fmu", backend="c", model_name=f"fuzz_{case}",
                       provenance=provenance)  # fmt: skip
+
+
+def _export_generated(case: str, folder: Path) -> Path:
+    """The MPC controller or the observer FMU of the envelope FOPDT without its seiche."""
+    from gatetwin.fmu.mpc_controller import export_mpc_controller
+    from gatetwin.fmu.observer_fmu import export_observer
+    from gatetwin.mpc.settings import MpcSettings
+
+    plant = replace(read_model_file(MODELS / "fopdt_3F.json").plant, effects=())
+    out = folder / f"{case}.fmu"
+    if case == "observer":
+        return export_observer(plant, out, model_name=f"fuzz_{case}")
+    return export_mpc_controller(plant, out, settings=MpcSettings(horizon=MPC_HORIZON),
+                                 model_name=f"fuzz_{case}")  # fmt: skip
 
 
 def _plant_and_provenance(case: str):
@@ -100,7 +125,8 @@ def fuzzers(tmp_path_factory) -> dict[str, Fuzzed]:
     out = {}
     for case in CASES:
         extracted = Path(extract(str(_export(case, folder)), str(folder / case)))
-        spec = fuzz_spec(extracted, folder / f"{case}.spec", INPUT_RANGES)
+        spec = fuzz_spec(extracted, folder / f"{case}.spec", INPUT_RANGES,
+                         sampled=case in SAMPLED)  # fmt: skip
         out[case] = Fuzzed(
             build_sanitized(extracted, folder),
             fuzzer,

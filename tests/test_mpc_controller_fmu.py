@@ -9,6 +9,7 @@ demo's N = 100); the demo's horizon itself is the slow test.
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 from dataclasses import replace
 
@@ -67,6 +68,52 @@ def test_the_fmu_passes_fmpy_validation(fmu):
     from fmpy.validation import validate_fmu
 
     assert validate_fmu(str(fmu)) == []
+
+
+@pytest.fixture(scope="module")
+def fmu3(plant, tmp_path_factory):
+    from gatetwin.fmu.mpc_controller import export_mpc_controller
+
+    path = tmp_path_factory.mktemp("mpc_fmu3") / "gatetwin_mpc.fmu"
+    return export_mpc_controller(plant, path, settings=SHORT.mpc, fmi_version="3.0")
+
+
+def test_the_fmi3_fmu_passes_fmpy_validation(fmu3):
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(fmu3)) == []
+
+
+def _driven(fmu, levels, flows, setpoints):
+    """Every output of the controller FMU over one input sequence, one row per sample."""
+    from gatetwin.mpc.fmu_controller import OUTPUTS
+
+    controller = FmuController(fmu, SHORT.mpc.sample_period_s)
+    rows = []
+    try:
+        controller.reset(25.0, float(levels[0]), float(flows[0]))
+        for y, q, r in zip(levels, flows, setpoints, strict=True):
+            controller.step(float(y), float(q), float(r))
+            rows.append([controller.diagnostics[n] for n in OUTPUTS])
+    finally:
+        controller.cleanup()
+    return np.array(rows)
+
+
+def test_fmi3_and_fmi2_controllers_give_identical_outputs(fmu, fmu3):
+    """Set-point steps, a noisy level and a discharge swept across the knots (matrices
+    re-formed) and beyond them (clamped): the same component compiled with the same flags
+    under two glues, so equal to the bit."""
+    rng = np.random.default_rng(7)
+    n = 150
+    setpoints = np.where(np.arange(n) < n // 2, 205.0, 190.0)
+    levels = 195.0 + rng.normal(0.0, 2.0, n)
+    flows = np.linspace(25.0, 90.0, n)
+    two = _driven(fmu, levels, flows, setpoints)
+    three = _driven(fmu3, levels, flows, setpoints)
+    assert np.all(np.isfinite(three))
+    assert np.array_equal(three, two)
+    assert np.ptp(two[:, 0]) > 1.0  # the opening moved
 
 
 def _close(actual, expected, rtol=FUNCTION_RTOL):
@@ -187,6 +234,35 @@ def _start(fmu, opening=25.0, level=190.0, flow=40.0):
     return slave, vr, driver.messages, folder
 
 
+@contextlib.contextmanager
+def _initialising(fmu):
+    """The FMU instantiated and in initialisation mode (slave, value references, logged
+    messages); freed and deleted afterwards."""
+    from fmpy import extract
+
+    from fmu_support import open_fmu
+
+    folder = extract(str(fmu))
+    driver = open_fmu(folder)
+    try:
+        driver.slave.setupExperiment(startTime=0.0)
+        driver.slave.enterInitializationMode()
+        yield driver.slave, driver.vr, driver.messages
+    finally:
+        driver.slave.freeInstance()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_before_initialisation_the_opening_is_the_start_opening_set(fmu):
+    """A master propagating initial values (gatetwin's SSP master) reads the opening before
+    the controller leaves initialisation mode: it must be the start opening set, as the
+    PI's, not the start value it was built with."""
+    with _initialising(fmu) as (slave, vr, _):
+        built = slave.getReal([vr["opening_mm"]])[0]
+        slave.setReal([vr["start_opening_mm"]], [built + 7.0])
+        assert slave.getReal([vr["opening_mm"]]) == [built + 7.0]
+
+
 def test_a_nan_level_is_refused_with_a_logged_reason(fmu):
     from fmpy.fmi1 import FMICallException
 
@@ -266,24 +342,13 @@ def test_a_restored_state_repeats_the_same_steps(fmu):
 
 
 def test_a_dead_time_beyond_the_generated_register_is_refused_at_initialisation(fmu):
-    from fmpy import extract
     from fmpy.fmi1 import FMICallException
 
-    from fmu_support import open_fmu
-
-    folder = extract(str(fmu))
-    driver = open_fmu(folder)
-    slave, vr = driver.slave, driver.vr
-    try:
-        slave.setupExperiment(startTime=0.0)
-        slave.enterInitializationMode()
+    with _initialising(fmu) as (slave, vr, logged):
         slave.setReal([vr["schedule.dead_time_s[2]"]], [60.0])  # the register holds ~3.6 s
         with pytest.raises(FMICallException):
             slave.exitInitializationMode()
-        assert any("schedule.dead_time_s[2]" in m for _, m in driver.messages), driver.messages
-    finally:
-        slave.freeInstance()
-        shutil.rmtree(folder, ignore_errors=True)
+        assert any("schedule.dead_time_s[2]" in m for _, m in logged), logged
 
 
 def test_export_controller_builds_the_mpc_from_a_model_file(tmp_path, capsys):
@@ -308,3 +373,7 @@ def test_export_controller_builds_the_mpc_from_a_model_file(tmp_path, capsys):
     outputs = {v.name for v in read_model_description(str(out)).modelVariables
                if v.causality == "output"}  # fmt: skip
     assert {"opening_mm", "solver_status", "solver_iterations"} <= outputs
+    three = tmp_path / "mpc3.fmu"
+    assert main([*args[:-1], str(three), "--without-effects", "--fmi", "3"]) == 0
+    assert read_model_description(str(three)).fmiVersion == "3.0"
+    assert validate_fmu(str(three)) == []

@@ -203,6 +203,22 @@ def test_a_step_of_whole_samples_takes_the_held_inputs_for_each(plant, fmu):
     np.testing.assert_allclose(got, ref.values(), rtol=0, atol=TOL)
 
 
+def test_a_step_beyond_the_sample_budget_is_refused(fmu):
+    """The longest step is taken; one sample more is refused (not worked through)."""
+    from fmpy.fmi1 import FMICallException
+
+    from gatetwin.fmu.observer_fmu import MAX_SAMPLES_PER_STEP
+
+    slave, vr = _slave(fmu)
+    slave.exitInitializationMode()
+    slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=MAX_SAMPLES_PER_STEP * 1.2)
+    assert np.all(np.isfinite(slave.getReal([vr[n] for n in OUTPUTS])))
+    with pytest.raises(FMICallException):
+        slave.doStep(currentCommunicationPoint=MAX_SAMPLES_PER_STEP * 1.2,
+                     communicationStepSize=(MAX_SAMPLES_PER_STEP + 1) * 1.2)  # fmt: skip
+    slave.freeInstance()
+
+
 def test_a_step_not_a_whole_number_of_samples_is_refused(fmu):
     from fmpy.fmi1 import FMICallException
 
@@ -264,6 +280,41 @@ def test_cli_exports_and_refuses_in_one_line(tmp_path, capsys):
     assert float(starts["horizon_s"]) == 12.0 and float(starts["anomaly_run_samples"]) == 6.0
     assert float(starts["anomaly_cusum_slack_sigma"]) == 0.75
     assert float(starts["anomaly_cusum_threshold"]) == 20.0
+
+
+@pytest.fixture(scope="module")
+def fmu3(plant, tmp_path_factory):
+    return export_observer(plant, tmp_path_factory.mktemp("obs3") / "observer.fmu",
+                           fmi_version="3.0")  # fmt: skip
+
+
+def test_the_fmi3_fmu_passes_fmpy_validation(fmu3):
+    assert validate_fmu(str(fmu3)) == []
+
+
+def test_fmi3_and_fmi2_observers_give_identical_outputs(fmu, fmu3):
+    """Eboth's discharge changes re-render the model; a 40 mm level offset from the middle
+    on drives the innovation out of the band, so the anomaly outputs move too. The same
+    component compiled with the same flags under two glues: equal to the bit."""
+    _, y, e, q = _inputs("Eboth")
+    y = y + np.where(np.arange(y.size) >= y.size // 2, 40.0, 0.0)
+    two = run_observer_fmu(fmu, y, e, q)
+    three = run_observer_fmu(fmu3, y, e, q)
+    for key in OUTPUTS:
+        assert np.all(np.isfinite(three[key])), key
+        assert np.array_equal(three[key], two[key]), key
+    assert np.max(two["anomaly"]) == 1.0 and np.ptp(two["innovation_mm"]) > 1.0
+
+
+def test_cli_exports_fmi3(tmp_path):
+    from fmpy import read_model_description
+
+    out = tmp_path / "obs3.fmu"
+    assert main(["export-observer", str(ROOT / "models/fopdt_3F.json"), "--out", str(out),
+                 "--without-effects", "--fmi", "3"]) == 0  # fmt: skip
+    md = read_model_description(str(out))
+    assert md.fmiVersion == "3.0"
+    assert set(OUTPUTS) <= {v.name for v in md.modelVariables if v.causality == "output"}
 
 
 @pytest.mark.parametrize("name", sorted(p.stem for p in bundled_records_dir().glob("*.csv")

@@ -418,8 +418,8 @@ _COMMANDS: tuple[Command, ...] = (
     ),
     Command(
         "export-observer",
-        "export the observer of a model file as an FMI 2.0 co-simulation FMU (C): filtered "
-        "level, disturbance, innovation, forecast and an anomaly flag from measurements",
+        "export the observer of a model file as an FMI 2.0 or 3.0 co-simulation FMU (C): "
+        "filtered level, disturbance, innovation, forecast and an anomaly flag from measurements",
         _model_cmds.add_export_observer_arguments,
         _model_cmds.run_export_observer,
     ),

@@ -282,7 +282,7 @@ def add_export_controller_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("model", metavar="MODEL.json", help="FOPDT model file (SIMC tuning)")
     parser.add_argument(
         "--kind", choices=("pi", "mpc"), default="pi",
-        help="controller: pi (default), or mpc (the demo's single-point MPC; FMI 2.0)",
+        help="controller: pi (default), or mpc (the demo's single-point MPC)",
     )  # fmt: skip
     parser.add_argument(
         "--horizon", metavar="N", type=int,
@@ -357,6 +357,8 @@ def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--without-effects", action="store_true",
                         help="observe with the model's FOPDT alone, its effect blocks dropped "
                         "(a model with effect blocks is refused otherwise)")  # fmt: skip
+    parser.add_argument("--fmi", choices=("2", "3"), default="2",
+                        help="FMI version of the co-simulation FMU: 2 (default) or 3")  # fmt: skip
 
 
 def run_export_observer(args: argparse.Namespace) -> int:
@@ -370,6 +372,7 @@ def run_export_observer(args: argparse.Namespace) -> int:
     model = read_model_file(args.model)
     check_writable(args.out)
     path = export_observer(model.plant, args.out, horizon_s=args.horizon, anomaly=anomaly,
-                           without_effects=args.without_effects)  # fmt: skip
+                           without_effects=args.without_effects,
+                           fmi_version=f"{args.fmi}.0")  # fmt: skip
     print(f"wrote {path}")
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 
 from gatetwin._io import check_writable
 from gatetwin.errors import GatetwinError
@@ -13,7 +14,22 @@ def add_ssp_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="LOOP.ssp", required=True, help="the package to write")
     parser.add_argument(
         "--controller", choices=("pi", "mpc"), default="pi",
-        help="controller FMU in the loop: pi (default; the MPC controller FMU is not built yet)",
+        help="controller FMU in the loop: pi (default) or mpc (the demo's single-point MPC)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--horizon", metavar="N", type=int,
+        help="mpc: prediction horizon in samples (default: the demo's 100; the build takes "
+        "~30 s at 100)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--observer", action="store_true",
+        help="also pack the observer FMU, reading the measured level, opening and discharge; "
+        "simulate-ssp logs its outputs",
+    )  # fmt: skip
+    parser.add_argument(
+        "--without-effects", action="store_true",
+        help="build the MPC and the observer on the model's FOPDT with its effect blocks "
+        "dropped (the plant FMU keeps them; such a model is refused otherwise)",
     )  # fmt: skip
     parser.add_argument(
         "--minutes", type=float, default=30.0,
@@ -28,13 +44,20 @@ def run_ssp(args: argparse.Namespace) -> int:
     from gatetwin.ssp import write_ssp
 
     check_controller_kind(args.controller)
+    settings = DemoSettings()
+    if args.horizon is not None:
+        if args.controller != "mpc":
+            raise GatetwinError("--horizon applies to --controller mpc")
+        settings = replace(settings, mpc=replace(settings.mpc, horizon=args.horizon))
     model = read_model_file(args.model)
     check_writable(args.out)
     try:
-        scenario = demo_scenarios(args.minutes, DemoSettings())[0]
+        scenario = demo_scenarios(args.minutes, settings)[0]
     except GatetwinError as exc:
         raise GatetwinError(f"--minutes: {exc}") from None
-    path = write_ssp(model, args.out, controller=args.controller, scenario=scenario)
+    path = write_ssp(model, args.out, controller=args.controller, scenario=scenario,
+                     settings=settings, observer=args.observer,
+                     without_effects=args.without_effects)  # fmt: skip
     print(f"wrote {path}")
     return 0
 

@@ -50,6 +50,11 @@ HOST_FLAGS = ("-flto",)
 #: component.c (the variable table and the message formatter) serves every component.
 COMMON_SOURCES = ("component.c", "plant.c", "support.c", "effects.c", "blocks.c")
 COMMON_HEADERS = ("component.h", "plant_data.h", "plant.h", "effects.h", "blocks.h")
+#: What every component with casadi-generated arithmetic (the MPC controller, the observer)
+#: compiles besides its own file: the variable table and message formatter, and the calls and
+#: checks around the generated code (generated_support.h).
+GENERATED_SUPPORT_SOURCES = ("component.c", "generated_support.c")
+GENERATED_SUPPORT_FILES = (*GENERATED_SUPPORT_SOURCES, "generated_support.h")
 
 
 #: What both FMI glues build on (the instance, logging, modes, FMU states, the step).
@@ -94,6 +99,15 @@ FLAGS = CoSimulationFlags(
     can_serialize_fmu_state=True,
     can_not_use_memory_management_functions=False,
 )
+
+
+def check_fmi_version(fmi_version: object) -> str:
+    """``fmi_version`` if a glue exists for it (a key of :data:`FMI_APIS`); else
+    :class:`ExportError` naming the versions there are."""
+    if not isinstance(fmi_version, str) or fmi_version not in FMI_APIS:
+        raise ExportError(f"fmi_version must be one of {', '.join(FMI_APIS)} (got "
+                          f"{str(fmi_version)[:20]!r})")  # fmt: skip
+    return fmi_version
 
 
 def templates_dir() -> Path:
@@ -220,21 +234,25 @@ def build_generated_component(
     config_header: str,
     generated_by: str,
     tool: str,
+    fmi_version: str = "2.0",
 ) -> None:
-    """Lay out the FMI 2.0 C FMU of a component whose arithmetic is generated (the MPC
-    controller, the observer) in ``fmu_dir``: the generated ``<generated_stem>.c``/``.h`` are
-    already in ``fmu_dir/sources``; this adds the FMI 2.0 glue and headers, ``component.h``,
-    the component's fixed ``component_files`` (its ``.c`` first), ``model_config.h``,
-    ``BUILD.txt``, the host's binary and ``modelDescription.xml`` (``desc`` as
-    :func:`~gatetwin.fmu.description.model_description_xml` takes it)."""
-    from fmpy import platform, sharedLibraryExtension
+    """Lay out the C FMU of a component whose arithmetic is generated (the MPC controller,
+    the observer) in ``fmu_dir``: the generated ``<generated_stem>.c``/``.h`` are already in
+    ``fmu_dir/sources``; this adds ``fmi_version``'s glue and headers, ``component.h``,
+    :data:`GENERATED_SUPPORT_FILES`, the component's fixed ``component_files`` (its ``.c``
+    first), ``model_config.h``, ``BUILD.txt``, the host's binary and ``modelDescription.xml``
+    (``desc`` as :func:`~gatetwin.fmu.description.model_description_xml` takes it). The
+    component is the same under either API: only the glue and the description's rendering
+    differ."""
+    from fmpy import platform, platform_tuple, sharedLibraryExtension
 
-    api = FMI_APIS["2.0"]
+    api = FMI_APIS[fmi_version]
     sources = fmu_dir / "sources"
-    c_files = (*api.glue_sources, component_files[0], f"{generated_stem}.c")
+    c_files = (*api.glue_sources, *GENERATED_SUPPORT_SOURCES, component_files[0],
+               f"{generated_stem}.c")  # fmt: skip
     templates = templates_dir()
-    for name in (*api.glue_sources, *component_files, *api.glue_headers, "component.h",
-                 api.license):  # fmt: skip
+    for name in (*api.glue_sources, *GENERATED_SUPPORT_FILES, *component_files,
+                 *api.glue_headers, "component.h", api.license):  # fmt: skip
         shutil.copyfile(templates / name, sources / name)
     (sources / "model_config.h").write_text(config_header, encoding="utf-8")
     line = " ".join(["cc", *CFLAGS, "-o", f"{desc.model_identifier}.so", *c_files, "-lm"])
@@ -245,11 +263,13 @@ def build_generated_component(
         encoding="utf-8",
     )
     name = f"{desc.model_identifier}{sharedLibraryExtension}"
-    binary = fmu_dir / "binaries" / platform / name
+    folder = platform if fmi_version == "2.0" else platform_tuple
+    binary = fmu_dir / "binaries" / folder / name
     binary.parent.mkdir(parents=True)
     compile_shared(sources, c_files, binary)
     flags = dataclasses.replace(FLAGS, source_files=c_files)
-    (fmu_dir / "modelDescription.xml").write_bytes(model_description_xml(desc, flags, tool=tool))
+    render = model_description_xml if fmi_version == "2.0" else model_description_xml3
+    (fmu_dir / "modelDescription.xml").write_bytes(render(desc, flags, tool=tool))
 
 
 def compile_shared(

@@ -44,6 +44,7 @@ from gatetwin.fmu.c_build import (
     FLAGS,
     FMI_APIS,
     build_description_xml,
+    check_fmi_version,
     compile_shared,
     templates_dir,
     zip_folder,
@@ -131,10 +132,7 @@ class ControllerDescription:
 def pi_files(fmi_version: str = "2.0") -> tuple[tuple[str, ...], tuple[str, ...]]:
     """The C files (in compile order) and the headers of the PI controller FMU that carries
     ``fmi_version``'s API; raises :class:`ExportError` for a version no glue exists for."""
-    api = FMI_APIS.get(fmi_version) if isinstance(fmi_version, str) else None
-    if api is None:
-        raise ExportError(f"fmi_version must be one of {', '.join(FMI_APIS)} (got "
-                          f"{str(fmi_version)[:20]!r})")  # fmt: skip
+    api = FMI_APIS[check_fmi_version(fmi_version)]
     return (*api.glue_sources, *PI_COMPONENT_SOURCES), (*api.glue_headers, *PI_COMPONENT_HEADERS)
 
 
@@ -146,14 +144,13 @@ def _export_mpc(model: ModelFile, out_path: str | os.PathLike[str],
 
     from gatetwin.fmu.mpc_controller import export_mpc_controller
 
-    if fmi_version != "2.0":
-        raise ExportError("the MPC controller FMU is built as FMI 2.0 only (--fmi 2)")
     plant = model.plant
     if without_effects and isinstance(plant, FopdtPlant):
         plant = replace(plant, effects=())
     return export_mpc_controller(plant, out_path,
                                  settings=settings.mpc if settings else None,
-                                 model_name=model_name or f"{model.name}_mpc")  # fmt: skip
+                                 model_name=model_name or f"{model.name}_mpc",
+                                 fmi_version=fmi_version)  # fmt: skip
 
 
 def check_controller_kind(kind: str) -> None:
@@ -386,8 +383,7 @@ def export_controller(
         A read model file (:func:`gatetwin.modelfile.read_model_file`) of an FOPDT plant.
     kind : {"pi", "mpc"}
         ``"pi"``: the SIMC PI; ``"mpc"``: the demo's single-point MPC
-        (:func:`gatetwin.fmu.mpc_controller.export_mpc_controller`, FMI 2.0, with
-        ``settings.mpc``).
+        (:func:`gatetwin.fmu.mpc_controller.export_mpc_controller`, with ``settings.mpc``).
     out_path : path
         Target ``.fmu``, written atomically (built next to it, moved into place on success).
     settings : DemoSettings, optional
@@ -404,7 +400,7 @@ def export_controller(
     Raises
     ------
     ExportError
-        Unknown or unbuilt kind or FMI version, a model that is not an FOPDT, no C compiler,
+        Unknown kind or FMI version, a model that is not an FOPDT, no C compiler,
         build failure.
     OutputError
         The FMU cannot be written where asked.

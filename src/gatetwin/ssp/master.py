@@ -21,7 +21,9 @@ times as there are components (outputs read in initialisation mode: each one's v
 rest), then each component leaves initialisation mode in document order.
 
 The result (:class:`SspRun`) holds, per communication point, every component input as the
-component received it for the step from that point, and the system inputs.
+component received it for the step from that point, the system inputs, and the outputs of
+every monitor (a component no other component reads from, such as the observer) as they
+stand after its step from that point.
 """
 
 from __future__ import annotations
@@ -74,7 +76,8 @@ class SspRun:
     """A run of :func:`simulate_ssp`: ``columns[name][k]`` at ``time_s[k]``.
 
     Columns are ``<element>.<input>`` (what the component received for the step from
-    ``time_s[k]``) and ``<system input>``.
+    ``time_s[k]``), ``<system input>`` and a monitor's ``<element>.<output>`` (its value
+    after the step from ``time_s[k]``).
     """
 
     time_s: np.ndarray
@@ -279,6 +282,12 @@ class _Master:
                 vr = self.vrs[c.name]
                 self.slaves[c.name].setReal([vr[n] for n in own], list(own.values()))
 
+    def monitors(self) -> set[str]:
+        """Components whose outputs no other component reads."""
+        read = {start for start, _, end, _ in self.system.connections
+                if start is not None and end is not None}  # fmt: skip
+        return {c.name for c in self.system.components} - read
+
     def close(self) -> None:
         for slave in self.slaves.values():
             try:
@@ -303,6 +312,12 @@ def _initialize(m: _Master, start: float) -> None:
         m.pull_outputs(c)
 
 
+def _log_outputs(m: _Master, c: SspComponent, rows: dict[str, list[float]]) -> None:
+    for connector, kind in c.connectors.items():
+        if kind == "output":
+            rows.setdefault(f"{c.name}.{connector}", []).append(m.values[(c.name, connector)])
+
+
 def _run(m: _Master, h: float) -> SspRun:
     start, stop = m.system.start_time_s, m.system.stop_time_s
     n = int(round((stop - start) / h))
@@ -311,6 +326,7 @@ def _run(m: _Master, h: float) -> SspRun:
                        f"{MAX_STEPS}")  # fmt: skip
     rows: dict[str, list[float]] = {}
     times = start + np.arange(n) * h
+    monitors = m.monitors()
     for k in range(n):
         t = float(times[k])
         m.set_system_inputs(t)
@@ -321,6 +337,8 @@ def _run(m: _Master, h: float) -> SspRun:
                 rows.setdefault(f"{c.name}.{connector}", []).append(value)
             m.slaves[c.name].doStep(currentCommunicationPoint=t, communicationStepSize=h)
             m.pull_outputs(c)
+            if c.name in monitors:
+                _log_outputs(m, c, rows)
     for slave in m.slaves.values():
         slave.terminate()
     return SspRun(times, {k: np.array(v) for k, v in rows.items()}, h)

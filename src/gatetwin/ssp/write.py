@@ -1,20 +1,30 @@
 """Pack the closed loop of a model as an SSP 1.0 System Structure package (``.ssp``).
 
 The package holds ``SystemStructure.ssd``, the plant FMU (``resources/plant.fmu``, C
-backend), the controller FMU (``resources/controller.fmu``, :mod:`gatetwin.fmu.controller`)
-and one parameter set (``resources/closed_loop.ssv``) bound to the system. The system
+backend), the controller FMU (``resources/controller.fmu``: the PI of
+:mod:`gatetwin.fmu.controller` or the MPC of :mod:`gatetwin.fmu.mpc_controller`), optionally
+the observer FMU (``resources/observer.fmu``, :mod:`gatetwin.fmu.observer_fmu`) and one
+parameter set (``resources/closed_loop.ssv``) bound to the system. The system
 ``closed_loop`` has
 
-* elements ``controller`` then ``plant`` (the order :func:`gatetwin.ssp.simulate_ssp` steps
-  them in), connected plant ``level_<gauge>_mm`` → controller ``level_<gauge>_mm`` and
-  controller ``opening_mm`` → plant ``opening_mm``;
+* elements ``controller``, ``observer`` (if packed) and ``plant``, in the order
+  :func:`gatetwin.ssp.simulate_ssp` steps them in, connected plant ``level_<gauge>_mm`` →
+  controller ``level_<gauge>_mm`` and controller ``opening_mm`` → plant ``opening_mm``;
+* the observer reads what is measured at the gate: plant ``level_<gauge>_mm``, controller
+  ``opening_mm`` (the opening held from this sample on) and the system's ``flow_m3h``;
+  nothing reads its outputs (the master logs them);
 * inputs ``setpoint_mm`` (→ controller) and ``flow_m3h`` (→ plant and controller), and outputs
   ``level_<gauge>_mm`` and ``opening_mm``;
 * the scenario as system parameters: input ``X`` is piecewise constant, ``X.value[k]`` from
   ``X.time_s[k]`` on (``k`` from 1, the first at the start time); set-points are absolute
   levels (the scenario's offsets added to the plant's steady level at the start inputs);
-* the controller's parameters (start opening, tuning, limits) in the same parameter set,
-  named ``controller.<parameter>``.
+* the controller's parameters in the same parameter set, named ``controller.<parameter>``:
+  the PI's start opening, tuning and limits; the MPC's start opening (its schedule and
+  settings are the FMU's own start values).
+
+The MPC and the observer cover a scheduled FOPDT without effect blocks: for a model with
+effect blocks they are built on its FOPDT with the blocks dropped when asked
+(``without_effects``), while the plant FMU keeps them.
 
 SSD and SSV are checked against the SSP 1.0 schemas before anything is written.
 """
@@ -23,6 +33,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -42,16 +53,24 @@ if TYPE_CHECKING:
     from gatetwin.modelfile import ModelFile
     from gatetwin.mpc.demo import DemoSettings
     from gatetwin.mpc.loop import Scenario
+    from gatetwin.plant.model import FopdtPlant
 
 #: Names inside the package.
 SSD_NAME = "SystemStructure.ssd"
 PLANT_SOURCE = "resources/plant.fmu"
 CONTROLLER_SOURCE = "resources/controller.fmu"
 PARAMETERS_SOURCE = "resources/closed_loop.ssv"
-#: Controller parameters the parameter set carries.
+OBSERVER_SOURCE = "resources/observer.fmu"
+#: Controller parameters the parameter set carries (the PI's; the MPC's: the start opening).
 CONTROLLER_PARAMETERS = ("start_opening_mm", "gain_mm_per_mm", "integral_time_s",
                          "tracking_time_s", "opening_min_mm", "opening_max_mm",
                          "opening_rate_mm_s")  # fmt: skip
+#: The observer FMU's outputs (:data:`gatetwin.mpc.online.OUTPUTS`), with their units.
+OBSERVER_OUTPUTS = (("filtered_level_mm", "mm"), ("disturbance_mm", "mm"),
+                    ("innovation_mm", "mm"), ("innovation_normalised", "1"),
+                    ("predicted_level_mm", "mm"), ("anomaly", "1"),
+                    ("anomaly_samples", "1"), ("anomaly_kind", "1"), ("cusum_high", "1"),
+                    ("cusum_low", "1"), ("innovation_scale", "1"))  # fmt: skip
 #: Unit of each signal the system carries.
 SIGNAL_UNITS = {"setpoint_mm": "mm", "flow_m3h": "m3/h"}
 
@@ -69,14 +88,19 @@ def scenario_signals(
     return {"setpoint_mm": setpoint, "flow_m3h": flow}
 
 
-def _parameters(
-    desc: ControllerDescription, signals: dict[str, list[tuple[float, float]]],
-    start_opening_mm: float,
-) -> list[tuple[str, float, str]]:  # fmt: skip
+def _pi_parameters(desc: ControllerDescription, start_opening_mm: float
+                   ) -> list[tuple[str, float, str]]:  # fmt: skip
+    """The PI's parameters the parameter set carries, as ``(name, value, unit)``."""
     units = {v.name: v.unit for v in desc.variables}
     values = {name: desc.start(name) for name in CONTROLLER_PARAMETERS}
     values["start_opening_mm"] = start_opening_mm
-    out = [(f"controller.{n}", values[n], units[n]) for n in CONTROLLER_PARAMETERS]
+    return [(n, values[n], units[n]) for n in CONTROLLER_PARAMETERS]
+
+
+def _parameters(
+    controller: list[tuple[str, float, str]], signals: dict[str, list[tuple[float, float]]]
+) -> list[tuple[str, float, str]]:
+    out = [(f"controller.{n}", value, unit) for n, value, unit in controller]
     for name, points in signals.items():
         for k, (t, v) in enumerate(points, start=1):
             out += [(f"{name}.time_s[{k}]", t, "s"), (f"{name}.value[{k}]", v, SIGNAL_UNITS[name])]
@@ -90,11 +114,60 @@ def _connector(parent: object, name: str, kind: str, unit: str) -> None:
     etree.SubElement(c, f"{{{SSC}}}Real", unit=unit)
 
 
+def _observer_element(elements: object, level: str) -> None:
+    from lxml import etree
+
+    observer = etree.SubElement(elements, f"{{{SSD}}}Component", name="observer",
+                                type="application/x-fmu-sharedlibrary",
+                                source=OBSERVER_SOURCE)  # fmt: skip
+    o_conn = etree.SubElement(observer, f"{{{SSD}}}Connectors")
+    for cname in (level, "opening_mm"):
+        _connector(o_conn, cname, "input", "mm")
+    _connector(o_conn, "flow_m3h", "input", "m3/h")
+    for cname, unit in OBSERVER_OUTPUTS:
+        _connector(o_conn, cname, "output", unit)
+
+
+def _connections(system: object, level: str, observer: bool) -> None:
+    from lxml import etree
+
+    connections = etree.SubElement(system, f"{{{SSD}}}Connections")
+    links = [(("plant", level), ("controller", level)),
+             (("controller", "opening_mm"), ("plant", "opening_mm")),
+             ((None, "setpoint_mm"), ("controller", "setpoint_mm")),
+             ((None, "flow_m3h"), ("plant", "flow_m3h")),
+             ((None, "flow_m3h"), ("controller", "flow_m3h")),
+             (("plant", level), (None, level)),
+             (("controller", "opening_mm"), (None, "opening_mm"))]  # fmt: skip
+    if observer:
+        links += [(("plant", level), ("observer", level)),
+                  (("controller", "opening_mm"), ("observer", "opening_mm")),
+                  ((None, "flow_m3h"), ("observer", "flow_m3h"))]  # fmt: skip
+    for start, end in links:
+        attrs = {"startConnector": start[1], "endConnector": end[1]}
+        attrs.update({"startElement": start[0]} if start[0] else {})
+        attrs.update({"endElement": end[0]} if end[0] else {})
+        etree.SubElement(connections, f"{{{SSD}}}Connection", attrs)
+
+
+def _units(root: object, used: set[str]) -> None:
+    from lxml import etree
+
+    units = etree.SubElement(root, f"{{{SSD}}}Units")
+    for unit in sorted(used):
+        _, exponents, factor = UNITS[unit]
+        u = etree.SubElement(units, f"{{{SSC}}}Unit", name=unit)
+        base = {k: str(v) for k, v in exponents.items()}
+        base.update({"factor": repr(factor)} if factor != 1.0 else {})
+        etree.SubElement(u, f"{{{SSC}}}BaseUnit", base)
+
+
 def ssd_xml(
     name: str, gauge: str, parameters: list[tuple[str, float, str]], stop_time_s: float,
-    description: str,
+    description: str, *, observer: bool = False,
 ) -> bytes:  # fmt: skip
-    """``SystemStructure.ssd`` of the closed loop (see the module)."""
+    """``SystemStructure.ssd`` of the closed loop (see the module), with the observer's
+    element and connections if ``observer``."""
     from lxml import etree
 
     level = output_name(gauge)
@@ -127,6 +200,8 @@ def ssd_xml(
     for pname, _, unit in parameters:
         if pname.startswith("controller."):
             _connector(c_conn, pname.split(".", 1)[1], "parameter", unit)
+    if observer:
+        _observer_element(elements, level)
     plant = etree.SubElement(
         elements,
         f"{{{SSD}}}Component",
@@ -141,25 +216,9 @@ def ssd_xml(
         (level, "output", "mm"),
     ):
         _connector(p_conn, cname, kind, unit)  # fmt: skip
-    connections = etree.SubElement(system, f"{{{SSD}}}Connections")
-    for start, end in ((("plant", level), ("controller", level)),
-                       (("controller", "opening_mm"), ("plant", "opening_mm")),
-                       ((None, "setpoint_mm"), ("controller", "setpoint_mm")),
-                       ((None, "flow_m3h"), ("plant", "flow_m3h")),
-                       ((None, "flow_m3h"), ("controller", "flow_m3h")),
-                       (("plant", level), (None, level)),
-                       (("controller", "opening_mm"), (None, "opening_mm"))):  # fmt: skip
-        attrs = {"startConnector": start[1], "endConnector": end[1]}
-        attrs.update({"startElement": start[0]} if start[0] else {})
-        attrs.update({"endElement": end[0]} if end[0] else {})
-        etree.SubElement(connections, f"{{{SSD}}}Connection", attrs)
-    units = etree.SubElement(root, f"{{{SSD}}}Units")
-    for unit in sorted({u for _, _, u in parameters} | {"mm", "m3/h"}):
-        _, exponents, factor = UNITS[unit]
-        u = etree.SubElement(units, f"{{{SSC}}}Unit", name=unit)
-        base = {k: str(v) for k, v in exponents.items()}
-        base.update({"factor": repr(factor)} if factor != 1.0 else {})
-        etree.SubElement(u, f"{{{SSC}}}BaseUnit", base)
+    _connections(system, level, observer)
+    used = {u for _, _, u in parameters} | {"mm", "m3/h"}
+    _units(root, used | ({u for _, u in OBSERVER_OUTPUTS} if observer else set()))
     etree.SubElement(root, f"{{{SSD}}}DefaultExperiment", startTime="0.0",
                      stopTime=repr(float(stop_time_s)))  # fmt: skip
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
@@ -172,27 +231,39 @@ def write_ssp(
     controller: str = "pi",
     scenario: Scenario | None = None,
     settings: DemoSettings | None = None,
+    observer: bool = False,
+    without_effects: bool = False,
 ) -> Path:
     """Write the closed loop of ``model`` (plant FMU + controller FMU) as an SSP.
 
     Parameters
     ----------
     model : ModelFile
-        An FOPDT model file (the PI is SIMC-tuned from it).
+        An FOPDT model file (the PI is SIMC-tuned from it, the MPC and the observer use its
+        schedule).
     out_path : path
         Target ``.ssp``, written atomically.
     controller : {"pi", "mpc"}
-        ``"mpc"`` raises :class:`~gatetwin.errors.ExportError` (not packed yet).
+        The PI (:mod:`gatetwin.fmu.controller`) or the MPC
+        (:mod:`gatetwin.fmu.mpc_controller`, with ``settings.mpc``: its horizon sets the
+        build's cost).
     scenario : Scenario, optional
         Default: the demo's ``setpoint_steps`` over 30 minutes
         (:func:`gatetwin.mpc.demo.demo_scenarios`).
     settings : DemoSettings, optional
-        The demo's settings (PI limits, start point).
+        The demo's settings (PI limits, MPC settings, start point).
+    observer : bool
+        Also pack the observer FMU, reading the measured level, opening and discharge.
+    without_effects : bool
+        Build the MPC and the observer on the model's FOPDT with its effect blocks dropped
+        (they do not cover them; a model with effect blocks is refused otherwise). The plant
+        FMU keeps them.
 
     Raises
     ------
     ExportError
-        Unbuilt controller, a model that is not an FOPDT, a failed build.
+        Unknown controller, a model that is not an FOPDT, effect blocks the MPC or the
+        observer does not cover, a failed build.
     OutputError
         The package cannot be written where asked.
     """
@@ -200,59 +271,106 @@ def write_ssp(
     from gatetwin.mpc.demo import DemoSettings, demo_scenarios
 
     check_controller_kind(controller)
-    if controller != "pi":
-        raise ExportError(
-            "the SSP packs the PI controller FMU; the MPC controller FMU "
-            "(gatetwin export-controller --kind mpc) is not packed into one yet"
-        )
     target = Path(out_path)
     if target.suffix.lower() != ".ssp":
         raise ExportError(f"output {target} must end in .ssp")
     s = settings or DemoSettings()
     scn = scenario or demo_scenarios(30.0, s)[0]
-    desc = describe_pi_controller(model.plant, f"{model.name}_{controller}", settings=s,
-                                  provenance={"model": model.name,
-                                              "model_sha256": model.sha256})  # fmt: skip
+    covered = _covered_plant(model, controller, observer, without_effects)
+    desc = None
+    if controller == "pi":
+        desc = describe_pi_controller(model.plant, f"{model.name}_{controller}", settings=s,
+                                      provenance={"model": model.name,
+                                                  "model_sha256": model.sha256})  # fmt: skip
+        own = _pi_parameters(desc, scn.opening_mm)
+    else:
+        own = [("start_opening_mm", float(scn.opening_mm), "mm")]
     base = rest_level_mm(model.plant, scn.opening_mm, scn.flow_m3h)
-    parameters = _parameters(desc, scenario_signals(scn, base), scn.opening_mm)
-    text = (f"Closed loop of {model.name} with its {controller.upper()} controller, "
-            f"scenario {scn.name}; inputs are piecewise constant: X.value[k] from X.time_s[k] "
-            "on")  # fmt: skip
-    ssd = ssd_xml(f"{model.name}_closed_loop", model.plant.gauge, parameters, scn.duration_s, text)
+    parameters = _parameters(own, scenario_signals(scn, base))
+    text = (f"Closed loop of {model.name} with its {controller.upper()} controller"
+            f"{' and its observer' if observer else ''}, scenario {scn.name}; inputs are "
+            "piecewise constant: X.value[k] from X.time_s[k] on")  # fmt: skip
+    ssd = ssd_xml(f"{model.name}_closed_loop", model.plant.gauge, parameters, scn.duration_s,
+                  text, observer=observer)  # fmt: skip
     ssv = parameter_set_xml("closed_loop", parameters)
     for xml, schema in ((ssd, SSD_SCHEMA), (ssv, SSV_SCHEMA)):
         problems = schema_problems(xml, schema)
         if problems:
             raise ExportError(f"{target}: the written {schema} document is invalid: {problems[0]}")
+    parts = _Parts(model, desc, covered, s, observer)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
-            _pack(Path(tmp), target, model, desc, ssd, ssv)
+            _pack(Path(tmp), target, parts, ssd, ssv)
     except OSError as exc:
         raise OutputError(f"{target}: cannot write the package ({exc.strerror or exc})") from None
     return target
 
 
-def _pack(work: Path, target: Path, model: ModelFile, desc: ControllerDescription, ssd: bytes,
-          ssv: bytes) -> None:  # fmt: skip
+def _covered_plant(model: ModelFile, controller: str, observer: bool,
+                   without_effects: bool) -> FopdtPlant | None:  # fmt: skip
+    """The plant the MPC and the observer are built on (None when neither is packed)."""
+    from dataclasses import replace
+
+    from gatetwin.plant.model import FopdtPlant
+
+    if controller != "mpc" and not observer:
+        return None
+    what = "the MPC controller" if controller == "mpc" else "the observer"
+    plant = model.plant
+    if not isinstance(plant, FopdtPlant):
+        raise ExportError(f"{what} needs a scheduled FOPDT model; got a {plant.kind} model")
+    if plant.effects and not without_effects:
+        kinds = ", ".join(e["kind"] for e in plant.effects)
+        raise ExportError(f"{what} does not cover effect blocks (the model has {kinds}); "
+                          "--without-effects builds it on the model's FOPDT alone")  # fmt: skip
+    return replace(plant, effects=())
+
+
+@dataclass(frozen=True)
+class _Parts:
+    """What goes into the package besides the documents."""
+
+    model: ModelFile
+    pi: ControllerDescription | None
+    covered: FopdtPlant | None
+    settings: DemoSettings
+    observer: bool
+
+
+def _pack(work: Path, target: Path, parts: _Parts, ssd: bytes, ssv: bytes) -> None:
     from gatetwin.fmu import export_fmu
     from gatetwin.fmu.c_build import zip_folder
-    from gatetwin.fmu.controller import build_controller_fmu
     from gatetwin.fmu.provenance import fmu_provenance
 
+    model = parts.model
     package = work / "package"
     (package / "resources").mkdir(parents=True)
     (package / SSD_NAME).write_bytes(ssd)
     (package / PARAMETERS_SOURCE).write_bytes(ssv)
     export_fmu(model.plant, package / PLANT_SOURCE, backend="c", model_name=model.name,
                provenance=fmu_provenance(model))  # fmt: skip
-    build = work / "controller"
-    build.mkdir()
-    build_controller_fmu(desc, build, package / CONTROLLER_SOURCE)
+    if parts.pi is not None:
+        from gatetwin.fmu.controller import build_controller_fmu
+
+        build = work / "controller"
+        build.mkdir()
+        build_controller_fmu(parts.pi, build, package / CONTROLLER_SOURCE)
+    else:
+        from gatetwin.fmu.mpc_controller import export_mpc_controller
+
+        export_mpc_controller(parts.covered, package / CONTROLLER_SOURCE,
+                              settings=parts.settings.mpc,
+                              model_name=f"{model.name}_mpc")  # fmt: skip
+    if parts.observer:
+        from gatetwin.fmu.observer_fmu import export_observer
+
+        export_observer(parts.covered, package / OBSERVER_SOURCE,
+                        model_name=f"{model.name}_observer")  # fmt: skip
     built = work / target.name
     zip_folder(package, built)
     os.replace(built, target)
 
 
-__all__ = ["CONTROLLER_SOURCE", "PARAMETERS_SOURCE", "PLANT_SOURCE", "SSD_NAME", "scenario_signals",
-           "ssd_xml", "write_ssp"]  # fmt: skip
+__all__ = ["CONTROLLER_SOURCE", "OBSERVER_OUTPUTS", "OBSERVER_SOURCE", "PARAMETERS_SOURCE",
+           "PLANT_SOURCE", "SSD_NAME", "scenario_signals", "ssd_xml", "write_ssp"]  # fmt: skip
