@@ -65,12 +65,16 @@ OBSERVER_SOURCE = "resources/observer.fmu"
 CONTROLLER_PARAMETERS = ("start_opening_mm", "gain_mm_per_mm", "integral_time_s",
                          "tracking_time_s", "opening_min_mm", "opening_max_mm",
                          "opening_rate_mm_s")  # fmt: skip
-#: The observer FMU's outputs (:data:`gatetwin.mpc.online.OUTPUTS`), with their units.
-OBSERVER_OUTPUTS = (("filtered_level_mm", "mm"), ("disturbance_mm", "mm"),
-                    ("innovation_mm", "mm"), ("innovation_normalised", "1"),
-                    ("predicted_level_mm", "mm"), ("anomaly", "1"),
-                    ("anomaly_samples", "1"), ("anomaly_kind", "1"), ("cusum_high", "1"),
-                    ("cusum_low", "1"), ("innovation_scale", "1"))  # fmt: skip
+
+
+def observer_outputs() -> tuple[tuple[str, str], ...]:
+    """The observer FMU's outputs (:data:`gatetwin.mpc.online.OUTPUTS`) with their units: mm
+    for the ``_mm`` ones, 1 for the others (imported here: the observer loads casadi)."""
+    from gatetwin.mpc.online import OUTPUTS
+
+    return tuple((name, "mm" if name.endswith("_mm") else "1") for name in OUTPUTS)
+
+
 #: Unit of each signal the system carries.
 SIGNAL_UNITS = {"setpoint_mm": "mm", "flow_m3h": "m3/h"}
 
@@ -124,7 +128,7 @@ def _observer_element(elements: object, level: str) -> None:
     for cname in (level, "opening_mm"):
         _connector(o_conn, cname, "input", "mm")
     _connector(o_conn, "flow_m3h", "input", "m3/h")
-    for cname, unit in OBSERVER_OUTPUTS:
+    for cname, unit in observer_outputs():
         _connector(o_conn, cname, "output", unit)
 
 
@@ -218,7 +222,7 @@ def ssd_xml(
         _connector(p_conn, cname, kind, unit)  # fmt: skip
     _connections(system, level, observer)
     used = {u for _, _, u in parameters} | {"mm", "m3/h"}
-    _units(root, used | ({u for _, u in OBSERVER_OUTPUTS} if observer else set()))
+    _units(root, used | ({u for _, u in observer_outputs()} if observer else set()))
     etree.SubElement(root, f"{{{SSD}}}DefaultExperiment", startTime="0.0",
                      stopTime=repr(float(stop_time_s)))  # fmt: skip
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
@@ -372,5 +376,5 @@ def _pack(work: Path, target: Path, parts: _Parts, ssd: bytes, ssv: bytes) -> No
     os.replace(built, target)
 
 
-__all__ = ["CONTROLLER_SOURCE", "OBSERVER_OUTPUTS", "OBSERVER_SOURCE", "PARAMETERS_SOURCE",
-           "PLANT_SOURCE", "SSD_NAME", "scenario_signals", "ssd_xml", "write_ssp"]  # fmt: skip
+__all__ = ["CONTROLLER_SOURCE", "OBSERVER_SOURCE", "PARAMETERS_SOURCE", "PLANT_SOURCE",
+           "SSD_NAME", "observer_outputs", "scenario_signals", "ssd_xml", "write_ssp"]  # fmt: skip
