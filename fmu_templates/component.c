@@ -34,3 +34,21 @@ PlantStatus plant_check_parameter_values(const double *real, PlantMessage *msg)
     }
     return PLANT_OK;
 }
+
+PlantStatus component_check_flags(const int *flags, int n_flags, int state_initialized,
+                                  int initialized, PlantMessage *msg)
+{
+    int i;
+    for (i = 0; i < n_flags; i++) {
+        if (flags[i] != 0 && flags[i] != 1) {
+            plant_message(msg, "state flag %d is %d, not 0 or 1", i, flags[i]);
+            return PLANT_ERROR;
+        }
+    }
+    if (state_initialized != initialized) {
+        plant_message(msg, "state says initialised = %d, its mode needs %d", state_initialized,
+                      initialized);
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
+}

@@ -40,6 +40,10 @@ void plant_message(PlantMessage *msg, const char *format, ...)
 /* Every tunable and fixed parameter in `real` (indexed by value reference) finite and within
  * GT_PARAMETER_MAX_ABS; else PLANT_ERROR naming the first that is not. */
 PlantStatus plant_check_parameter_values(const double *real, PlantMessage *msg);
+/* A restored state's first checks: each of its n_flags flags is 0 or 1, and the state's
+ * `initialized` flag (state_initialized) is the one the instance's mode needs. */
+PlantStatus component_check_flags(const int *flags, int n_flags, int state_initialized,
+                                  int initialized, PlantMessage *msg);
 
 #include GT_COMPONENT_HEADER /* ModelData */
 

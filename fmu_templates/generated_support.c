@@ -146,16 +146,7 @@ PlantStatus gt_finite_outputs(const ModelData *m, const char *what, PlantMessage
 PlantStatus gt_check_state_head(const ModelData *m, const int *flags, int n_flags,
                                 int initialized, PlantMessage *msg)
 {
-    int i;
-    for (i = 0; i < n_flags; i++) {
-        if (flags[i] != 0 && flags[i] != 1) {
-            plant_message(msg, "state flag %d is %d, not 0 or 1", i, flags[i]);
-            return PLANT_ERROR;
-        }
-    }
-    if (m->initialized != initialized) {
-        plant_message(msg, "state says initialised = %d, its mode needs %d", m->initialized,
-                      initialized);
+    if (component_check_flags(flags, n_flags, m->initialized, initialized, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     if (!(fabs(m->time_s) <= GT_MAX_TIME_S) || !gt_all_finite(m->real, GT_N_REAL)) {

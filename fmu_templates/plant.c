@@ -323,19 +323,7 @@ static PlantStatus check_cache(const ModelData *m, PlantMessage *msg)
 static PlantStatus check_flags(const ModelData *m, int initialized, PlantMessage *msg)
 {
     const int flags[3] = {m->initialized, m->warned_validity, m->parameters_changed};
-    int i;
-    for (i = 0; i < 3; i++) {
-        if (flags[i] != 0 && flags[i] != 1) {
-            plant_message(msg, "state flag %d is %d, not 0 or 1", i, flags[i]);
-            return PLANT_ERROR;
-        }
-    }
-    if (m->initialized != initialized) {
-        plant_message(msg, "state says initialised = %d, its mode needs %d", m->initialized,
-                      initialized);
-        return PLANT_ERROR;
-    }
-    return PLANT_OK;
+    return component_check_flags(flags, 3, m->initialized, initialized, msg);
 }
 
 PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage *msg)
