@@ -60,6 +60,7 @@ def test_every_gate_gets_a_model_set_and_the_summary_lists_it(serial):
         assert {"fopdt", "physical"} <= names, (gate, names)
 
 
+@pytest.mark.slow  # ~30 s; tests/test_fleet_routine.py keeps a 2-process pool in the default run
 def test_a_process_pool_writes_the_same_model_files(district, serial, tmp_path):
     out = tmp_path / "pool"
     done = _models("--records", str(district), "--out", str(out), "--workers", "2")
@@ -78,6 +79,7 @@ def _dask_models(district: Path, tmp_path: Path) -> Path:
         return out
 
 
+@pytest.mark.slow  # ~30 s; the default run keeps dask through tests/test_validate_spread.py (~15 s)
 def test_a_dask_scheduler_and_two_workers_write_the_same_model_files(district, serial,
                                                                      tmp_path):  # fmt: skip
     out = _dask_models(district, tmp_path)

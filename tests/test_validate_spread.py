@@ -51,7 +51,6 @@ def test_a_process_pool_gives_the_serial_findings(fmu, serial, tmp_path):
     assert pooled["passed"] == serial["passed"]
 
 
-@pytest.mark.slow  # the dask path of the shared executor also runs in test_fleet.py by default
 def test_a_dask_cluster_gives_the_serial_findings(fmu, serial, tmp_path):
     with dask_cluster(tmp_path) as address:
         spread = _validate(fmu, tmp_path / "v.json", "--scheduler", address)
