@@ -30,10 +30,17 @@ from gatetwin.fmu.slave_guard import GuardedSlave, RefusedError  # replaced by i
 from gatetwin.fmu.slave_state import StateError, check_state  # replaced by its source at export
 
 # END gatetwin.fmu.slave_state
+# BEGIN gatetwin.plant.elementary
+from gatetwin.plant import elementary  # noqa: F401 - replaced at export by its source
+
+# END gatetwin.plant.elementary
+# isort: split
 # BEGIN gatetwin.plant.physical_kernel
 from gatetwin.plant import physical_kernel  # replaced at export by the module's source
+from gatetwin.plant.model import physical_kernel_portable  # replaced at export too
 
 # END gatetwin.plant.physical_kernel
+# isort: split
 # BEGIN gatetwin.plant.blocks
 from gatetwin.plant.blocks import (  # replaced by the module's source at export
     arx_envelope_coefficients,
@@ -412,8 +419,8 @@ class GatetwinPlant(GuardedSlave):
         e = u + self.real[self.vr_opening_ref]
         depth = self._physical_depth(e, q)
         return (
-            physical_kernel.level_mm(depth, e, q, p),
-            physical_kernel.time_constant_s(depth, e, q, p),
+            physical_kernel_portable.level_mm(depth, e, q, p),
+            physical_kernel_portable.time_constant_s(depth, e, q, p),
         )
 
     def _level_offset(self, q: float) -> float:
@@ -423,7 +430,7 @@ class GatetwinPlant(GuardedSlave):
         p = self._physical()
         low, high = physical_kernel.DEPTH_BRACKET_M
         for _ in range(physical_kernel.BISECTION_STEPS):
-            low, high = physical_kernel.bisection_step(low, high, gate_mm, q, p)
+            low, high = physical_kernel_portable.bisection_step(low, high, gate_mm, q, p)
         return 0.5 * (low + high)
 
     def _physical_level(self, depth_m: float, gate_mm: float, q: float) -> float:

@@ -33,6 +33,7 @@ from gatetwin.errors import ModelFileError
 from gatetwin.plant import blocks
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import EffectSet, parse_effects
+from gatetwin.plant.kernel_render import portable_kernel
 
 #: Inputs outside these bounds are physically impossible for any gate we model.
 OPENING_RANGE_MM = (0.0, 2000.0)
@@ -295,12 +296,19 @@ class PhysicalPlant:
         )
 
 
+#: The kernel with gatetwin.plant.elementary's exp and log, as the C FMU computes it, for the
+#: envelope's steady point: its time constant is a central difference over 2e-6 m of depth,
+#: which turns an ulp of exp into ~1e-10 of T, and an envelope ARX's pole near 1 carries that
+#: into nanometres of level; computed with the same functions, Python and C agree to the bit.
+physical_kernel_portable = portable_kernel(kernel)
+
+
 def envelope_point(opening_mm: float, flow_m3h: float, p: list[float]) -> tuple[float, float]:
     """Steady level at the gauge (mm) and small-signal time constant (s) at (Q, e)."""
     depth = steady_depth_m(opening_mm, flow_m3h, p)
     return (
-        kernel.level_mm(depth, opening_mm, flow_m3h, p),
-        kernel.time_constant_s(depth, opening_mm, flow_m3h, p),
+        physical_kernel_portable.level_mm(depth, opening_mm, flow_m3h, p),
+        physical_kernel_portable.time_constant_s(depth, opening_mm, flow_m3h, p),
     )
 
 
@@ -337,7 +345,7 @@ def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     """The kernel's bisection, run to its fixed number of steps (as the C FMU runs it)."""
     low, high = kernel.DEPTH_BRACKET_M
     for _ in range(kernel.BISECTION_STEPS):
-        low, high = kernel.bisection_step(low, high, opening_mm, flow_m3h, p)
+        low, high = physical_kernel_portable.bisection_step(low, high, opening_mm, flow_m3h, p)
     return 0.5 * (low + high)
 
 
