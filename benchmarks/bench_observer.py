@@ -11,9 +11,13 @@ the default horizon, noise levels and anomaly settings) and runs it through fmpy
   noise of the observer's measurement SD, then the same effects ("model": a record the model
   explains, so the innovation's statistics are the filter's own).
 
+Then the envelope observer of ``models/physical_3F.json`` (Python; re-linearised at every
+sample, with the slow rule; thresholds calibrated on flume records that are not bundled by
+``benchmarks/calibrate_observer.py``) over the same clean records and flume bases.
+
 Prints the rises of the flag on the clean records (with the largest run outside the band and
 the largest CUSUM, against the thresholds), the detection delay (s from the onset to the
-flag, the rule that raised it: f fast, p persistent; "-" never within the record) per effect
+flag, the rule that raised it: f fast, p persistent, s slow; "-" never within the record) per effect
 and base, the false alarms, and the time the FMU and the Python observer take per record
 (ratio measured in this run). ``--band``, ``--run-samples``, ``--cusum-slack`` and
 ``--cusum-threshold`` override the defaults.
@@ -35,7 +39,13 @@ from gatetwin.diagnose.onset import ONSET_EFFECTS, detection, first_move_after, 
 from gatetwin.fmu.observer_fmu import export_observer, run_observer_fmu
 from gatetwin.modelfile import read_model_file
 from gatetwin.mpc.observer_codegen import LIMITS
-from gatetwin.mpc.online import MONITORING, AnomalySettings, OnlineObserver, measured_inputs
+from gatetwin.mpc.online import (
+    ENVELOPE_ANOMALY,
+    MONITORING,
+    AnomalySettings,
+    OnlineObserver,
+    measured_inputs,
+)
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import read_record
 
@@ -54,18 +64,19 @@ def _records() -> dict[str, tuple[np.ndarray, ...]]:
     return out
 
 
-def _delays(fmu: Path, plant, bases: dict, params: dict) -> dict[str, list[str]]:
+def _delays(run, plant, bases: dict) -> dict[str, list[str]]:
+    """``run(level, opening, flow)`` gives the observer's outputs."""
     table: dict[str, list[str]] = {}
     for t, y, e, q in bases.values():
         onset = first_move_after(t, e)
         for effect in ONSET_EFFECTS:
             level = with_onset(plant, t, y, e, q, effect, onset)
-            out = run_observer_fmu(fmu, level, e, q, params)
+            out = run(level, e, q)
             found = detection(t, out["anomaly"], onset)
             cell = "-"
             if not np.isnan(found.delay_s):
                 at = onset + int(np.flatnonzero(out["anomaly"][onset:] > 0.5)[0])
-                cell = f"{found.delay_s:.1f} {'fp'[int(out['anomaly_kind'][at]) - 1]}"
+                cell = f"{found.delay_s:.1f} {'fps'[int(out['anomaly_kind'][at]) - 1]}"
             if found.false_alarms:
                 cell += f" ({found.false_alarms} FA)"
             table.setdefault(effect, []).append(cell)
@@ -114,7 +125,8 @@ def main() -> None:
             )
         print(f"  {hours:.2f} h of clean records")
         flume = {n: records[n][:4] for n in BASES}
-        _print_table("flume (bundled records)", _delays(fmu, plant, flume, params))
+        fmu_run = lambda y, e, q: run_observer_fmu(fmu, y, e, q, params)  # noqa: E731
+        _print_table("flume (bundled records)", _delays(fmu_run, plant, flume))
         truth = dataclasses.replace(plant, envelope=None)
         rng = np.random.default_rng(SEED)
         model = {}
@@ -122,7 +134,7 @@ def main() -> None:
             noise = MONITORING.measurement_sd_mm * rng.standard_normal(t.size)
             model[n] = (t, simulate(truth, t, e, q) + noise, e, q)
         _print_table("model (the observer's model + white noise)",
-                     _delays(fmu, truth, model, params))  # fmt: skip
+                     _delays(fmu_run, truth, model))  # fmt: skip
         t, y, e, q, _ = records["C"]
         start = time.perf_counter()
         run_observer_fmu(fmu, y, e, q, params)
@@ -132,6 +144,32 @@ def main() -> None:
         py_s = time.perf_counter() - start
         print(f"\nrecord C ({t.size} samples): FMU via fmpy {fmu_s:.3f} s, Python {py_s:.3f} s, "
               f"ratio Python/FMU {py_s / fmu_s:.1f}")  # fmt: skip
+    _envelope(records, plant)
+
+
+def _envelope(records: dict, truth) -> None:
+    """The envelope observer (Python) over the clean records and the flume bases."""
+    physical = read_model_file(ROOT / "models/physical_3F.json").plant
+    physical = dataclasses.replace(physical, effects=())
+    print(f"\nenvelope observer of physical_3F (effects dropped), {ENVELOPE_ANOMALY}")
+    print("clean records: rises, longest run (flag at "
+          f"{ENVELOPE_ANOMALY.run_samples}), CUSUM (flag at "
+          f"{ENVELOPE_ANOMALY.cusum_threshold:g}), slow CUSUM (flag at "
+          f"{ENVELOPE_ANOMALY.slow_threshold:g})")  # fmt: skip
+    total = 0
+    for name, (t, y, e, q, role) in records.items():
+        out = OnlineObserver(physical).run(y, e, q)
+        found = detection(t, out["anomaly"], None)
+        total += found.false_alarms
+        cusum = max(out["cusum_high"].max(), out["cusum_low"].max())
+        print(f"  {name:10s} {role:10s} {found.false_alarms}  run "
+              f"{int(out['anomaly_samples'].max())}  CUSUM {cusum:.1f}  slow CUSUM "
+              f"{out['slow_cusum'].max():.1f}")  # fmt: skip
+    print(f"  false alarms on the clean bundled records: {total}")
+    flume = {n: records[n][:4] for n in BASES}
+    envelope_run = lambda y, e, q: OnlineObserver(physical).run(y, e, q)  # noqa: E731
+    _print_table("envelope observer, flume (bundled records)",
+                 _delays(envelope_run, truth, flume))  # fmt: skip
 
 
 if __name__ == "__main__":
