@@ -12,8 +12,10 @@ import numpy as np
 import pytest
 
 from gatetwin.diagnose.onset import detection, with_onset
+from gatetwin.errors import FlumeError
 from gatetwin.flume.envelope import random_moves_scenario
 from gatetwin.flume.experiments import run_scenario
+from gatetwin.flume.scenario import with_inflow
 from gatetwin.modelfile import read_model_file
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.online import ENVELOPE_ANOMALY, OUTPUTS, AnomalySettings, OnlineObserver
@@ -43,12 +45,16 @@ def plant():
                                effects=())  # fmt: skip
 
 
+def _scenario():
+    return random_moves_scenario("T50", 50.0, SEED, n_moves=6)
+
+
 @pytest.fixture(scope="module")
 def record():
     """A clean flume record: six random gate moves at 50 m3/h (1120 s), gauge 3F."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        rec = run_scenario(random_moves_scenario("T50", 50.0, SEED, n_moves=6))
+        rec = run_scenario(_scenario())
     e = np.asarray(rec.opening_mm, dtype=float)
     known = np.flatnonzero(np.isfinite(e))
     e = e[known[np.minimum(np.searchsorted(known, np.arange(e.size)), known.size - 1)]]
@@ -85,6 +91,27 @@ def test_a_hidden_effect_is_flagged_within_its_bound(plant, record, effect, para
     found = detection(t, out["anomaly"], onset)
     assert found.false_alarms == 0
     assert found.delay_s <= bound_s, f"{effect}: flagged after {found.delay_s} s"
+
+
+def test_the_flumes_own_unseen_inflow_is_flagged_within_its_bound(plant, record):
+    """The flume run again with 5 m3/h more from the onset on; the logged discharge is the
+    clean run's (the same seed: the same logger noise)."""
+    t, _, e, q = record
+    onset = _onset(t, e)
+    scn = with_inflow(_scenario(), (onset - 0.5) * 1.2, 5.0)
+    assert scn.flow_m3h == ((0.0, 50.0), ((onset - 0.5) * 1.2, 55.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        level = run_scenario(scn).levels_mm["3F"]
+    out = OnlineObserver(plant).run(level, e, q)
+    found = detection(t, out["anomaly"], onset)
+    assert found.false_alarms == 0
+    assert found.delay_s <= INFLOW_BOUND_S, f"flagged after {found.delay_s} s"
+
+
+def test_an_inflow_outside_the_scenario_is_refused():
+    with pytest.raises(FlumeError, match="inflow start"):
+        with_inflow(_scenario(), 0.0, 5.0)
 
 
 def test_the_schedule_observer_is_unchanged_by_the_envelope_option():

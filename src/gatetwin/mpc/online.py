@@ -408,6 +408,8 @@ class OnlineObserver:
         The observer's sample period, s.
     linearisation : str
         One of :data:`LINEARISATIONS`; ``auto`` takes the envelope for a physical plant.
+    slow_settings : ObserverSettings
+        Noise levels of the slow rule's filter (envelope observer only).
 
     Examples
     --------
@@ -430,6 +432,7 @@ class OnlineObserver:
     anomaly: AnomalySettings | None = None
     sample_period_s: float = SAMPLE_PERIOD_S
     linearisation: str = "auto"
+    slow_settings: ObserverSettings = SLOW_MONITORING
 
     def __post_init__(self) -> None:
         if self.linearisation not in LINEARISATIONS:
@@ -448,7 +451,7 @@ class OnlineObserver:
         self.samples_ahead = forecast_samples(self.horizon_s, self.sample_period_s)
         self.observer = DisturbanceObserver(self.settings)
         #: The slow rule's filter (envelope observer only).
-        self.slow_observer = DisturbanceObserver(SLOW_MONITORING)
+        self.slow_observer = DisturbanceObserver(self.slow_settings)
         self._model: DiscreteModel | None = None
         self._monitor: tuple[float, ...] = ()
         self._slow: tuple[float, ...] = ()
