@@ -139,3 +139,36 @@ def test_refusals(plant):
         OnlineObserver(plant, linearisation="schedule")
     with pytest.raises(ControlError, match="slow_threshold"):
         AnomalySettings(slow_threshold=float("nan"))
+
+
+def test_observe_writes_the_python_observers_estimates(plant, tmp_path, capsys):
+    from gatetwin.bundled import bundled_records_dir
+    from gatetwin.cli import main
+    from gatetwin.mpc.online import measured_inputs
+    from gatetwin.records import read_record
+
+    path = bundled_records_dir() / "Q55.csv"
+    out = tmp_path / "est.csv"
+    model = str(ROOT / "models/physical_3F.json")
+    assert main(["observe", model, str(path), "--gauge", "3F", "--out", str(out),
+                 "--without-effects"]) == 0  # fmt: skip
+    table = np.genfromtxt(out, delimiter=",", names=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        ref = OnlineObserver(plant).run(*measured_inputs(read_record(path), "3F"))
+    for key in (*OUTPUTS, "slow_cusum"):  # written with 10 significant digits
+        np.testing.assert_allclose(table[key], ref[key], rtol=1e-9, atol=1e-9, err_msg=key)
+    assert "envelope observer" in capsys.readouterr().out
+
+
+def test_observe_refuses_a_missing_gauge_without_writing(tmp_path, capsys):
+    from gatetwin.bundled import bundled_records_dir
+    from gatetwin.cli import main
+
+    out = tmp_path / "est.csv"
+    model = str(ROOT / "models/physical_3F.json")
+    assert main(["observe", model, str(bundled_records_dir() / "Q55.csv"), "--gauge", "9Z",
+                 "--out", str(out), "--without-effects"]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert "no level column for gauge 9Z" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
