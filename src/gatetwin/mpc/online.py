@@ -380,7 +380,9 @@ def checked_plant(
                                f"physical plant (got {kind} without an envelope)")  # fmt: skip
     elif not isinstance(plant, FopdtPlant):
         kind = getattr(plant, "kind", type(plant).__name__)
-        raise ControlError(f"{who}: needs a scheduled FOPDT plant (got {kind})")
+        hint = ("; the envelope observer of a physical plant runs in Python (gatetwin observe)"
+                if isinstance(plant, PhysicalPlant) else "")  # fmt: skip
+        raise ControlError(f"{who}: needs a scheduled FOPDT plant (got {kind}){hint}")
     if plant.effects:
         kinds = ", ".join(e["kind"] for e in plant.effects)
         raise ControlError(f"{who}: effect blocks are not covered (plant has {kinds}); observe "
