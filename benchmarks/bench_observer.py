@@ -9,11 +9,19 @@ the default horizon, noise levels and anomaly settings) and runs it through fmpy
   of the record ("flume": the record keeps its own noise and model mismatch);
 * the same five input series with the level simulated by the observer's own model plus white
   noise of the observer's measurement SD, then the same effects ("model": a record the model
-  explains, so the innovation's statistics are the filter's own).
+  explains, so the innovation's statistics are the filter's own);
+* row ``flume_inflow``: the five flume bases run again through the virtual flume (same
+  scenario, same seed) with 5 m³/h more inflow from the onset on than the logged discharge
+  (the flume's own physics instead of the truth plant's response; "overtops" where the
+  scenario with it would overtop the flume).
+
+Then the envelope observer of ``models/physical_3F.json`` (Python; re-linearised at every
+sample, with the slow rule; thresholds calibrated on flume records that are not bundled by
+``benchmarks/calibrate_observer.py``) over the same clean records and flume bases.
 
 Prints the rises of the flag on the clean records (with the largest run outside the band and
 the largest CUSUM, against the thresholds), the detection delay (s from the onset to the
-flag, the rule that raised it: f fast, p persistent; "-" never within the record) per effect
+flag, the rule that raised it: f fast, p persistent, s slow; "-" never within the record) per effect
 and base, the false alarms, and the time the FMU and the Python observer take per record
 (ratio measured in this run). ``--band``, ``--run-samples``, ``--cusum-slack`` and
 ``--cusum-threshold`` override the defaults.
@@ -32,10 +40,20 @@ import numpy as np
 
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.diagnose.onset import ONSET_EFFECTS, detection, first_move_after, with_onset
+from gatetwin.errors import FlumeError
+from gatetwin.flume.experiments import reference_scenarios, run_scenario
+from gatetwin.flume.scenario import with_inflow
 from gatetwin.fmu.observer_fmu import export_observer, run_observer_fmu
 from gatetwin.modelfile import read_model_file
+from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
 from gatetwin.mpc.observer_codegen import LIMITS
-from gatetwin.mpc.online import MONITORING, AnomalySettings, OnlineObserver, measured_inputs
+from gatetwin.mpc.online import (
+    ENVELOPE_ANOMALY,
+    MONITORING,
+    AnomalySettings,
+    OnlineObserver,
+    measured_inputs,
+)
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import read_record
 
@@ -54,18 +72,43 @@ def _records() -> dict[str, tuple[np.ndarray, ...]]:
     return out
 
 
-def _delays(fmu: Path, plant, bases: dict, params: dict) -> dict[str, list[str]]:
-    table: dict[str, list[str]] = {}
-    for t, y, e, q in bases.values():
+def _flume_inflow(bases: dict) -> dict[str, np.ndarray]:
+    """Each base's level at 3F when the flume itself gets 5 m³/h more from the onset on
+    (the bundled scenario run again with the same seed; the logged discharge is the base's)."""
+    scenarios = {s.name: s for s in reference_scenarios()}
+    out = {}
+    for name, (t, _, e, _) in bases.items():
         onset = first_move_after(t, e)
-        for effect in ONSET_EFFECTS:
-            level = with_onset(plant, t, y, e, q, effect, onset)
-            out = run_observer_fmu(fmu, level, e, q, params)
+        scn = with_inflow(scenarios[name], (onset - 0.5) * SAMPLE_PERIOD_S,
+                          ONSET_EFFECTS["unmeasured_inflow"]["flow_m3h"])  # fmt: skip
+        try:
+            out[name] = run_scenario(scn).levels_mm["3F"]
+        except FlumeError:  # the inflow would overtop the flume: no such record
+            out[name] = None
+    return out
+
+
+def _delays(run, plant, bases: dict, physical: dict | None = None) -> dict[str, list[str]]:
+    """``run(level, opening, flow)`` gives the observer's outputs; ``physical``, each base's
+    level with the flume's own unseen inflow (row ``flume_inflow``)."""
+    table: dict[str, list[str]] = {}
+    effects = [*ONSET_EFFECTS, *(["flume_inflow"] if physical else [])]
+    for name, (t, y, e, q) in bases.items():
+        onset = first_move_after(t, e)
+        for effect in effects:
+            if effect == "flume_inflow":
+                level = physical[name]
+                if level is None:
+                    table.setdefault(effect, []).append("overtops")
+                    continue
+            else:
+                level = with_onset(plant, t, y, e, q, effect, onset)
+            out = run(level, e, q)
             found = detection(t, out["anomaly"], onset)
             cell = "-"
             if not np.isnan(found.delay_s):
                 at = onset + int(np.flatnonzero(out["anomaly"][onset:] > 0.5)[0])
-                cell = f"{found.delay_s:.1f} {'fp'[int(out['anomaly_kind'][at]) - 1]}"
+                cell = f"{found.delay_s:.1f} {'fps'[int(out['anomaly_kind'][at]) - 1]}"
             if found.false_alarms:
                 cell += f" ({found.false_alarms} FA)"
             table.setdefault(effect, []).append(cell)
@@ -114,7 +157,9 @@ def main() -> None:
             )
         print(f"  {hours:.2f} h of clean records")
         flume = {n: records[n][:4] for n in BASES}
-        _print_table("flume (bundled records)", _delays(fmu, plant, flume, params))
+        fmu_run = lambda y, e, q: run_observer_fmu(fmu, y, e, q, params)  # noqa: E731
+        physical = _flume_inflow(flume)
+        _print_table("flume (bundled records)", _delays(fmu_run, plant, flume, physical))
         truth = dataclasses.replace(plant, envelope=None)
         rng = np.random.default_rng(SEED)
         model = {}
@@ -122,7 +167,7 @@ def main() -> None:
             noise = MONITORING.measurement_sd_mm * rng.standard_normal(t.size)
             model[n] = (t, simulate(truth, t, e, q) + noise, e, q)
         _print_table("model (the observer's model + white noise)",
-                     _delays(fmu, truth, model, params))  # fmt: skip
+                     _delays(fmu_run, truth, model))  # fmt: skip
         t, y, e, q, _ = records["C"]
         start = time.perf_counter()
         run_observer_fmu(fmu, y, e, q, params)
@@ -132,6 +177,41 @@ def main() -> None:
         py_s = time.perf_counter() - start
         print(f"\nrecord C ({t.size} samples): FMU via fmpy {fmu_s:.3f} s, Python {py_s:.3f} s, "
               f"ratio Python/FMU {py_s / fmu_s:.1f}")  # fmt: skip
+    _envelope(records, plant, physical)
+    start = time.perf_counter()
+    OnlineObserver(_physical()).run(y, e, q)
+    env_s = time.perf_counter() - start
+    print(f"\nrecord C: envelope observer (Python, two filters) {env_s:.3f} s, schedule observer "
+          f"(Python) {py_s:.3f} s, ratio {env_s / py_s:.1f}")  # fmt: skip
+
+
+def _physical():
+    plant = read_model_file(ROOT / "models/physical_3F.json").plant
+    return dataclasses.replace(plant, effects=())
+
+
+def _envelope(records: dict, truth, inflow: dict) -> None:
+    """The envelope observer (Python) over the clean records and the flume bases."""
+    physical = _physical()
+    print(f"\nenvelope observer of physical_3F (effects dropped), {ENVELOPE_ANOMALY}")
+    print("clean records: rises, longest run (flag at "
+          f"{ENVELOPE_ANOMALY.run_samples}), CUSUM (flag at "
+          f"{ENVELOPE_ANOMALY.cusum_threshold:g}), slow CUSUM (flag at "
+          f"{ENVELOPE_ANOMALY.slow_threshold:g})")  # fmt: skip
+    total = 0
+    for name, (t, y, e, q, role) in records.items():
+        out = OnlineObserver(physical).run(y, e, q)
+        found = detection(t, out["anomaly"], None)
+        total += found.false_alarms
+        cusum = max(out["cusum_high"].max(), out["cusum_low"].max())
+        print(f"  {name:10s} {role:10s} {found.false_alarms}  run "
+              f"{int(out['anomaly_samples'].max())}  CUSUM {cusum:.1f}  slow CUSUM "
+              f"{out['slow_cusum'].max():.1f}")  # fmt: skip
+    print(f"  false alarms on the clean bundled records: {total}")
+    flume = {n: records[n][:4] for n in BASES}
+    envelope_run = lambda y, e, q: OnlineObserver(physical).run(y, e, q)  # noqa: E731
+    _print_table("envelope observer, flume (bundled records)",
+                 _delays(envelope_run, truth, flume, inflow))  # fmt: skip
 
 
 if __name__ == "__main__":

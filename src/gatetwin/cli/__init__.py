@@ -424,6 +424,13 @@ _COMMANDS: tuple[Command, ...] = (
         _model_cmds.run_export_observer,
     ),
     Command(
+        "observe",
+        "run the observer in Python over a record: per-sample estimates and the anomaly flag "
+        "as CSV (the envelope observer for a physical model)",
+        _model_cmds.add_observe_arguments,
+        _model_cmds.run_observe,
+    ),
+    Command(
         "validate",
         "simulate an FMU on measured records with fmpy and score it (JSON, JUnit, plots)",
         _add_validate_arguments,

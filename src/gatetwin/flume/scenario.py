@@ -7,7 +7,7 @@ Shared by the reference suite (:mod:`gatetwin.flume.experiments`) and the envelo
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -65,6 +65,25 @@ class Scenario:
         t = np.arange(n) * sample_period_s
         t_in_force = np.maximum(t - 0.5 * sample_period_s, 0.0)
         return _hold(self.opening_mm, t_in_force), _hold(self.flow_m3h, t_in_force)
+
+
+def with_inflow(scn: Scenario, start_s: float, extra_m3h: float) -> Scenario:
+    """``scn`` with ``extra_m3h`` more discharge from ``start_s`` on (an inflow that a meter
+    logging ``scn``'s discharge would not see); the same seed, so the same logger noise.
+
+    Raises
+    ------
+    FlumeError
+        ``start_s`` outside ``(0, duration_s)`` or a discharge that is not > 0.
+    """
+    if not (math.isfinite(start_s) and 0.0 < start_s < scn.duration_s):
+        raise FlumeError(f"scenario {scn.name}: inflow start {start_s!r} s must lie in "
+                         f"(0, {scn.duration_s:g}) s")  # fmt: skip
+    before = tuple((t, q) for t, q in scn.flow_m3h if t < start_s)
+    at = before[-1][1] if not any(t == start_s for t, _ in scn.flow_m3h) else None
+    after = tuple((t, q + extra_m3h) for t, q in scn.flow_m3h if t >= start_s)
+    head = ((start_s, at + extra_m3h),) if at is not None else ()
+    return replace(scn, flow_m3h=before + head + after)
 
 
 def _hold(bps: Breakpoints, t: np.ndarray) -> np.ndarray:
