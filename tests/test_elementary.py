@@ -130,7 +130,7 @@ def test_special_values_follow_the_c_library(name):
             expected = C_WHERE_PYTHON_RAISES[name](x)
         if name == "exp" and 0.0 < expected < 2.2250738585072014e-308:
             # a subnormal result keeps fewer bits than the ulp or two exp may be off by
-            assert abs(f(x) - expected) <= 2 ** -52 * 2.2250738585072014e-308, x
+            assert abs(f(x) - expected) <= 2**-52 * 2.2250738585072014e-308, x
             continue
         assert _same(f(x), expected) or (x == 0.0 and f(x) == expected), (name, x)
 
