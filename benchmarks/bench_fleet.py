@@ -3,13 +3,17 @@
     python benchmarks/bench_fleet.py [--gates 1000] [--workers 2] [--days 30]
                                      [--history MONTH.parquet] [--project-gates 300]
                                      [--project-days 365] [--project-workers 2 8 32]
+                                     [--throughput-only] [--project-district 1000]
 
 Three measurements in one run:
 
 1. Throughput. Generates ``--gates`` district gates (``gatetwin.fleet.write_district``:
    step tests and a static table each), identifies them with ``gatetwin models`` on 1
    process and on ``--workers``, side by side, and prints gates/s, records/s and logged
-   samples/s of each and the scaling ratio (speed-up over the workers).
+   samples/s of each and the scaling ratio (speed-up over the workers); then what one
+   gate costs (generation, identification) and the projected wall time of this same
+   measurement on ``--project-district`` gates (generation, serial run and pool run, each
+   linear in the gates). ``--throughput-only`` stops here.
 2. Memory per worker. One gate's routine history over ``--days`` days at 1 Hz (generated
    as ``bench_month.py`` does, or ``--history``) identified by ``gatetwin routine`` in a
    fresh child process, the whole history at once and chunk by chunk
@@ -44,8 +48,9 @@ def _records(district: Path) -> tuple[int, int]:
     return len(files), samples
 
 
-def throughput(gates: int, workers: int, tmp: Path) -> dict[int, float]:
-    """Wall time of ``gatetwin models`` over the district with 1 and ``workers`` processes."""
+def throughput(gates: int, workers: int, tmp: Path) -> tuple[dict[int, float], float]:
+    """Wall time of ``gatetwin models`` over the district with 1 and ``workers`` processes,
+    and the district's generation time."""
     district = tmp / "district"
     start = time.perf_counter()
     write_district(gates, district, seed=1, workers=workers)
@@ -70,7 +75,37 @@ def throughput(gates: int, workers: int, tmp: Path) -> dict[int, float]:
         f"scaling: {speedup:.2f}x with {workers} processes ({speedup / workers:.2f} of "
         f"linear); failed gates {failed[1]} (same in both: {failed[1] == failed[workers]})"
     )
-    return times
+    return times, generated_s
+
+
+def gate_cost(gates: int, workers: int, times: dict[int, float], generated_s: float,
+              project: int) -> None:  # fmt: skip
+    """What one gate costs, and this measurement's wall time on ``project`` gates."""
+    from gatetwin.fleet.district import (
+        FIT_FLOWS_M3H,
+        POST_STEP_S,
+        PRE_STEP_S,
+        STATIC_OFFSETS_MM,
+        STATIC_SAMPLES,
+        district_gates,
+        expected_samples,
+    )
+
+    n_steps = len(FIT_FLOWS_M3H) + 1
+    per_step = expected_samples(district_gates(1)[0]) // n_steps
+    print(f"   one gate: {n_steps} step tests of {PRE_STEP_S + POST_STEP_S:g} s "
+          f"({per_step} samples each, {len(FIT_FLOWS_M3H)} fitted, 1 held out) and a "
+          f"static table of up to {len(FIT_FLOWS_M3H) * len(STATIC_OFFSETS_MM)} points of "
+          f"{STATIC_SAMPLES} samples; its job: an FOPDT per step, the physical model's "
+          "least-squares fit over every record, the FOPDT schedule, held-out free "
+          "runs")  # fmt: skip
+    cost = {"generation": generated_s / gates, "serial": times[1] / gates,
+            f"{workers} processes": times[workers] / gates}  # fmt: skip
+    print("   per gate: " + ", ".join(f"{k} {v:.2f} s" for k, v in cost.items()))
+    total = project * sum(cost.values())
+    print(f"   projected for {project} gates (linear in the gates): "
+          + ", ".join(f"{k} {project * v / 60:.1f} min" for k, v in cost.items())
+          + f"; {total / 60:.1f} min in all")  # fmt: skip
 
 
 def added_worker(times: dict[int, float], workers: int) -> float:
@@ -160,10 +195,17 @@ def main() -> None:
     parser.add_argument("--project-gates", type=int, default=300)
     parser.add_argument("--project-days", type=float, default=365.0)
     parser.add_argument("--project-workers", type=int, nargs="+", default=[2, 8, 32])
+    parser.add_argument("--project-district", type=int, default=1000,
+                        help="gates to project the throughput measurement to")  # fmt: skip
+    parser.add_argument("--throughput-only", action="store_true",
+                        help="measure the throughput (1.) alone")  # fmt: skip
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as name:
         tmp = Path(name)
-        times = throughput(args.gates, args.workers, tmp)
+        times, generated_s = throughput(args.gates, args.workers, tmp)
+        gate_cost(args.gates, args.workers, times, generated_s, args.project_district)
+        if args.throughput_only:
+            return
         history = Path(args.history) if args.history else generate(tmp, args.days)
         _, rate = memory(history, tmp)
         added = routine_scaling(history, args.workers, tmp)
