@@ -4,6 +4,7 @@
                                      [--history MONTH.parquet] [--project-gates 300]
                                      [--project-days 365] [--project-workers 2 8 32]
                                      [--throughput-only] [--project-district 1000]
+                                     [--routine-days D]
 
 Three measurements in one run:
 
@@ -13,7 +14,12 @@ Three measurements in one run:
    samples/s of each and the scaling ratio (speed-up over the workers); then what one
    gate costs (generation, identification) and the projected wall time of this same
    measurement on ``--project-district`` gates (generation, serial run and pool run, each
-   linear in the gates). ``--throughput-only`` stops here.
+   linear in the gates). ``--throughput-only`` stops here. With ``--routine-days D`` the
+   district's gates are light instead: each one routine operation history of ``D`` days
+   (``gatetwin flume --district N --routine mixed --days D``: logged every 1.2 s, every
+   fourth gate under a level controller), whose job is ``gatetwin routine``'s
+   identification (move windows, an FOPDT per window, the schedule on Q), no step tests,
+   no physical fit.
 2. Memory per worker. One gate's routine history over ``--days`` days at 1 Hz (generated
    as ``bench_month.py`` does, or ``--history``) identified by ``gatetwin routine`` in a
    fresh child process, the whole history at once and chunk by chunk
@@ -48,12 +54,19 @@ def _records(district: Path) -> tuple[int, int]:
     return len(files), samples
 
 
-def throughput(gates: int, workers: int, tmp: Path) -> tuple[dict[int, float], float]:
+def throughput(gates: int, workers: int, tmp: Path,
+               routine_days: float | None = None) -> tuple[dict[int, float], float]:  # fmt: skip
     """Wall time of ``gatetwin models`` over the district with 1 and ``workers`` processes,
     and the district's generation time."""
+    from gatetwin.fleet.routine import write_routine_district
+
     district = tmp / "district"
     start = time.perf_counter()
-    write_district(gates, district, seed=1, workers=workers)
+    if routine_days is None:
+        write_district(gates, district, seed=1, workers=workers)
+    else:
+        write_routine_district(gates, district, seed=1, control="mixed", days=routine_days,
+                               workers=workers)  # fmt: skip
     generated_s = time.perf_counter() - start
     n_files, samples = _records(district)
     times: dict[int, float] = {}
@@ -63,7 +76,9 @@ def throughput(gates: int, workers: int, tmp: Path) -> tuple[dict[int, float], f
         doc = run_fleet([str(district)], tmp / f"out{n}", FleetSettings(workers=n))
         times[n] = time.perf_counter() - start
         failed[n] = [g["gate"] for g in doc["gates"] if g["status"] != "ok"]
-    print(f"1. throughput: {gates} gates, {n_files} record files, {samples:,} logged samples "
+    kind = "step-test" if routine_days is None else f"{routine_days:g}-day routine history"
+    print(f"1. throughput: {gates} {kind} gates, {n_files} record files, {samples:,} logged "
+          f"samples "
           f"(generated in {generated_s:.0f} s)")  # fmt: skip
     print("| processes | wall time (s) | gates/s | records/s | samples/s |")
     print("|---|---|---|---|---|")
@@ -79,7 +94,7 @@ def throughput(gates: int, workers: int, tmp: Path) -> tuple[dict[int, float], f
 
 
 def gate_cost(gates: int, workers: int, times: dict[int, float], generated_s: float,
-              project: int) -> None:  # fmt: skip
+              project: int, routine_days: float | None = None) -> None:  # fmt: skip
     """What one gate costs, and this measurement's wall time on ``project`` gates."""
     from gatetwin.fleet.district import (
         FIT_FLOWS_M3H,
@@ -93,12 +108,18 @@ def gate_cost(gates: int, workers: int, times: dict[int, float], generated_s: fl
 
     n_steps = len(FIT_FLOWS_M3H) + 1
     per_step = expected_samples(district_gates(1)[0]) // n_steps
-    print(f"   one gate: {n_steps} step tests of {PRE_STEP_S + POST_STEP_S:g} s "
-          f"({per_step} samples each, {len(FIT_FLOWS_M3H)} fitted, 1 held out) and a "
-          f"static table of up to {len(FIT_FLOWS_M3H) * len(STATIC_OFFSETS_MM)} points of "
-          f"{STATIC_SAMPLES} samples; its job: an FOPDT per step, the physical model's "
-          "least-squares fit over every record, the FOPDT schedule, held-out free "
-          "runs")  # fmt: skip
+    if routine_days is not None:
+        print(f"   one gate: a routine history of {routine_days:g} day(s) "
+              f"({routine_days * 86400 / 1.2:,.0f} samples at 1.2 s); its job: the history's "
+              "move windows screened, an FOPDT fitted per informative window, the schedule "
+              "on Q")  # fmt: skip
+    else:
+        print(f"   one gate: {n_steps} step tests of {PRE_STEP_S + POST_STEP_S:g} s "
+              f"({per_step} samples each, {len(FIT_FLOWS_M3H)} fitted, 1 held out) and a "
+              f"static table of up to {len(FIT_FLOWS_M3H) * len(STATIC_OFFSETS_MM)} points "
+              f"of {STATIC_SAMPLES} samples; its job: an FOPDT per step, the physical "
+              "model's least-squares fit over every record, the FOPDT schedule, held-out "
+              "free runs")  # fmt: skip
     cost = {"generation": generated_s / gates, "serial": times[1] / gates,
             f"{workers} processes": times[workers] / gates}  # fmt: skip
     print("   per gate: " + ", ".join(f"{k} {v:.2f} s" for k, v in cost.items()))
@@ -199,11 +220,15 @@ def main() -> None:
                         help="gates to project the throughput measurement to")  # fmt: skip
     parser.add_argument("--throughput-only", action="store_true",
                         help="measure the throughput (1.) alone")  # fmt: skip
+    parser.add_argument("--routine-days", type=float, metavar="D",
+                        help="throughput on light gates: one routine history of D days "
+                        "each instead of step tests")  # fmt: skip
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as name:
         tmp = Path(name)
-        times, generated_s = throughput(args.gates, args.workers, tmp)
-        gate_cost(args.gates, args.workers, times, generated_s, args.project_district)
+        times, generated_s = throughput(args.gates, args.workers, tmp, args.routine_days)
+        gate_cost(args.gates, args.workers, times, generated_s, args.project_district,
+                  args.routine_days)  # fmt: skip
         if args.throughput_only:
             return
         history = Path(args.history) if args.history else generate(tmp, args.days)
