@@ -41,16 +41,18 @@ from pathlib import Path
 
 from bench_month import child_peak_mib, generate
 from gatetwin.fleet import FleetSettings, run_fleet, write_district
-from gatetwin.records import read_record
 
 #: Memory cap given to the chunked routine job of a worker, MiB.
 WORKER_MEMORY_MIB = 400.0
 
 
 def _records(district: Path) -> tuple[int, int]:
-    """Record files (step tests and static tables) and logged samples of the step tests."""
+    """Record files (step tests and static tables, or routine histories) and logged samples
+    of the time series: their data lines (the generator writes one header line and no
+    comments; counting lines, not reading the records, keeps 1,000 gates' count in
+    seconds)."""
     files = sorted(district.rglob("*.csv"))
-    samples = sum(read_record(p).n_samples for p in files if "static" not in p.name)
+    samples = sum(p.read_bytes().count(b"\n") - 1 for p in files if "static" not in p.name)
     return len(files), samples
 
 
