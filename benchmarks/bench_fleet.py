@@ -90,7 +90,8 @@ def throughput(gates: int, workers: int, tmp: Path,
     speedup = times[1] / times[workers]
     print(
         f"scaling: {speedup:.2f}x with {workers} processes ({speedup / workers:.2f} of "
-        f"linear); failed gates {failed[1]} (same in both: {failed[1] == failed[workers]})"
+        f"linear); gates not ok (failed, or no informative window) {failed[1]} (same in "
+        f"both: {failed[1] == failed[workers]})"
     )
     return times, generated_s
 
@@ -112,7 +113,8 @@ def gate_cost(gates: int, workers: int, times: dict[int, float], generated_s: fl
     per_step = expected_samples(district_gates(1)[0]) // n_steps
     if routine_days is not None:
         print(f"   one gate: a routine history of {routine_days:g} day(s) "
-              f"({routine_days * 86400 / 1.2:,.0f} samples at 1.2 s); its job: the history's "
+              f"(up to {routine_days * 86400 / 1.2:,.0f} samples at 1.2 s, fewer where the "
+              "logger dropped out); its job: the history's "
               "move windows screened, an FOPDT fitted per informative window, the schedule "
               "on Q")  # fmt: skip
     else:
