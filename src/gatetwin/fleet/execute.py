@@ -28,9 +28,10 @@ Progress = Callable[[str], None]
 
 #: Threads of the numerical libraries in a local pool's processes, set where the caller's
 #: environment does not: one, as dask's nanny (``distributed.nanny.pre-spawn-environ``).
-#: With OpenBLAS's default of a thread per core, 16 district gates on 2 processes of a
-#: 2-core machine each took about 3x their serial time (gate002: 3.3 s serial, 11.9 s on
-#: the pool; ``benchmarks/bench_fleet.py``).
+#: With OpenBLAS's default of a thread per core, the gates of an 8-gate district on 2
+#: processes of a 2-core machine took up to 3x their serial time (gate002: 3.3 s serially,
+#: 11.9 s on the pool), and the pool of 16 gates was no faster than the serial run
+#: (``benchmarks/bench_fleet.py``, README "Many gates").
 POOL_THREADS = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
