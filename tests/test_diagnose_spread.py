@@ -122,8 +122,9 @@ def stage_records(tmp_path) -> Path:
 @pytest.mark.slow
 def test_the_runs_diagnosis_stage_on_a_pool_writes_the_serial_outputs(
         tmp_path, stage_records) -> None:  # fmt: skip
-    # about a minute on 2 shared cores: three diagnoses, each augmented model exported as
-    # FMUs and validated through fmpy, twice
+    # three diagnoses, each augmented model exported as FMUs and validated through fmpy,
+    # twice: about a minute on 2 shared cores before pool processes ran one BLAS thread
+    # each, ~12 s since
     serial = _diagnose_stage(tmp_path / "serial", stage_records, None)
     pool = _diagnose_stage(tmp_path / "pool", stage_records, FleetSettings(workers=2))
     assert pool[0] == serial[0]
