@@ -3,13 +3,23 @@
     python benchmarks/bench_fleet.py [--gates 1000] [--workers 2] [--days 30]
                                      [--history MONTH.parquet] [--project-gates 300]
                                      [--project-days 365] [--project-workers 2 8 32]
+                                     [--throughput-only] [--project-district 1000]
+                                     [--routine-days D]
 
 Three measurements in one run:
 
 1. Throughput. Generates ``--gates`` district gates (``gatetwin.fleet.write_district``:
    step tests and a static table each), identifies them with ``gatetwin models`` on 1
    process and on ``--workers``, side by side, and prints gates/s, records/s and logged
-   samples/s of each and the scaling ratio (speed-up over the workers).
+   samples/s of each and the scaling ratio (speed-up over the workers); then what one
+   gate costs (generation, identification) and the projected wall time of this same
+   measurement on ``--project-district`` gates (generation, serial run and pool run, each
+   linear in the gates). ``--throughput-only`` stops here. With ``--routine-days D`` the
+   district's gates are light instead: each one routine operation history of ``D`` days
+   (``gatetwin flume --district N --routine mixed --days D``: logged every 1.2 s, every
+   fourth gate under a level controller), whose job is ``gatetwin routine``'s
+   identification (move windows, an FOPDT per window, the schedule on Q), no step tests,
+   no physical fit.
 2. Memory per worker. One gate's routine history over ``--days`` days at 1 Hz (generated
    as ``bench_month.py`` does, or ``--history``) identified by ``gatetwin routine`` in a
    fresh child process, the whole history at once and chunk by chunk
@@ -31,24 +41,34 @@ from pathlib import Path
 
 from bench_month import child_peak_mib, generate
 from gatetwin.fleet import FleetSettings, run_fleet, write_district
-from gatetwin.records import read_record
 
 #: Memory cap given to the chunked routine job of a worker, MiB.
 WORKER_MEMORY_MIB = 400.0
 
 
 def _records(district: Path) -> tuple[int, int]:
-    """Record files (step tests and static tables) and logged samples of the step tests."""
+    """Record files (step tests and static tables, or routine histories) and logged samples
+    of the time series: their data lines (the generator writes one header line and no
+    comments; counting lines, not reading the records, keeps 1,000 gates' count in
+    seconds)."""
     files = sorted(district.rglob("*.csv"))
-    samples = sum(read_record(p).n_samples for p in files if "static" not in p.name)
+    samples = sum(p.read_bytes().count(b"\n") - 1 for p in files if "static" not in p.name)
     return len(files), samples
 
 
-def throughput(gates: int, workers: int, tmp: Path) -> dict[int, float]:
-    """Wall time of ``gatetwin models`` over the district with 1 and ``workers`` processes."""
+def throughput(gates: int, workers: int, tmp: Path,
+               routine_days: float | None = None) -> tuple[dict[int, float], float]:  # fmt: skip
+    """Wall time of ``gatetwin models`` over the district with 1 and ``workers`` processes,
+    and the district's generation time."""
+    from gatetwin.fleet.routine import write_routine_district
+
     district = tmp / "district"
     start = time.perf_counter()
-    write_district(gates, district, seed=1, workers=workers)
+    if routine_days is None:
+        write_district(gates, district, seed=1, workers=workers)
+    else:
+        write_routine_district(gates, district, seed=1, control="mixed", days=routine_days,
+                               workers=workers)  # fmt: skip
     generated_s = time.perf_counter() - start
     n_files, samples = _records(district)
     times: dict[int, float] = {}
@@ -58,7 +78,9 @@ def throughput(gates: int, workers: int, tmp: Path) -> dict[int, float]:
         doc = run_fleet([str(district)], tmp / f"out{n}", FleetSettings(workers=n))
         times[n] = time.perf_counter() - start
         failed[n] = [g["gate"] for g in doc["gates"] if g["status"] != "ok"]
-    print(f"1. throughput: {gates} gates, {n_files} record files, {samples:,} logged samples "
+    kind = "step-test" if routine_days is None else f"{routine_days:g}-day routine history"
+    print(f"1. throughput: {gates} {kind} gates, {n_files} record files, {samples:,} logged "
+          f"samples "
           f"(generated in {generated_s:.0f} s)")  # fmt: skip
     print("| processes | wall time (s) | gates/s | records/s | samples/s |")
     print("|---|---|---|---|---|")
@@ -68,9 +90,47 @@ def throughput(gates: int, workers: int, tmp: Path) -> dict[int, float]:
     speedup = times[1] / times[workers]
     print(
         f"scaling: {speedup:.2f}x with {workers} processes ({speedup / workers:.2f} of "
-        f"linear); failed gates {failed[1]} (same in both: {failed[1] == failed[workers]})"
+        f"linear); gates not ok (failed, or no informative window) {failed[1]} (same in "
+        f"both: {failed[1] == failed[workers]})"
     )
-    return times
+    return times, generated_s
+
+
+def gate_cost(gates: int, workers: int, times: dict[int, float], generated_s: float,
+              project: int, routine_days: float | None = None) -> None:  # fmt: skip
+    """What one gate costs, and this measurement's wall time on ``project`` gates."""
+    from gatetwin.fleet.district import (
+        FIT_FLOWS_M3H,
+        POST_STEP_S,
+        PRE_STEP_S,
+        STATIC_OFFSETS_MM,
+        STATIC_SAMPLES,
+        district_gates,
+        expected_samples,
+    )
+
+    n_steps = len(FIT_FLOWS_M3H) + 1
+    per_step = expected_samples(district_gates(1)[0]) // n_steps
+    if routine_days is not None:
+        print(f"   one gate: a routine history of {routine_days:g} day(s) "
+              f"(up to {routine_days * 86400 / 1.2:,.0f} samples at 1.2 s, fewer where the "
+              "logger dropped out); its job: the history's "
+              "move windows screened, an FOPDT fitted per informative window, the schedule "
+              "on Q")  # fmt: skip
+    else:
+        print(f"   one gate: {n_steps} step tests of {PRE_STEP_S + POST_STEP_S:g} s "
+              f"({per_step} samples each, {len(FIT_FLOWS_M3H)} fitted, 1 held out) and a "
+              f"static table of up to {len(FIT_FLOWS_M3H) * len(STATIC_OFFSETS_MM)} points "
+              f"of {STATIC_SAMPLES} samples; its job: an FOPDT per step, the physical "
+              "model's least-squares fit over every record, the FOPDT schedule, held-out "
+              "free runs")  # fmt: skip
+    cost = {"generation": generated_s / gates, "serial": times[1] / gates,
+            f"{workers} processes": times[workers] / gates}  # fmt: skip
+    print("   per gate: " + ", ".join(f"{k} {v:.2f} s" for k, v in cost.items()))
+    total = project * sum(cost.values())
+    print(f"   projected for {project} gates (linear in the gates): "
+          + ", ".join(f"{k} {project * v / 60:.1f} min" for k, v in cost.items())
+          + f"; {total / 60:.1f} min in all")  # fmt: skip
 
 
 def added_worker(times: dict[int, float], workers: int) -> float:
@@ -160,10 +220,21 @@ def main() -> None:
     parser.add_argument("--project-gates", type=int, default=300)
     parser.add_argument("--project-days", type=float, default=365.0)
     parser.add_argument("--project-workers", type=int, nargs="+", default=[2, 8, 32])
+    parser.add_argument("--project-district", type=int, default=1000,
+                        help="gates to project the throughput measurement to")  # fmt: skip
+    parser.add_argument("--throughput-only", action="store_true",
+                        help="measure the throughput (1.) alone")  # fmt: skip
+    parser.add_argument("--routine-days", type=float, metavar="D",
+                        help="throughput on light gates: one routine history of D days "
+                        "each instead of step tests")  # fmt: skip
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as name:
         tmp = Path(name)
-        times = throughput(args.gates, args.workers, tmp)
+        times, generated_s = throughput(args.gates, args.workers, tmp, args.routine_days)
+        gate_cost(args.gates, args.workers, times, generated_s, args.project_district,
+                  args.routine_days)  # fmt: skip
+        if args.throughput_only:
+            return
         history = Path(args.history) if args.history else generate(tmp, args.days)
         _, rate = memory(history, tmp)
         added = routine_scaling(history, args.workers, tmp)

@@ -119,3 +119,22 @@ def test_a_broken_gate_is_reported_and_the_others_are_written(district, tmp_path
     failed = [g for g in doc["gates"] if g["status"] != "ok"]
     assert [g["gate"] for g in failed] == ["gate002"] and victim.name in json.dumps(failed[0])
     assert any((out / "gate001").glob("*.json")) and not (out / "gate002").exists()
+
+
+def test_pool_processes_run_their_numerical_libraries_on_one_thread(monkeypatch):
+    """A pool process starts with one BLAS/OpenMP thread unless the caller chose a count,
+    and the caller's own environment is left as it was."""
+    import os
+
+    from gatetwin.fleet.execute import POOL_THREADS, FleetSettings, run_tasks
+
+    for key in POOL_THREADS:
+        monkeypatch.delenv(key, raising=False)
+    monkeypatch.setenv("OMP_NUM_THREADS", "3")
+    names = sorted(POOL_THREADS)
+    seen = run_tasks(os.getenv, names, FleetSettings(workers=2),
+                     lambda _job, exc: exc)  # fmt: skip
+    expected = {**POOL_THREADS, "OMP_NUM_THREADS": "3"}
+    assert seen == [expected[k] for k in names]
+    assert [os.environ.get(k) for k in names] == [
+        "3" if k == "OMP_NUM_THREADS" else None for k in names]  # fmt: skip

@@ -167,6 +167,12 @@ def add_models_arguments(parser: argparse.ArgumentParser) -> None:
         "--fmus", metavar="BACKEND", choices=("c", "python"),
         help="also build each gate's FMUs (into OUT/<gate>/fmus/) with this backend",
     )  # fmt: skip
+    parser.add_argument(
+        "--max-memory", metavar="MIB", type=float,
+        help="memory budget of a worker reading a routine history in Parquet (a file, or a "
+        "folder of day files next to its FOLDER.json) chunk by chunk, as gatetwin routine "
+        "--max-memory does (default: chunks of 65,536 rows); a CSV history is read whole",
+    )  # fmt: skip
     parser.epilog = (
         "with many gates: exit status 0 when every gate was identified, 1 when some failed "
         "(each named with its reason in OUT/fleet.json; the others are written), 2 for input "
@@ -178,7 +184,7 @@ def _is_fleet(args: argparse.Namespace) -> bool:
     """Many gates unless the records are one plain records folder and nothing asks for more."""
     from gatetwin.fleet import is_one_records_folder
 
-    if args.scheduler or args.workers is not None or args.fmus:
+    if args.scheduler or args.workers is not None or args.fmus or args.max_memory is not None:
         return True
     return bool(args.records) and not is_one_records_folder(args.records)
 
@@ -192,15 +198,27 @@ def _run_fleet(args: argparse.Namespace) -> int:
     if args.scheduler and args.workers is not None:
         raise GatetwinError("--workers applies to a local run; the dask workers run the "
                             "gates when --scheduler is given")  # fmt: skip
+    if args.max_memory is not None:
+        _check_budget(args.max_memory)
     settings = FleetSettings(scheduler=args.scheduler,
                              workers=args.workers or default_workers())  # fmt: skip
     sources = args.records or [str(bundled_records_dir())]
     doc = run_fleet(sources, args.out, settings, fmu_backend=args.fmus,
-                    progress=_print_to_stderr)  # fmt: skip
+                    max_memory_mib=args.max_memory, progress=_print_to_stderr)  # fmt: skip
     print(f"wrote {doc['n_ok']} model sets of {doc['n_gates']} gates and the summary "
           f"{Path(args.out) / 'fleet.json'}; {doc['n_failed']} failed, "
           f"{doc['n_no_window']} without an informative window")  # fmt: skip
     return 1 if doc["n_failed"] else 0
+
+
+def _check_budget(max_memory_mib: float) -> None:
+    """Refuse a memory budget the chunked reader cannot keep, naming the option."""
+    from gatetwin.identify.routine_chunks import chunk_rows_for
+
+    try:
+        chunk_rows_for(max_memory_mib)
+    except GatetwinError as exc:
+        raise GatetwinError(f"--max-memory: {exc}") from None
 
 
 def _print_to_stderr(message: str) -> None:

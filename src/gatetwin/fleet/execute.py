@@ -2,17 +2,21 @@
 dask cluster.
 
 Processes, never threads: the FMU binaries and the numba kernels are not assumed
-thread-safe. Every mode runs the same task function (:func:`~gatetwin.fleet.gate.identify_gate`
-for ``gatetwin models``, one record's validation for ``gatetwin validate``) on the same
-inputs, so every mode gives the same results. Results come back in completion order (each
-one reported to ``progress``); :func:`run_tasks` returns them in the jobs' order.
+thread-safe. A pool process runs its numerical libraries on one thread each
+(:data:`POOL_THREADS`), as a dask nanny starts its workers: the processes are the
+parallelism, and a BLAS with a thread per core in every process oversubscribes the cores.
+Every mode runs the same task function (:func:`~gatetwin.fleet.gate.identify_gate` for
+``gatetwin models``, one record's validation for ``gatetwin validate``) on the same inputs,
+so every mode gives the same results. Results come back in completion order (each one
+reported to ``progress``); :func:`run_tasks` returns them in the jobs' order.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from typing import Any
@@ -21,6 +25,14 @@ from gatetwin.errors import GatetwinError
 from gatetwin.fleet.gate import GateJob, failed_summary, identify_gate
 
 Progress = Callable[[str], None]
+
+#: Threads of the numerical libraries in a local pool's processes, set where the caller's
+#: environment does not: one, as dask's nanny (``distributed.nanny.pre-spawn-environ``).
+#: With OpenBLAS's default of a thread per core, the gates of an 8-gate district on 2
+#: processes of a 2-core machine took up to 3x their serial time (gate002: 3.3 s serially,
+#: 11.9 s on the pool), and the pool of 16 gates was no faster than the serial run
+#: (``benchmarks/bench_fleet.py``, README "Many gates").
+POOL_THREADS = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 @dataclass(frozen=True)
@@ -83,12 +95,26 @@ def _serial(task: Task, jobs: list[Any], crashed: Crashed) -> Iterator[tuple[int
         yield k, task(job)
 
 
+@contextlib.contextmanager
+def spawn_environment(values: Mapping[str, str]) -> Iterator[None]:
+    """``values`` in ``os.environ`` (each one the caller has not set) while processes are
+    spawned, so that they start with them; removed again afterwards."""
+    added = {k: v for k, v in values.items() if k not in os.environ}
+    os.environ.update(added)
+    try:
+        yield
+    finally:
+        for key in added:
+            os.environ.pop(key, None)
+
+
 def _pool(task: Task, jobs: list[Any], crashed: Crashed,
           workers: int) -> Iterator[tuple[int, Any]]:  # fmt: skip
     # spawn: a fresh interpreter per worker, no fork of this process's threads or locks
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context) as pool:
-        futures = {pool.submit(task, job): k for k, job in enumerate(jobs)}
+        with spawn_environment(POOL_THREADS):  # the pool spawns its processes on submit
+            futures = {pool.submit(task, job): k for k, job in enumerate(jobs)}
         for future in as_completed(futures):
             k = futures[future]
             try:

@@ -33,14 +33,20 @@ class GateJob:
     gate : str
         Gate name.
     paths : tuple[str, ...]
-        The gate's CSV files (records and its static table), as the worker sees them.
+        The gate's records (CSV and Parquet files, history folders of day files) and its
+        static table, as the worker sees them.
     fmu_backend : str | None
         ``"c"`` or ``"python"`` to also build one FMU per model; ``None`` for none.
+    max_memory_mib : float | None
+        Memory budget of a routine history read chunk by chunk (Parquet files and history
+        folders), MiB; ``None`` for the default chunk of
+        :data:`~gatetwin.identify.routine_chunks.DEFAULT_CHUNK_ROWS` rows.
     """
 
     gate: str
     paths: tuple[str, ...]
     fmu_backend: str | None = None
+    max_memory_mib: float | None = None
 
 
 def identify_gate(job: GateJob) -> dict[str, Any]:
@@ -49,9 +55,9 @@ def identify_gate(job: GateJob) -> dict[str, Any]:
 
     Records whose sidecar says ``test: "routine"`` are routine operation histories: each
     gives its FOPDT from :func:`~gatetwin.identify.routine.identify_routine` (``routine``:
-    the identification documents by record name). A gate of histories only, none with an
-    informative window, has ``status`` ``no_window``; the other records build the model
-    set as designed tests do.
+    the identification documents by record name; see :func:`identify_history`). A gate of
+    histories only, none with an informative window, has ``status`` ``no_window``; the
+    other records build the model set as designed tests do.
     """
     start = time.perf_counter()
     models: dict[str, dict[str, Any]] = {}
@@ -62,7 +68,7 @@ def identify_gate(job: GateJob) -> dict[str, Any]:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            routine = identify_histories(histories)
+            routine = identify_histories(histories, job.max_memory_mib)
             if tests:
                 ident = _identify_tests(tests, job.gate)
                 models = ident.models
@@ -98,29 +104,72 @@ def is_routine_history(path: str) -> bool:
     return isinstance(data, dict) and data.get("test") == "routine"
 
 
-def identify_histories(paths: tuple[str, ...]) -> dict[str, dict[str, Any]]:
-    """Each routine history's identification document by record name; a history without
-    an informative window gives ``{"test": "routine", "no_window": REASON}``; each with
-    the history's ``n_samples``.
+def identify_histories(paths: tuple[str, ...],
+                       max_memory_mib: float | None = None) -> dict[str, dict[str, Any]]:
+    """Each routine history's identification document by record name (the file or
+    folder name without its suffix), see :func:`identify_history`.
 
     Raises
     ------
     GatetwinError
-        A history that cannot be read (the gate fails: bad input, not a lack of moves).
+        A history that cannot be read, or two histories of the gate with the same name (the
+        gate fails: bad input, not a lack of moves).
+    """
+    out: dict[str, dict[str, Any]] = {}
+    seen: dict[str, str] = {}
+    for path in paths:
+        name = Path(path).stem
+        if name in seen:
+            raise GatetwinError(f"{path}: a second routine history named {name!r} (the first: "
+                                f"{seen[name]}); keep one of them")  # fmt: skip
+        seen[name] = path
+        out[name] = identify_history(path, max_memory_mib)
+    return out
+
+
+def identify_history(path: str, max_memory_mib: float | None = None) -> dict[str, Any]:
+    """One routine history's identification document, with the history's ``n_samples``; a
+    history without an informative window gives ``{"test": "routine", "record": PATH,
+    "no_window": REASON}``.
+
+    A Parquet file or a folder of day files is read chunk by chunk, as ``gatetwin routine
+    --max-memory`` reads it (:mod:`gatetwin.identify.routine_chunks`; the same result as
+    the whole history), with chunks sized for ``max_memory_mib`` MiB when given; a CSV
+    file is read whole (a single CSV cannot be read in parts).
+
+    Raises
+    ------
+    GatetwinError
+        The history cannot be read.
     """
     from gatetwin.errors import NoWindowError
     from gatetwin.identify.routine import identify_routine
+    from gatetwin.identify.routine_chunks import (
+        DEFAULT_CHUNK_ROWS,
+        chunk_rows_for,
+        scan_routine_history,
+    )
     from gatetwin.records import read_record
+    from gatetwin.records.parquet import PARQUET_SUFFIXES
 
-    out: dict[str, dict[str, Any]] = {}
-    for path in paths:
-        record = read_record(path, test="routine")
-        try:
-            doc = identify_routine(record).to_dict()
-        except NoWindowError as exc:
-            doc = {"test": "routine", "record": path, "no_window": " ".join(str(exc).split())}
-        out[Path(path).stem] = {**doc, "n_samples": record.n_samples}
-    return out
+    where = Path(path)
+    if where.is_dir() or where.suffix.lower() in PARQUET_SUFFIXES:
+        rows = DEFAULT_CHUNK_ROWS if max_memory_mib is None else chunk_rows_for(max_memory_mib)
+        scan = scan_routine_history(path, chunk_rows=rows)
+        if scan.identification is None:
+            return _no_window(path, scan.no_window, scan.n_rows)
+        return {**scan.identification.to_dict(), "n_samples": scan.n_rows}
+    record = read_record(path, test="routine")
+    try:
+        doc = identify_routine(record).to_dict()
+    except NoWindowError as exc:
+        return _no_window(path, str(exc), record.n_samples)
+    return {**doc, "n_samples": record.n_samples}
+
+
+def _no_window(path: str, reason: str, n_samples: int) -> dict[str, Any]:
+    return {"test": "routine", "record": path, "no_window": " ".join(reason.split()),
+            "n_samples": n_samples}  # fmt: skip
 
 
 def _routine_entry(doc: dict[str, Any]) -> dict[str, Any]:

@@ -41,14 +41,14 @@ def write_gate_outputs(result: dict[str, Any], out: Path) -> list[Path]:
 
 
 def run_fleet(sources: list[str], out: str | Path, settings: FleetSettings, *,
-              fmu_backend: str | None = None,
+              fmu_backend: str | None = None, max_memory_mib: float | None = None,
               progress: Progress | None = None) -> dict[str, Any]:  # fmt: skip
     """Identify every gate of ``sources`` and write the model sets and the summary.
 
     Parameters
     ----------
     sources : list of str
-        Folders (of records, or of gate folders), glob patterns, CSV files or manifests
+        Folders (of records, or of gate folders), glob patterns, record files or manifests
         (see :mod:`gatetwin.fleet.sources`).
     out : str or Path
         Output folder.
@@ -56,6 +56,9 @@ def run_fleet(sources: list[str], out: str | Path, settings: FleetSettings, *,
         Serial, local pool or dask scheduler.
     fmu_backend : str, optional
         ``"c"`` or ``"python"`` to build every model's FMU as well.
+    max_memory_mib : float, optional
+        Memory budget of a worker reading a routine history chunk by chunk (Parquet files
+        and history folders), MiB (see :func:`~gatetwin.fleet.gate.identify_history`).
     progress : callable, optional
         Receives one line per finished gate.
 
@@ -63,12 +66,22 @@ def run_fleet(sources: list[str], out: str | Path, settings: FleetSettings, *,
     -------
     dict
         The fleet summary (the content of ``fleet.json``).
+
+    Raises
+    ------
+    GatetwinError
+        Sources that name no records (see :func:`~gatetwin.fleet.sources.discover_gates`),
+        or a memory budget too small to hold the interpreter; nothing is written then.
     """
+    if max_memory_mib is not None:
+        from gatetwin.identify.routine_chunks import chunk_rows_for
+
+        chunk_rows_for(max_memory_mib)  # refuses a budget below the libraries' own
     gates = discover_gates(sources)
     out_dir = Path(out)
     if progress:
         progress(f"fleet: {len(gates)} gates, {settings.describe()}")
-    jobs = [GateJob(g.gate, g.paths, fmu_backend) for g in gates]
+    jobs = [GateJob(g.gate, g.paths, fmu_backend, max_memory_mib) for g in gates]
     results = run_gates(jobs, settings, progress)
     for res in results:
         if res["status"] == "ok":

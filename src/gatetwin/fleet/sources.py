@@ -1,10 +1,14 @@
 """Which records belong to which gate: folders of gate folders, globs, manifests, sidecars.
 
-A *source* is a folder, a glob pattern, a CSV file, or a manifest (a text file listing one
-source per line, relative to the manifest's folder; blank lines and ``#`` comments are
-skipped). A folder with CSV files directly inside contributes those files; a folder
-without any contributes each of its sub-folders that has CSV files. Each CSV file belongs
-to the gate its sidecar's ``gate`` field names, else to the gate named like its folder.
+A *source* is a folder, a glob pattern, a record file (CSV or Parquet), or a manifest (a
+text file listing one source per line, relative to the manifest's folder; blank lines and
+``#`` comments are skipped). A *record* is a CSV or Parquet file (``.csv``, ``.parquet``,
+``.pq``), or a history folder: a folder of day files next to its own sidecar
+``FOLDER.json`` that says ``test: "routine"`` (one routine history, read a file at a time,
+as ``gatetwin routine FOLDER`` reads it). A folder with records directly inside
+contributes those records; a folder without any contributes each of its sub-folders that
+has records. Each record belongs to the gate its sidecar's ``gate`` field names, else to
+the gate named like its folder.
 
 Only names are read here (and the sidecars' ``gate``); the records themselves are read and
 checked by the gate's own task, so that one corrupt record fails its gate and nothing else.
@@ -19,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gatetwin.errors import GatetwinError
+from gatetwin.records.chunks import HISTORY_SUFFIXES
 
 _GLOB_CHARS = frozenset("*?[")
 #: A gate name becomes a folder name in the output: letters, digits, ``._-``, no leading dot.
@@ -27,7 +32,7 @@ _GATE_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]*")
 
 @dataclass(frozen=True)
 class GateRecords:
-    """One gate's record files (absolute paths, sorted by file name)."""
+    """One gate's records: files and history folders (absolute paths, sorted by name)."""
 
     gate: str
     paths: tuple[str, ...]
@@ -48,11 +53,32 @@ def _csvs(folder: Path) -> list[Path]:
     return sorted(p for p in folder.glob("*.csv") if p.is_file())
 
 
+def is_history_folder(path: Path) -> bool:
+    """Whether ``path`` is a folder of day files whose own sidecar (``FOLDER.json`` next to
+    it) says ``test: "routine"``."""
+    if not path.is_dir() or not path.name:
+        return False
+    try:
+        data = json.loads(path.with_suffix(".json").read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return False
+    return isinstance(data, dict) and data.get("test") == "routine"
+
+
+def _records(folder: Path) -> list[Path]:
+    """The records directly inside ``folder``: record files and history folders."""
+    return sorted(p for p in folder.iterdir()
+                  if (p.is_file() and p.suffix.lower() in HISTORY_SUFFIXES)
+                  or is_history_folder(p))  # fmt: skip
+
+
 def _expand_folder(folder: Path) -> list[Path]:
-    direct = _csvs(folder)
+    if is_history_folder(folder):
+        return [folder]
+    direct = _records(folder)
     if direct:
         return direct
-    return [p for sub in sorted(folder.iterdir()) if sub.is_dir() for p in _csvs(sub)]
+    return [p for sub in sorted(folder.iterdir()) if sub.is_dir() for p in _records(sub)]
 
 
 def _manifest_entries(manifest: Path) -> list[str]:
@@ -80,23 +106,24 @@ def _expand(source: str, depth: int = 0) -> list[Path]:
     path = Path(source)
     if path.is_dir():
         return _expand_folder(path)
-    if path.is_file() and path.suffix.lower() == ".csv":
+    if path.is_file() and path.suffix.lower() in HISTORY_SUFFIXES:
         return [path]
     if path.is_file():
         if depth > 0:
-            raise GatetwinError(f"{path}: a manifest may list folders, CSV files or patterns, "
-                                "not another manifest")  # fmt: skip
+            raise GatetwinError(f"{path}: a manifest may list folders, record files or "
+                                "patterns, not another manifest")  # fmt: skip
         return [p for e in _manifest_entries(path) for p in _expand(e, depth + 1)]
     raise GatetwinError(f"{source}: no such file or folder")
 
 
 def discover_gates(sources: list[str]) -> list[GateRecords]:
-    """The gates of ``sources`` with their record files, sorted by gate name.
+    """The gates of ``sources`` with their records (files and history folders), sorted by
+    gate name.
 
     Raises
     ------
     GatetwinError
-        A source that does not exist, a pattern or manifest that names nothing, no CSV file
+        A source that does not exist, a pattern or manifest that names nothing, no record
         at all, or two different folders giving the same gate name without ``gate`` fields.
     """
     files: dict[Path, None] = {}
@@ -104,7 +131,8 @@ def discover_gates(sources: list[str]) -> list[GateRecords]:
         for path in _expand(source):
             files[path.resolve()] = None
     if not files:
-        raise GatetwinError(f"{' '.join(sources)}: no CSV records found")
+        raise GatetwinError(f"{' '.join(sources)}: no records (CSV, Parquet or history "
+                            "folders) found")  # fmt: skip
     gates: dict[str, list[Path]] = {}
     folders: dict[str, Path] = {}
     for path in files:

@@ -154,6 +154,32 @@ def _scan(scan: _Scan, record: Record, first_row: int, final: bool) -> int:
     return keep
 
 
+@dataclass(frozen=True)
+class ChunkedScan:
+    """What one pass over a history found.
+
+    Attributes
+    ----------
+    n_rows : int
+        Rows of the whole history (every file of a folder).
+    identification : RoutineIdentification | None
+        The result; ``None`` without an informative window.
+    no_window : str
+        Why there is none (the one line :class:`~gatetwin.errors.NoWindowError` carries);
+        empty with a result.
+    """
+
+    n_rows: int
+    identification: RoutineIdentification | None
+    no_window: str = ""
+
+    def result(self) -> RoutineIdentification:
+        """The identification, or :class:`~gatetwin.errors.NoWindowError` saying why none."""
+        if self.identification is None:
+            raise NoWindowError(self.no_window)
+        return self.identification
+
+
 def identify_routine_chunked(
     path: str | os.PathLike[str],
     gauge: str | None = None,
@@ -187,12 +213,32 @@ def identify_routine_chunked(
     IdentificationError
         As :func:`~gatetwin.identify.routine.identify_routine`.
     """
+    return scan_routine_history(path, gauge, criteria, chunk_rows=chunk_rows).result()
+
+
+def scan_routine_history(
+    path: str | os.PathLike[str],
+    gauge: str | None = None,
+    criteria: WindowCriteria | None = None,
+    *,
+    chunk_rows: int = DEFAULT_CHUNK_ROWS,
+) -> ChunkedScan:
+    """:func:`identify_routine_chunked` with the history's row count, and a history without
+    an informative window told apart as a result rather than raised.
+
+    Raises
+    ------
+    RecordError, IdentificationError
+        As :func:`identify_routine_chunked`, except :class:`~gatetwin.errors.NoWindowError`.
+    """
     history = open_history(path)
     period_s = history_sample_period(history, chunk_rows)
     scan = _Scan(gauge, criteria or WindowCriteria())
     held: Chunk | None = None
     record: Record | None = None
+    n_rows = 0
     for chunk in iter_chunks(history, chunk_rows):
+        n_rows += chunk.n_rows
         held = _concat(history.path, held, chunk)
         if held.n_rows < 2:
             continue
@@ -206,9 +252,9 @@ def identify_routine_chunked(
         raise IdentificationError(f"{history.path}: fewer than 2 samples; expected a history")
     name = gauge_of(record, gauge)
     if not scan.windows:
-        raise NoWindowError(no_window_message(history.path, scan.n_moves,
-                                                    scan.unobserved, scan.rejected))  # fmt: skip
-    return assemble(
+        why = no_window_message(history.path, scan.n_moves, scan.unobserved, scan.rejected)
+        return ChunkedScan(n_rows, None, why)
+    return ChunkedScan(n_rows, assemble(
         history.path,
         scan.n_moves,
         scan.unobserved,
@@ -217,4 +263,4 @@ def identify_routine_chunked(
         scan.rejected,
         scan.crit,
         scan.controller,
-    )
+    ))  # fmt: skip
