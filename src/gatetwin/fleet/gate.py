@@ -104,8 +104,9 @@ def is_routine_history(path: str) -> bool:
     return isinstance(data, dict) and data.get("test") == "routine"
 
 
-def identify_histories(paths: tuple[str, ...],
-                       max_memory_mib: float | None = None) -> dict[str, dict[str, Any]]:
+def identify_histories(
+    paths: tuple[str, ...], max_memory_mib: float | None = None
+) -> dict[str, dict[str, Any]]:
     """Each routine history's identification document by record name (the file or
     folder name without its suffix), see :func:`identify_history`.
 
