@@ -203,8 +203,9 @@ def c_function(module: types.ModuleType, name: str, args: tuple[str, ...], n_out
     """C definition and prototype of the kernel function ``name``."""
     trace = _Trace()
     # exp and log: the C library's bits differ by platform, gatetwin.plant.elementary's do not
-    fns = _rebind(module, {**_C_HELPERS, "exp": _call(f"{prefix}exp", elementary.exp),
-                           "log": _call(f"{prefix}log", elementary.log)})  # fmt: skip
+    calls = elementary.math_calls(prefix)
+    replaced = {n: _call(calls[n], getattr(elementary, n)) for n in calls if n in HELPERS}
+    fns = _rebind(module, {**_C_HELPERS, **replaced})
     p = [CValue(f"p[{i}]", trace) for i in range(module.N_PARAMETERS)]
     inputs = [CValue(a, trace) for a in args]
     result = getattr(fns, name)(*inputs, p)
