@@ -156,9 +156,25 @@ void dynamics_derive(const ModelData *m, double flow_m3h, const KnotPosition *at
     c->delay_s = plant_interp(at, DEAD_TIME(m));
     c->level_ref_mm = plant_interp(at, &m->real[VR_COL_LEVEL_REF_MM]);
     effects_fopdt_parameters(m, flow_m3h, &c->gain, &c->tau_s);
+    c->decay_valid = 0;
 #if GT_ENVELOPE
     c->point_valid = 0;
 #endif
+}
+
+/* The first-order decay over duration_s at the time constant tau_s, from the cache when it
+ * holds for both (the exponential only when the piece's duration or T changed). */
+static double cached_decay(ModelData *m, double duration_s, double tau_s)
+{
+    DynamicsCache *c = &m->cache.dyn;
+    if (!c->decay_valid || !plant_same_bits(c->decay_duration_s, duration_s) ||
+        !plant_same_bits(c->decay_tau_s, tau_s)) {
+        c->decay = gt_first_order_decay(duration_s, tau_s);
+        c->decay_duration_s = duration_s;
+        c->decay_tau_s = tau_s;
+        c->decay_valid = 1;
+    }
+    return c->decay;
 }
 
 #if GT_ENVELOPE
@@ -214,7 +230,7 @@ static void piece(ModelData *m, double t_start, double t_end, double u_mm,
         target = p->gain * d->change_u[slot(d, j)];
 #endif
         effects_lag_interval(m, p->level_ref_mm + target, d->x - target, t_next - t, tau_s);
-        d->x = gt_first_order(d->x, target, t_next - t, tau_s);
+        d->x = gt_relax(d->x, target, cached_decay(m, t_next - t, tau_s));
         t = t_next;
     }
     prune(d, t_end);
@@ -293,8 +309,8 @@ PlantStatus dynamics_check_state(const ModelData *m, PlantMessage *msg)
     return PLANT_OK;
 }
 
-/* A restored cache: K, T, L and level_ref those of its discharge; an envelope's steady point
- * that of its input. */
+/* A restored cache: K, T, L and level_ref those of its discharge, the decay that of its
+ * duration and T; an envelope's steady point that of its input. */
 PlantStatus dynamics_check_cache(const ModelData *m, PlantMessage *msg)
 {
     const DynamicsCache *c = &m->cache.dyn;
@@ -306,6 +322,15 @@ PlantStatus dynamics_check_cache(const ModelData *m, PlantMessage *msg)
         plant_message(msg, "state's cached K, T, L, level_ref (%.17g, %.17g, %.17g, %.17g) are "
                            "not those of its discharge",
                       c->gain, c->tau_s, c->delay_s, c->level_ref_mm);
+        return PLANT_ERROR;
+    }
+    if (plant_check_flag(c->decay_valid, "cached decay", msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    if (c->decay_valid &&
+        !plant_same_bits(c->decay, gt_first_order_decay(c->decay_duration_s, c->decay_tau_s))) {
+        plant_message(msg, "state's cached decay %.17g is not the one over %.17g s at T %.17g s",
+                      c->decay, c->decay_duration_s, c->decay_tau_s);
         return PLANT_ERROR;
     }
 #if GT_ENVELOPE

@@ -16,13 +16,18 @@ typedef struct {
 } DynamicsState;
 
 /* What a step derives from its discharge and the parameters alone (ModelData.cache, see
- * plant_data.h): the scheduled K, T, L and level_ref, and an envelope's steady point at the
- * last arrived input it needed. */
+ * plant_data.h): the scheduled K, T, L and level_ref, the first-order decay of the last piece
+ * (a step's pieces repeat their duration and T), and an envelope's steady point at the last
+ * arrived input it needed. */
 typedef struct {
     double gain;         /* K, flow-dependent gain applied, mm/mm */
     double tau_s;        /* T, flow-dependent gain applied, s */
     double delay_s;      /* L, s */
     double level_ref_mm; /* level_ref, mm */
+    int decay_valid;         /* 1: decay below holds for decay_duration_s and decay_tau_s */
+    double decay_duration_s; /* the piece's duration it is for, s */
+    double decay_tau_s;      /* the time constant it is for, s */
+    double decay;            /* exp(-duration / T): the fraction of the deviation left */
 #if GT_ENVELOPE
     int point_valid;         /* 1: the steady point below holds for point_u_mm */
     double point_u_mm;       /* the arrived input deviation it is at, mm */

@@ -26,6 +26,7 @@ from numba import njit
 from gatetwin.errors import IdentificationError
 from gatetwin.plant import blocks
 from gatetwin.plant.effects import EffectSet
+from gatetwin.plant.kernel_render import numba_functions
 from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant
 
 
@@ -81,17 +82,18 @@ def grid_inputs(
 
 
 # The effect blocks' and the ARX sample's arithmetic, compiled: the very functions the
-# reference simulator and the pythonfmu FMU run (:mod:`gatetwin.plant.blocks`), so this
-# module only loops.
-_move_toward = njit(cache=True)(blocks.move_toward)
-_play = njit(cache=True)(blocks.play)
-_relax = njit(cache=True)(blocks.first_order)
-_lag_interval = njit(cache=True)(blocks.lag_interval)
-_seiche_advance = njit(cache=True)(blocks.seiche_advance)
-_seiche_equilibrium = njit(cache=True)(blocks.seiche_equilibrium)
-_seiche_output = njit(cache=True)(blocks.seiche_output)
-_gain_map = njit(cache=True)(blocks.gain_map)
-_flow_scaled = njit(cache=True)(blocks.flow_scaled)
+# reference simulator and the pythonfmu FMU run (:mod:`gatetwin.plant.blocks`), each calling
+# its siblings' compiled copies, so this module only loops.
+_blocks = numba_functions(blocks)
+_move_toward = _blocks.move_toward
+_play = _blocks.play
+_relax = _blocks.first_order
+_lag_interval = _blocks.lag_interval
+_seiche_advance = _blocks.seiche_advance
+_seiche_equilibrium = _blocks.seiche_equilibrium
+_seiche_output = _blocks.seiche_output
+_gain_map = _blocks.gain_map
+_flow_scaled = _blocks.flow_scaled
 # inlined: a call per sample would pass the coefficient rows as array views, which costs more
 # than the sample itself (benchmarks/bench_arx.py)
 _arx_sample = njit(cache=True, inline="always")(blocks.arx_sample)

@@ -25,8 +25,9 @@ import math
 from gatetwin.plant import elementary  # the python FMU embeds it beside this module
 
 #: The functions rendered into the C FMU's generated ``blocks.c`` (prefix ``gt_``).
-RENDERED_C = ("move_toward", "play", "gain_map", "gain_map_inverse", "flow_scaled", "first_order",
-              "seiche_advance", "seiche_equilibrium", "seiche_output", "lag_interval",
+RENDERED_C = ("move_toward", "play", "gain_map", "gain_map_inverse", "flow_scaled",
+              "first_order_decay", "relax", "first_order", "seiche_advance",
+              "seiche_equilibrium", "seiche_output", "lag_interval",
               "grid_index_at_or_after", "arx_pole_scaled", "arx_gain_rescaled",
               "arx_envelope_coefficients", "arx_sample", "arx_equilibrium")  # fmt: skip
 
@@ -152,9 +153,22 @@ def arx_equilibrium(a: list[float], b: list[float], u: float, na: int, nb: int
     return sum_a, sum_b / (1.0 - sum_a) * u
 
 
+def first_order_decay(duration_s: float, time_constant_s: float) -> float:
+    """The fraction of a first-order deviation left after ``duration_s``; it depends on the
+    duration and the time constant alone, so a caller whose steps repeat may keep it."""
+    return math.exp(-duration_s / time_constant_s)
+
+
+def relax(state: float, target: float, decay: float) -> float:
+    """A first-order state relaxed toward a constant ``target``, ``decay`` of its deviation
+    left (:func:`first_order_decay`)."""
+    return target + (state - target) * decay
+
+
 def first_order(state: float, target: float, duration_s: float, time_constant_s: float) -> float:
-    """Exact first-order relaxation toward a constant ``target`` over ``duration_s``."""
-    return target + (state - target) * math.exp(-duration_s / time_constant_s)
+    """Exact first-order relaxation toward a constant ``target`` over ``duration_s``. (Calls
+    two blocks, so numba compiles it only with them compiled.)"""
+    return relax(state, target, first_order_decay(duration_s, time_constant_s))
 
 
 def seiche_advance(

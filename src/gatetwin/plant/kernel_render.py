@@ -73,6 +73,16 @@ def numba_kernel(module_name: str) -> types.SimpleNamespace:
     return _rebind(module, helpers, wrap=lambda f: njit(cache=False)(f))
 
 
+def numba_functions(module: types.ModuleType) -> types.SimpleNamespace:
+    """A module's functions compiled with numba (cached on disk), each calling its siblings'
+    compiled copies: how a function that calls other functions of its module (numba cannot
+    call plain Python) is compiled as it is written. A function is compiled at its first call,
+    so one numba cannot type is harmless until called."""
+    from numba import njit
+
+    return _rebind(module, {}, wrap=lambda f: njit(cache=True)(f))
+
+
 def portable_kernel(module: types.ModuleType) -> types.SimpleNamespace:
     """The kernel's functions in Python with :mod:`gatetwin.plant.elementary`'s ``exp`` and
     ``log``: what the C rendering computes, to the bit, on every platform."""
