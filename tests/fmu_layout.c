@@ -39,6 +39,10 @@ static int cache_fields(void)
     FIELD(cache.dyn.point_u_mm);
     FIELD(cache.dyn.point_level_mm);
 #endif
+#ifdef GATETWIN_MODEL_FOPDT_H
+    FIELD(cache.dyn.decay_valid);
+    FIELD(cache.dyn.decay);
+#endif
     FIELD(cache.dyn);
     return 0;
 #else
@@ -71,6 +75,7 @@ int main(int argc, char **argv)
     INT_FIELD(cache.dyn.point_valid);
 #endif
 #ifdef GATETWIN_MODEL_FOPDT_H
+    INT_FIELD(cache.dyn.decay_valid);
     INT_FIELD(dyn.head);
     INT_FIELD(dyn.count);
 #endif
