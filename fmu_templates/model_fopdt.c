@@ -156,25 +156,34 @@ void dynamics_derive(const ModelData *m, double flow_m3h, const KnotPosition *at
     c->delay_s = plant_interp(at, DEAD_TIME(m));
     c->level_ref_mm = plant_interp(at, &m->real[VR_COL_LEVEL_REF_MM]);
     effects_fopdt_parameters(m, flow_m3h, &c->gain, &c->tau_s);
-    c->decay_valid = 0;
+    c->decay_filled = 0;
+    c->decay_next = 0;
 #if GT_ENVELOPE
     c->point_valid = 0;
 #endif
 }
 
-/* The first-order decay over duration_s at the time constant tau_s, from the cache when it
- * holds for both (the exponential only when the piece's duration or T changed). */
+/* The first-order decay over duration_s at the time constant tau_s, from the cache when a
+ * slot holds it for both (the exponential only for a piece unlike the last few). */
 static double cached_decay(ModelData *m, double duration_s, double tau_s)
 {
     DynamicsCache *c = &m->cache.dyn;
-    if (!c->decay_valid || !plant_same_bits(c->decay_duration_s, duration_s) ||
-        !plant_same_bits(c->decay_tau_s, tau_s)) {
-        c->decay = gt_first_order_decay(duration_s, tau_s);
-        c->decay_duration_s = duration_s;
-        c->decay_tau_s = tau_s;
-        c->decay_valid = 1;
+    int i;
+    for (i = 0; i < c->decay_filled; i++) {
+        if (plant_same_bits(c->decay_duration_s[i], duration_s) &&
+            plant_same_bits(c->decay_tau_s[i], tau_s)) {
+            return c->decay[i];
+        }
     }
-    return c->decay;
+    i = c->decay_next;
+    c->decay[i] = gt_first_order_decay(duration_s, tau_s);
+    c->decay_duration_s[i] = duration_s;
+    c->decay_tau_s[i] = tau_s;
+    c->decay_next = (i + 1) % GT_DECAY_SLOTS;
+    if (c->decay_filled < GT_DECAY_SLOTS) {
+        c->decay_filled++;
+    }
+    return c->decay[i];
 }
 
 #if GT_ENVELOPE
@@ -309,12 +318,13 @@ PlantStatus dynamics_check_state(const ModelData *m, PlantMessage *msg)
     return PLANT_OK;
 }
 
-/* A restored cache: K, T, L and level_ref those of its discharge, the decay that of its
+/* A restored cache: K, T, L and level_ref those of its discharge, each decay that of its
  * duration and T; an envelope's steady point that of its input. */
 PlantStatus dynamics_check_cache(const ModelData *m, PlantMessage *msg)
 {
     const DynamicsCache *c = &m->cache.dyn;
     DynamicsCache fresh;
+    int i;
     dynamics_derive(m, m->cache.flow_m3h, &m->cache.at, &fresh);
     if (!plant_same_bits(c->gain, fresh.gain) || !plant_same_bits(c->tau_s, fresh.tau_s) ||
         !plant_same_bits(c->delay_s, fresh.delay_s) ||
@@ -324,14 +334,21 @@ PlantStatus dynamics_check_cache(const ModelData *m, PlantMessage *msg)
                       c->gain, c->tau_s, c->delay_s, c->level_ref_mm);
         return PLANT_ERROR;
     }
-    if (plant_check_flag(c->decay_valid, "cached decay", msg) != PLANT_OK) {
+    /* the slots fill in turn: until all are in use, the next is the first free one */
+    if (c->decay_filled < 0 || c->decay_filled > GT_DECAY_SLOTS || c->decay_next < 0 ||
+        c->decay_next >= GT_DECAY_SLOTS ||
+        (c->decay_filled < GT_DECAY_SLOTS && c->decay_next != c->decay_filled)) {
+        plant_message(msg, "state's cached decays (%d filled, next %d) are not %d slots filled "
+                           "in turn", c->decay_filled, c->decay_next, GT_DECAY_SLOTS);
         return PLANT_ERROR;
     }
-    if (c->decay_valid &&
-        !plant_same_bits(c->decay, gt_first_order_decay(c->decay_duration_s, c->decay_tau_s))) {
-        plant_message(msg, "state's cached decay %.17g is not the one over %.17g s at T %.17g s",
-                      c->decay, c->decay_duration_s, c->decay_tau_s);
-        return PLANT_ERROR;
+    for (i = 0; i < c->decay_filled; i++) {
+        if (!plant_same_bits(c->decay[i],
+                             gt_first_order_decay(c->decay_duration_s[i], c->decay_tau_s[i]))) {
+            plant_message(msg, "state's cached decay %.17g is not the one over %.17g s at T "
+                               "%.17g s", c->decay[i], c->decay_duration_s[i], c->decay_tau_s[i]);
+            return PLANT_ERROR;
+        }
     }
 #if GT_ENVELOPE
     if (plant_check_flag(c->point_valid, "cached steady-point", msg) != PLANT_OK) {

@@ -6,6 +6,11 @@
 /* GT_HISTORY_CAPACITY (input change points kept for the dead time) comes from model_config.h,
  * generated from gatetwin.plant.simulate.DELAY_HISTORY_CAPACITY. */
 
+/* Decays a step cache keeps: with a fixed communication step h and inputs that change at
+ * communication points, a piece lasts h, or the two parts of a step an input arrives in
+ * after the dead time (L mod h and h minus it), so three slots hold every piece's decay. */
+#define GT_DECAY_SLOTS 3
+
 typedef struct {
     double x;                                /* deviation from level_ref, mm */
     double change_t[GT_HISTORY_CAPACITY];    /* time of each input change, s (ring buffer) */
@@ -16,18 +21,19 @@ typedef struct {
 } DynamicsState;
 
 /* What a step derives from its discharge and the parameters alone (ModelData.cache, see
- * plant_data.h): the scheduled K, T, L and level_ref, the first-order decay of the last piece
- * (a step's pieces repeat their duration and T), and an envelope's steady point at the last
+ * plant_data.h): the scheduled K, T, L and level_ref, the first-order decays of the last
+ * pieces (pieces repeat their duration and T), and an envelope's steady point at the last
  * arrived input it needed. */
 typedef struct {
     double gain;         /* K, flow-dependent gain applied, mm/mm */
     double tau_s;        /* T, flow-dependent gain applied, s */
     double delay_s;      /* L, s */
     double level_ref_mm; /* level_ref, mm */
-    int decay_valid;         /* 1: decay below holds for decay_duration_s and decay_tau_s */
-    double decay_duration_s; /* the piece's duration it is for, s */
-    double decay_tau_s;      /* the time constant it is for, s */
-    double decay;            /* exp(-duration / T): the fraction of the deviation left */
+    int decay_filled;                        /* slots below in use, 0 .. GT_DECAY_SLOTS */
+    int decay_next;                          /* the slot the next new decay replaces */
+    double decay_duration_s[GT_DECAY_SLOTS]; /* the piece's duration a slot is for, s */
+    double decay_tau_s[GT_DECAY_SLOTS];      /* the time constant it is for, s */
+    double decay[GT_DECAY_SLOTS];            /* exp(-duration / T): the deviation left */
 #if GT_ENVELOPE
     int point_valid;         /* 1: the steady point below holds for point_u_mm */
     double point_u_mm;       /* the arrived input deviation it is at, mm */

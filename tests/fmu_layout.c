@@ -40,7 +40,8 @@ static int cache_fields(void)
     FIELD(cache.dyn.point_level_mm);
 #endif
 #ifdef GATETWIN_MODEL_FOPDT_H
-    FIELD(cache.dyn.decay_valid);
+    FIELD(cache.dyn.decay_filled);
+    FIELD(cache.dyn.decay_next);
     FIELD(cache.dyn.decay);
 #endif
     FIELD(cache.dyn);
@@ -75,7 +76,8 @@ int main(int argc, char **argv)
     INT_FIELD(cache.dyn.point_valid);
 #endif
 #ifdef GATETWIN_MODEL_FOPDT_H
-    INT_FIELD(cache.dyn.decay_valid);
+    INT_FIELD(cache.dyn.decay_filled);
+    INT_FIELD(cache.dyn.decay_next);
     INT_FIELD(dyn.head);
     INT_FIELD(dyn.count);
 #endif

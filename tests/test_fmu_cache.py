@@ -232,8 +232,9 @@ TAMPERING = {
     "cache.dyn.point_valid": ("=i", lambda v: 7),
     "cache.dyn.point_u_mm": ("=d", lambda v: v + 1.0),
     "cache.dyn.point_level_mm": ("=d", lambda v: np.nextafter(v, np.inf)),  # one ulp
-    "cache.dyn.decay_valid": ("=i", lambda v: 7),  # an FOPDT's last piece's decay
-    "cache.dyn.decay": ("=d", lambda v: np.nextafter(v, np.inf)),  # one ulp
+    "cache.dyn.decay_filled": ("=i", lambda v: 7),  # an FOPDT's decays of its last pieces
+    "cache.dyn.decay_next": ("=i", lambda v: v + 1),
+    "cache.dyn.decay": ("=d", lambda v: np.nextafter(v, np.inf)),  # one ulp, the first slot
 }
 
 
@@ -262,8 +263,9 @@ def test_a_restored_cache_that_is_not_its_recomputation_is_refused(extracted, na
             errors = [m for status, m in driver.messages[before:] if status >= fmi2Error]
             assert errors and "refused" in errors[-1] and "cache" in errors[-1], field
             tried += 1
-        # five fields in every cache, three of an envelope's steady point, two of an FOPDT's decay
-        assert tried == 5 + 3 * name.endswith("3F") + 2 * name.startswith("fopdt")
+        # five fields in every cache, three of an envelope's steady point, three of an FOPDT's
+        # decays
+        assert tried == 5 + 3 * name.endswith("3F") + 3 * name.startswith("fopdt")
         assert driver.slave.serializeFMUstate(state) == data  # the refusals changed nothing
         assert driver.level() == level
         driver.slave.freeFMUstate(state)
