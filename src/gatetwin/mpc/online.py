@@ -342,6 +342,32 @@ def monitor_sample(
     return estimate, (run, high, low, scale_sq, filtered)
 
 
+def slow_sample(
+    slow: DisturbanceObserver,
+    last: DiscreteModel,
+    model: DiscreteModel,
+    level_mm: Any,
+    opening_mm: Any,
+    monitor: tuple[Any, ...],
+    anomaly: AnomalySettings,
+) -> tuple[tuple[Any, ...], tuple[Any, ...]]:
+    """One sample of the envelope observer's slow filter: :func:`monitor_sample` with the slow
+    limits on ``last`` (the last prediction's model), the disturbance rescaled to ``model``'s
+    gain, the prediction with ``opening_mm`` on ``model``. Numbers or casadi symbols."""
+    estimate, monitor = monitor_sample(slow, last, level_mm, monitor, anomaly.slow_limits(),
+                                       anomaly)  # fmt: skip
+    slow.rescale_disturbance(last.dc_gain_mm_per_mm(), model.dc_gain_mm_per_mm())
+    slow.predict(model, opening_mm)
+    return estimate, monitor
+
+
+def with_slow_rule(kind: Any, slow_estimate: tuple[Any, ...]) -> tuple[Any, Any]:
+    """The anomaly kind with the slow rule (3 when only it holds) and the slow CUSUM,
+    ``max(high, low)`` of the slow filter's estimate (:func:`monitor_sample`'s)."""
+    combined = sym.where(kind > 0.0, kind, sym.where(slow_estimate[6] == 0.0, kind, 3.0))
+    return combined, sym.fmax(slow_estimate[7], slow_estimate[8])
+
+
 def forecast_level(
     model: DiscreteModel, state: np.ndarray, disturbance_mm: Any, opening_mm: Any, samples: int
 ) -> Any:
@@ -510,13 +536,10 @@ class OnlineObserver:
         self, model: DiscreteModel, level_mm: float, opening_mm: float, kind: float
     ) -> float:
         """Correct and predict the slow filter; ``kind``, or 3 when only the slow rule holds."""
-        slow, last = self.slow_observer, self._model
-        estimate, self._slow = monitor_sample(slow, last, level_mm, self._slow,
-                                              self.anomaly.slow_limits(), self.anomaly)  # fmt: skip
-        slow.rescale_disturbance(last.dc_gain_mm_per_mm(), model.dc_gain_mm_per_mm())
-        slow.predict(model, opening_mm)
-        self.slow_cusum = max(estimate[7], estimate[8])
-        return kind if kind > 0.0 or estimate[6] == 0.0 else 3.0
+        estimate, self._slow = slow_sample(self.slow_observer, self._model, model, level_mm,
+                                           opening_mm, self._slow, self.anomaly)  # fmt: skip
+        kind, self.slow_cusum = with_slow_rule(kind, estimate)
+        return kind
 
     def run(
         self, level_mm: np.ndarray, opening_mm: np.ndarray, flow_m3h: np.ndarray
@@ -599,5 +622,7 @@ __all__ = [
     "innovation_variance",
     "measured_inputs",
     "monitor_sample",
+    "slow_sample",
     "start_monitor",
+    "with_slow_rule",
 ]
