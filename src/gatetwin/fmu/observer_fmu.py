@@ -121,7 +121,7 @@ def export_observer(
     *,
     horizon_s: float = DEFAULT_HORIZON_S,
     settings: ObserverSettings | None = None,
-    anomaly: AnomalySettings | None = None,
+    anomaly: AnomalySettings | dict[str, Any] | None = None,
     without_effects: bool = False,
     model_name: str = DEFAULT_NAME,
     fmi_version: str = "2.0",
@@ -150,7 +150,8 @@ def export_observer(
         ``move_uncertainty``, ``scale_window_samples`` and the slow rule's slack and
         threshold are built into the code. Default: :class:`AnomalySettings`' defaults, or
         :data:`gatetwin.mpc.online.ENVELOPE_ANOMALY` for the envelope observer (as
-        :class:`~gatetwin.mpc.online.OnlineObserver`).
+        :class:`~gatetwin.mpc.online.OnlineObserver`); a dict replaces those fields of the
+        default.
     without_effects : bool
         Drop the model's effect blocks (the observer covers the plant without them); without
         it a model with effect blocks is refused.
@@ -185,6 +186,11 @@ def export_observer(
     except ControlError as exc:
         raise ExportError(str(exc)) from None
     default = ENVELOPE_ANOMALY if envelope else AnomalySettings()
+    if isinstance(anomaly, dict):
+        try:
+            anomaly = dataclasses.replace(default, **anomaly)
+        except ControlError as exc:
+            raise ExportError(str(exc)) from None
     cfg = _Config(plant, float(horizon_s), settings or MONITORING, anomaly or default,
                   model_name, envelope)  # fmt: skip
     target = fmu_target(out_path)

@@ -43,11 +43,14 @@ flume's wide-range records is a few mm instead of tens, which allows a third rul
   leaves this filter's innovation biased for minutes where the monitoring filter has
   absorbed it into ``disturbance_mm`` within one.
 
-The envelope observer runs in Python only; the observer FMU is the scheduled FOPDT's.
+Both renderings have a C FMU (:mod:`gatetwin.fmu.observer_fmu`, ``gatetwin export-observer``)
+that equals this class to round-off.
 
-The per-sample arithmetic (:func:`monitor_sample`, :func:`forecast_level`) runs on numbers
-and on casadi symbols alike; :mod:`gatetwin.mpc.observer_codegen` builds the observer
-FMU's C from it. This module does not identify, control or diagnose.
+The per-sample arithmetic (:func:`monitor_sample`, :func:`slow_sample`,
+:func:`with_slow_rule`, :func:`forecast_level`, and the envelope's tangent,
+:func:`gatetwin.mpc.envelope.tangent_model`) runs on numbers and on casadi symbols alike;
+:mod:`gatetwin.mpc.observer_codegen` builds the observer FMUs' C from it. This module does
+not identify, control or diagnose.
 """
 
 from __future__ import annotations
@@ -406,8 +409,8 @@ def checked_plant(
                                f"physical plant (got {kind} without an envelope)")  # fmt: skip
     elif not isinstance(plant, FopdtPlant):
         kind = getattr(plant, "kind", type(plant).__name__)
-        hint = ("; the envelope observer of a physical plant runs in Python (gatetwin observe)"
-                if isinstance(plant, PhysicalPlant) else "")  # fmt: skip
+        hint = ("; observe a physical plant with the envelope observer (linearisation "
+                "envelope or auto)" if isinstance(plant, PhysicalPlant) else "")  # fmt: skip
         raise ControlError(f"{who}: needs a scheduled FOPDT plant (got {kind}){hint}")
     if plant.effects:
         kinds = ", ".join(e["kind"] for e in plant.effects)
