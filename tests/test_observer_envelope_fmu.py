@@ -257,3 +257,28 @@ def test_cli_exports_the_envelope_observer_and_refuses_in_one_line(tmp_path, cap
     starts = {v.name: v.start for v in md.modelVariables}
     assert "slow_cusum" in starts
     assert float(starts["anomaly_run_samples"]) == ENVELOPE_ANOMALY.run_samples
+
+
+def test_the_start_values_are_a_steady_point_a_master_can_start_from(fmus):
+    """A master that sets no input: the start values are the gate law's steady point, so the
+    observer starts at rest there (its forecast is the level it reads; round-off only)."""
+    from fmpy import extract
+
+    from fmu_support import open_fmu
+
+    folder = extract(str(fmus["2.0"]))
+    driver = open_fmu(folder)
+    slave, vr = driver.slave, driver.vr
+    try:
+        slave.setupExperiment(startTime=0.0)
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        level, filtered, ahead = slave.getReal([vr["level_3F_mm"], vr["filtered_level_mm"],
+                                                vr["predicted_level_mm"]])  # fmt: skip
+        slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=1.2)
+        anomaly = slave.getReal([vr["anomaly"]])[0]
+    finally:
+        slave.freeInstance()
+        shutil.rmtree(folder, ignore_errors=True)
+    assert level > 0.0 and anomaly == 0.0
+    assert abs(filtered - level) <= TOL and abs(ahead - level) <= TOL

@@ -102,6 +102,11 @@ ENVELOPE_C_FILES = ("kernel_point.c", "physical_kernel.c", "elementary.c")
 #: work per call (~14 µs a sample, so ~0.15 s) that keeps a huge step from stalling the host.
 MAX_SAMPLES_PER_STEP = 10_000
 DEFAULT_NAME = "gatetwin_observer"
+#: Start value of the envelope observer's opening input where ``opening_ref_mm`` is a closed
+#: gate (a physical plant's is 0): 30 mm, mid-range of the flume's openings (the bundled
+#: records hold 10-50 mm). A closed gate passes nothing: its tangent has no finite time
+#: constant and the filter's covariance no fixed point.
+ENVELOPE_START_OPENING_MM = 30.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -270,17 +275,32 @@ def _facts(cfg: _Config, desc: FmuDescription | None = None) -> dict[str, Any]:
     return facts
 
 
-def _rows(cfg: _Config) -> list[Row]:
+def _start_inputs(cfg: _Config) -> tuple[float, float, float]:
+    """Start values of the level, opening and discharge inputs: the schedule's first knot at
+    ``opening_ref_mm``; for the envelope observer a steady point of the gate law (the middle
+    of the schedule's discharges, ``opening_ref_mm`` or, where that is a closed gate,
+    :data:`ENVELOPE_START_OPENING_MM`), so that a master that sets no input starts it."""
     plant = cfg.plant
     knots = plant.schedule.flow_m3h
-    level0 = plant.schedule.at("level_ref_mm", knots[0])
+    if not cfg.envelope:
+        return plant.schedule.at("level_ref_mm", knots[0]), plant.opening_ref_mm, knots[0]
+    from gatetwin.mpc.envelope import steady_level_mm
+
+    flow = 0.5 * (knots[0] + knots[-1])
+    opening = plant.opening_ref_mm if plant.opening_ref_mm > 0.0 else ENVELOPE_START_OPENING_MM
+    return steady_level_mm(plant, flow, opening), opening, flow
+
+
+def _rows(cfg: _Config) -> list[Row]:
+    plant = cfg.plant
+    level0, opening0, flow0 = _start_inputs(cfg)
     return [
         (output_name(plant.gauge), "input", "continuous", None, "mm",
          f"Level measured at gauge {plant.gauge} now", level0),
         ("opening_mm", "input", "continuous", None, "mm",
-         "Gate opening measured now (held over the next sample)", plant.opening_ref_mm),
+         "Gate opening measured now (held over the next sample)", opening0),
         ("flow_m3h", "input", "continuous", None, "m3/h",
-         "Discharge measured now (held over the next sample)", knots[0]),
+         "Discharge measured now (held over the next sample)", flow0),
         ("filtered_level_mm", "output", "continuous", "calculated", "mm",
          "Estimate of the level now", None),
         ("disturbance_mm", "output", "continuous", "calculated", "mm",
