@@ -22,6 +22,15 @@ monitor_sample`, :func:`~gatetwin.mpc.online.advance`) on casadi symbols:
 
 ``theta`` is the MPC controller's (:func:`gatetwin.mpc.codegen.theta_names`): the schedule
 interpolated at the measured discharge inside the functions.
+
+The envelope observer (``linearisation="envelope"``) has its own functions
+(:func:`build_envelope_functions`, prefix :data:`ENVELOPE_PREFIX`): its model is re-rendered
+at every sample from the tangent's steady points ``x``, which the FMU computes with the plant
+kernel's C at the openings ``openings(e)`` gives (:class:`SymbolicTangent`: the tangent's own
+code, :func:`gatetwin.plant.model.tangent_point` and
+:func:`gatetwin.mpc.envelope.tangent_model`, with the steady points as symbols), and its slow
+filter and rule are :func:`gatetwin.mpc.online.slow_sample` and
+:func:`~gatetwin.mpc.online.with_slow_rule` on symbols.
 """
 
 from __future__ import annotations
