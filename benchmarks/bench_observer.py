@@ -15,9 +15,11 @@ the default horizon, noise levels and anomaly settings) and runs it through fmpy
   (the flume's own physics instead of the truth plant's response; "overtops" where the
   scenario with it would overtop the flume).
 
-Then the envelope observer of ``models/physical_3F.json`` (Python; re-linearised at every
-sample, with the slow rule; thresholds calibrated on flume records that are not bundled by
-``benchmarks/calibrate_observer.py``) over the same clean records and flume bases.
+Then the envelope observer FMU of ``models/physical_3F.json`` (``gatetwin export-observer``
+on a physical model: re-linearised at every sample, with the slow rule; thresholds calibrated
+on flume records that are not bundled by ``benchmarks/calibrate_observer.py``) over the same
+clean records and flume bases, its largest difference from the Python envelope observer on
+record C, and the time each takes there.
 
 Prints the rises of the flag on the clean records (with the largest run outside the band and
 the largest CUSUM, against the thresholds), the detection delay (s from the onset to the
@@ -177,11 +179,19 @@ def main() -> None:
         py_s = time.perf_counter() - start
         print(f"\nrecord C ({t.size} samples): FMU via fmpy {fmu_s:.3f} s, Python {py_s:.3f} s, "
               f"ratio Python/FMU {py_s / fmu_s:.1f}")  # fmt: skip
-    _envelope(records, plant, physical)
+    with tempfile.TemporaryDirectory() as tmp:
+        env_fmu = export_observer(_physical(), Path(tmp) / "envelope.fmu")
+        _envelope(records, plant, physical, env_fmu)
+        start = time.perf_counter()
+        got = run_observer_fmu(env_fmu, y, e, q)
+        env_fmu_s = time.perf_counter() - start
     start = time.perf_counter()
-    OnlineObserver(_physical()).run(y, e, q)
+    ref = OnlineObserver(_physical()).run(y, e, q)
     env_s = time.perf_counter() - start
-    print(f"\nrecord C: envelope observer (Python, two filters) {env_s:.3f} s, schedule observer "
+    worst = max(float(np.max(np.abs(got[k] - ref[k]))) for k in got)
+    print(f"\nrecord C: envelope observer FMU via fmpy {env_fmu_s:.3f} s, Python {env_s:.3f} s, "
+          f"ratio Python/FMU {env_s / env_fmu_s:.1f}; largest output difference {worst:.1e}")
+    print(f"record C: envelope observer (Python, two filters) {env_s:.3f} s, schedule observer "
           f"(Python) {py_s:.3f} s, ratio {env_s / py_s:.1f}")  # fmt: skip
 
 
@@ -190,17 +200,16 @@ def _physical():
     return dataclasses.replace(plant, effects=())
 
 
-def _envelope(records: dict, truth, inflow: dict) -> None:
-    """The envelope observer (Python) over the clean records and the flume bases."""
-    physical = _physical()
-    print(f"\nenvelope observer of physical_3F (effects dropped), {ENVELOPE_ANOMALY}")
+def _envelope(records: dict, truth, inflow: dict, fmu: Path) -> None:
+    """The envelope observer's FMU over the clean records and the flume bases."""
+    print(f"\nenvelope observer FMU of physical_3F (effects dropped), {ENVELOPE_ANOMALY}")
     print("clean records: rises, longest run (flag at "
           f"{ENVELOPE_ANOMALY.run_samples}), CUSUM (flag at "
           f"{ENVELOPE_ANOMALY.cusum_threshold:g}), slow CUSUM (flag at "
           f"{ENVELOPE_ANOMALY.slow_threshold:g})")  # fmt: skip
     total = 0
     for name, (t, y, e, q, role) in records.items():
-        out = OnlineObserver(physical).run(y, e, q)
+        out = run_observer_fmu(fmu, y, e, q)
         found = detection(t, out["anomaly"], None)
         total += found.false_alarms
         cusum = max(out["cusum_high"].max(), out["cusum_low"].max())
@@ -209,8 +218,8 @@ def _envelope(records: dict, truth, inflow: dict) -> None:
               f"{out['slow_cusum'].max():.1f}")  # fmt: skip
     print(f"  false alarms on the clean bundled records: {total}")
     flume = {n: records[n][:4] for n in BASES}
-    envelope_run = lambda y, e, q: OnlineObserver(physical).run(y, e, q)  # noqa: E731
-    _print_table("envelope observer, flume (bundled records)",
+    envelope_run = lambda y, e, q: run_observer_fmu(fmu, y, e, q)  # noqa: E731
+    _print_table("envelope observer FMU, flume (bundled records)",
                  _delays(envelope_run, truth, flume, inflow))  # fmt: skip
 
 

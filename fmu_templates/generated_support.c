@@ -21,10 +21,12 @@ int gt_call(ModelData *m, GeneratedFunction f, const double *const *in, int n_in
     return f(arg, res, m->iw, m->w, 0);
 }
 
+#ifdef VR_THETA
 const double *gt_theta(const ModelData *m)
 {
     return &m->real[VR_THETA];
 }
+#endif
 
 int gt_all_finite(const double *v, int n)
 {
@@ -47,6 +49,7 @@ double gt_max_abs(const double *v, int n)
     return out;
 }
 
+#ifdef VR_THETA
 PlantStatus gt_check_schedule(const ModelData *m, const char *what, PlantMessage *msg)
 {
     const double *knots = &m->real[VR_COL_FLOW_M3H];
@@ -78,6 +81,8 @@ PlantStatus gt_check_schedule(const ModelData *m, const char *what, PlantMessage
     return PLANT_OK;
 }
 
+#endif
+
 PlantStatus gt_check_flow(double flow_m3h, PlantMessage *msg)
 {
     if (!(GT_GEN_FLOW_MIN_M3H <= flow_m3h && flow_m3h <= GT_GEN_FLOW_MAX_M3H)) {
@@ -90,20 +95,25 @@ PlantStatus gt_check_flow(double flow_m3h, PlantMessage *msg)
 
 /* The observer's correct-and-predict iterated to its fixed point (the Riccati equation's
  * solution, which the Python code takes from scipy's solver). */
-PlantStatus gt_steady_covariance(ModelData *m, GeneratedFunction riccati, double q,
-                                 PlantMessage *msg)
+PlantStatus gt_covariance_fixed_point(ModelData *m, GeneratedFunction riccati,
+                                      const double *const *in, int n_in, double *p, double q,
+                                      PlantMessage *msg)
 {
     double next[GT_GEN_NP], diff[GT_GEN_NP];
+    const double *args[GT_GEN_SZ_ARG];
     int it, i;
-    memset(m->p, 0, sizeof m->p);
+    memset(p, 0, sizeof next);
+    for (i = 0; i < n_in; i++) {
+        args[i] = in[i];
+    }
+    args[n_in] = p;
     for (it = 0; it < GT_GEN_RICCATI_MAX_ITER; it++) {
-        const double *in[3] = {gt_theta(m), &q, m->p};
         double *out[1] = {next};
-        gt_call(m, riccati, in, 3, out, 1);
+        gt_call(m, riccati, args, n_in + 1, out, 1);
         for (i = 0; i < GT_GEN_NP; i++) {
-            diff[i] = next[i] - m->p[i];
+            diff[i] = next[i] - p[i];
         }
-        memcpy(m->p, next, sizeof next);
+        memcpy(p, next, sizeof next);
         if (!gt_all_finite(next, GT_GEN_NP)) {
             break;
         }
@@ -117,6 +127,15 @@ PlantStatus gt_steady_covariance(ModelData *m, GeneratedFunction riccati, double
                   GT_GEN_RICCATI_MAX_ITER, q);
     return PLANT_ERROR;
 }
+
+#ifdef VR_THETA
+PlantStatus gt_steady_covariance(ModelData *m, GeneratedFunction riccati, double q,
+                                 PlantMessage *msg)
+{
+    const double *in[2] = {gt_theta(m), &q};
+    return gt_covariance_fixed_point(m, riccati, in, 2, m->p, q, msg);
+}
+#endif
 
 PlantStatus gt_finite_estimate(const ModelData *m, const char *when, const char *what,
                                PlantMessage *msg)

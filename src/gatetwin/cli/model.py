@@ -352,6 +352,8 @@ def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
         CUSUM_SLACK_SIGMA,
         CUSUM_THRESHOLD,
         DEFAULT_HORIZON_S,
+        ENVELOPE_RUN_SAMPLES,
+        LINEARISATIONS,
     )
 
     parser.add_argument("model", metavar="MODEL.json")
@@ -359,22 +361,26 @@ def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--horizon", metavar="S", type=float, default=DEFAULT_HORIZON_S,
                         help="how far ahead predicted_level_mm looks, s: a whole multiple of "
                         f"the 1.2 s sample period (default {DEFAULT_HORIZON_S:g})")  # fmt: skip
-    parser.add_argument("--band", metavar="SIGMA", type=float, default=ANOMALY_BAND_SIGMA,
+    parser.add_argument("--linearisation", choices=LINEARISATIONS, default="auto",
+                        help="schedule: the FOPDT's schedule; envelope: the model's envelope "
+                        "re-linearised at every sample, with the slow rule; auto (default): "
+                        "envelope for a physical model, else schedule")  # fmt: skip
+    parser.add_argument("--band", metavar="SIGMA", type=float, default=None,
                         help="band of the normalised innovation, standard deviations times "
                         f"its scale (default {ANOMALY_BAND_SIGMA:g})")  # fmt: skip
-    parser.add_argument("--run-samples", metavar="N", type=int, default=ANOMALY_RUN_SAMPLES,
+    parser.add_argument("--run-samples", metavar="N", type=int, default=None,
                         help="consecutive samples outside the band that raise the anomaly "
-                        f"flag (default {ANOMALY_RUN_SAMPLES})")  # fmt: skip
-    parser.add_argument("--cusum-slack", metavar="SIGMA", type=float,
-                        default=CUSUM_SLACK_SIGMA,
+                        f"flag (default {ANOMALY_RUN_SAMPLES}; the envelope observer's "
+                        f"{ENVELOPE_RUN_SAMPLES})")  # fmt: skip
+    parser.add_argument("--cusum-slack", metavar="SIGMA", type=float, default=None,
                         help="slack of the innovation's two-sided CUSUM, standard deviations "
                         f"per sample (default {CUSUM_SLACK_SIGMA:g})")  # fmt: skip
-    parser.add_argument("--cusum-threshold", metavar="H", type=float, default=CUSUM_THRESHOLD,
+    parser.add_argument("--cusum-threshold", metavar="H", type=float, default=None,
                         help="CUSUM value that raises the anomaly flag "
                         f"(default {CUSUM_THRESHOLD:g})")  # fmt: skip
     parser.add_argument("--without-effects", action="store_true",
-                        help="observe with the model's FOPDT alone, its effect blocks dropped "
-                        "(a model with effect blocks is refused otherwise)")  # fmt: skip
+                        help="observe with the model's effect blocks dropped (a model with "
+                        "effect blocks is refused otherwise)")  # fmt: skip
     parser.add_argument("--fmi", choices=("2", "3"), default="2",
                         help="FMI version of the co-simulation FMU: 2 (default) or 3")  # fmt: skip
 
@@ -382,16 +388,15 @@ def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
 def run_export_observer(args: argparse.Namespace) -> int:
     from gatetwin.fmu.observer_fmu import export_observer
     from gatetwin.modelfile import read_model_file
-    from gatetwin.mpc.online import AnomalySettings
 
-    anomaly = AnomalySettings(band_sigma=args.band, run_samples=args.run_samples,
-                              cusum_slack_sigma=args.cusum_slack,
-                              cusum_threshold=args.cusum_threshold)  # fmt: skip
+    given = {"band_sigma": args.band, "run_samples": args.run_samples,
+             "cusum_slack_sigma": args.cusum_slack, "cusum_threshold": args.cusum_threshold}
     model = read_model_file(args.model)
     check_writable(args.out)
-    path = export_observer(model.plant, args.out, horizon_s=args.horizon, anomaly=anomaly,
-                           without_effects=args.without_effects,
-                           fmi_version=f"{args.fmi}.0")  # fmt: skip
+    path = export_observer(model.plant, args.out, horizon_s=args.horizon,
+                           anomaly={k: v for k, v in given.items() if v is not None},
+                           without_effects=args.without_effects, fmi_version=f"{args.fmi}.0",
+                           linearisation=args.linearisation)  # fmt: skip
     print(f"wrote {path}")
     return 0
 

@@ -135,8 +135,8 @@ def find_compiler() -> list[str]:
 
 
 #: The C rendering of gatetwin.plant.physical_kernel (generated) and its fixed support code.
-KERNEL_SOURCES = ("physical_kernel.c", "kernel_support.c")
-KERNEL_HEADERS = ("physical_kernel.h", "kernel_support.h")
+KERNEL_SOURCES = ("physical_kernel.c", "kernel_point.c", "kernel_support.c")
+KERNEL_HEADERS = ("physical_kernel.h", "kernel_point.h", "kernel_support.h")
 #: Prefix of the generated kernel functions and macros.
 KERNEL_PREFIX = "gt_"
 
@@ -242,6 +242,7 @@ def build_generated_component(
     generated_by: str,
     tool: str,
     fmi_version: str = "2.0",
+    also_compile: tuple[str, ...] = (),
 ) -> None:
     """Lay out the C FMU of a component whose arithmetic is generated (the MPC controller,
     the observer) in ``fmu_dir``: the generated ``<generated_stem>.c``/``.h`` are already in
@@ -250,13 +251,14 @@ def build_generated_component(
     first), ``model_config.h``, ``BUILD.txt``, the host's binary and ``modelDescription.xml``
     (``desc`` as :func:`~gatetwin.fmu.description.model_description_xml` takes it). The
     component is the same under either API: only the glue and the description's rendering
-    differ."""
+    differ. ``also_compile`` names further C files the component calls (already in
+    ``fmu_dir/sources`` or among ``component_files``)."""
     from fmpy import platform, platform_tuple, sharedLibraryExtension
 
     api = FMI_APIS[fmi_version]
     sources = fmu_dir / "sources"
     c_files = (*api.glue_sources, *GENERATED_SUPPORT_SOURCES, component_files[0],
-               f"{generated_stem}.c")  # fmt: skip
+               f"{generated_stem}.c", *also_compile)  # fmt: skip
     templates = templates_dir()
     for name in (*api.glue_sources, *GENERATED_SUPPORT_FILES, *component_files,
                  *api.glue_headers, "component.h", api.license):  # fmt: skip

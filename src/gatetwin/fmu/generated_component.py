@@ -131,11 +131,12 @@ def config_header(
     sample_period_s: float,
     component_lines: list[str],
     value_references: dict[str, str],
+    schedule: bool = True,
 ) -> str:
     """``model_config.h``: the glue's head, the ``GT_GEN_*`` macros (sizes of the generated
     code's arrays, the observer's states, the sample period, the limits), the component's own
     ``component_lines``, ``VR_<MACRO>`` for each ``value_references`` (macro -> variable
-    name) and the schedule's, and the variable table."""
+    name) and, with ``schedule``, the schedule's, and the variable table."""
     vr = {v.name: v.vr for v in desc.variables}
     big = {k: max(s[k] for s in sizes.values()) for k in ("arg", "res", "iw", "w")}
     max_dead_time_s = layout.register * sample_period_s * (1.0 - 1e-9)  # L = n Ts + θ, n < m
@@ -161,10 +162,13 @@ def config_header(
         "",
         "/* value references (indices into ModelData.real) */",
         *(f"#define VR_{macro} {vr[name]}" for macro, name in value_references.items()),
-        f"#define VR_THETA {vr['schedule.flow_m3h[1]']}",
-        f"#define VR_COL_FLOW_M3H {vr['schedule.flow_m3h[1]']}",
-        *(f"#define VR_COL_{c.upper()} {vr[f'schedule.{c}[1]']}" for c in COLUMNS),
     ]
+    if schedule:
+        lines += [
+            f"#define VR_THETA {vr['schedule.flow_m3h[1]']}",
+            f"#define VR_COL_FLOW_M3H {vr['schedule.flow_m3h[1]']}",
+            *(f"#define VR_COL_{c.upper()} {vr[f'schedule.{c}[1]']}" for c in COLUMNS),
+        ]
     return "\n".join(lines + variable_table_lines(desc.variables))
 
 

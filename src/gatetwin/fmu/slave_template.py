@@ -414,7 +414,7 @@ class GatetwinPlant(GuardedSlave):
         return CONFIG["family"] in ("fopdt", "arx") and CONFIG["kernel_first"] is not None
 
     def _envelope_point(self, u: float, q: float) -> tuple[float, float]:
-        """Steady level and time constant at the opening u + opening_ref (kernel_support.c)."""
+        """Steady level and time constant at the opening u + opening_ref (kernel_point.c)."""
         p = self._physical()
         e = u + self.real[self.vr_opening_ref]
         depth = self._physical_depth(e, q)

@@ -25,9 +25,9 @@ This module renders models; it does not pose or solve the MPC problem.
 from __future__ import annotations
 
 import math
+from typing import Any
 
-import numpy as np
-
+from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S, fopdt_split
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.statespace import DiscreteModel
@@ -36,6 +36,12 @@ from gatetwin.plant.model import FopdtPlant, PhysicalPlant, Plant, envelope_poin
 
 #: Bisection steps of :func:`steady_opening_mm` (100 mm / 2^30 ≈ 1e-7 mm).
 INVERSE_STEPS = 30
+
+
+def envelope_parameters(plant: Plant) -> list[float]:
+    """The kernel's parameter vector of an envelope FOPDT or a physical plant."""
+    _require_envelope(plant)
+    return plant.vector if isinstance(plant, PhysicalPlant) else list(plant.envelope.values())
 
 
 def has_envelope(plant: Plant) -> bool:
@@ -53,10 +59,18 @@ def _require_envelope(plant: Plant) -> None:
         )
 
 
-def _datum_mm(plant: Plant, flow_m3h: float) -> float:
+def _datum_mm(plant: Plant, flow_m3h: Any) -> Any:
     """What the plant's output adds to the gate law's level: the physical family's datum
-    correction (``level_ref_mm``); nothing for an envelope FOPDT."""
-    return plant.schedule.at("level_ref_mm", flow_m3h) if isinstance(plant, PhysicalPlant) else 0.0
+    correction (``level_ref_mm``); nothing for an envelope FOPDT. A symbolic discharge gets
+    the same interpolation on symbols."""
+    if not isinstance(plant, PhysicalPlant):
+        return 0.0
+    if sym.is_symbolic(flow_m3h):
+        from gatetwin.mpc.codegen import interp_clamped_symbolic
+
+        s = plant.schedule
+        return interp_clamped_symbolic(s.flow_m3h, s.values["level_ref_mm"], flow_m3h)
+    return plant.schedule.at("level_ref_mm", flow_m3h)
 
 
 def steady_level_mm(plant: Plant, flow_m3h: float, opening_mm: float) -> float:
@@ -134,14 +148,30 @@ def linearised_model(
     if not (math.isfinite(flow_m3h) and math.isfinite(opening_mm)):
         raise ControlError(f"envelope mpc: point (Q {flow_m3h}, e {opening_mm}) is not finite")
     point = local_fopdt(plant, flow_m3h, opening_mm)  # type: ignore[arg-type]
+    datum = _datum_mm(plant, flow_m3h)
+    return tangent_model(plant, point, datum, flow_m3h, opening_mm, sample_period_s, grid_rel)
+
+
+def tangent_model(
+    plant: Plant,
+    point: dict[str, Any],
+    datum_mm: Any,
+    flow_m3h: Any,
+    opening_mm: Any,
+    sample_period_s: float = SAMPLE_PERIOD_S,
+    grid_rel: float = 0.0,
+) -> DiscreteModel:
+    """:func:`linearised_model` from the tangent ``point`` (:func:`gatetwin.plant.model.
+    local_fopdt`'s dict) and the datum at ``flow_m3h``; numbers or casadi symbols (a symbolic
+    point needs a numeric dead time, which places the input in the register)."""
     gain = on_grid(point["gain_mm_per_mm"], grid_rel)
-    level = point["level_mm"] + _datum_mm(plant, flow_m3h)
+    level = point["level_mm"] + datum_mm
     tau = on_grid(point["time_constant_s"], grid_rel)
     a, n_whole, b1, b2 = fopdt_split(gain, tau, point["dead_time_s"], sample_period_s)
     m = envelope_register_length(plant, sample_period_s)
     nz = 1 + m
-    a_mat = np.zeros((nz, nz))
-    b_vec, b_dist, affine, c_vec = np.zeros(nz), np.zeros(nz), np.zeros(nz), np.zeros(nz)
+    a_mat = sym.zeros((nz, nz), a, b1, b2)
+    b_vec, b_dist, affine, c_vec = (sym.zeros(nz, a, b1, b2, level) for _ in range(4))
     a_mat[0, 0] = a
     for lag_samples, weight in ((n_whole, b1), (n_whole + 1, b2)):
         if lag_samples == 0:
@@ -157,7 +187,7 @@ def linearised_model(
     affine[0] = (1.0 - a) * (level - gain * (opening_mm - plant.opening_ref_mm))
     c_vec[0] = 1.0
     return DiscreteModel(
-        a_mat, b_vec, c_vec, b_dist, 0.0, plant.opening_ref_mm, float(flow_m3h),
+        a_mat, b_vec, c_vec, b_dist, 0.0, plant.opening_ref_mm, sym.scalar(flow_m3h),
         sample_period_s, 1, affine=affine,
     )  # fmt: skip
 
@@ -181,11 +211,13 @@ def steady_opening_mm(
 
 
 __all__ = [
+    "envelope_parameters",
     "envelope_register_length",
     "gate_position_mm",
     "has_envelope",
     "linearised_model",
     "on_grid",
+    "tangent_model",
     "steady_level_mm",
     "steady_opening_mm",
 ]

@@ -142,9 +142,13 @@ class DisturbanceObserver:
         ``old_gain`` to ``new_gain`` (mm/mm) would read the same ``d`` as a different level
         offset; ``d`` and its covariance are scaled by ``old_gain / new_gain`` instead.
         """
-        if old_gain == 0.0 or new_gain == 0.0 or old_gain == new_gain:
+        if sym.is_symbolic(old_gain, new_gain):  # both branches are formed, one is taken
+            kept = sym.where(old_gain == 0.0, 1.0, sym.where(new_gain == 0.0, 1.0, 0.0))
+            ratio = sym.where(kept > 0.0, 1.0, old_gain / new_gain)
+        elif old_gain == 0.0 or new_gain == 0.0 or old_gain == new_gain:
             return
-        ratio = old_gain / new_gain
+        else:
+            ratio = old_gain / new_gain
         self.disturbance_mm *= ratio
         self.covariance[-1, :] *= ratio
         self.covariance[:, -1] *= ratio

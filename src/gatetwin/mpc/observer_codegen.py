@@ -22,6 +22,15 @@ monitor_sample`, :func:`~gatetwin.mpc.online.advance`) on casadi symbols:
 
 ``theta`` is the MPC controller's (:func:`gatetwin.mpc.codegen.theta_names`): the schedule
 interpolated at the measured discharge inside the functions.
+
+The envelope observer (``linearisation="envelope"``) has its own functions
+(:func:`build_envelope_functions`, prefix :data:`ENVELOPE_PREFIX`): its model is re-rendered
+at every sample from the tangent's steady points ``x``, which the FMU computes with the plant
+kernel's C at the openings ``openings(e)`` gives (:class:`SymbolicTangent`: the tangent's own
+code, :func:`gatetwin.plant.model.tangent_point` and
+:func:`gatetwin.mpc.envelope.tangent_model`, with the steady points as symbols), and its slow
+filter and rule are :func:`gatetwin.mpc.online.slow_sample` and
+:func:`~gatetwin.mpc.online.with_slow_rule` on symbols.
 """
 
 from __future__ import annotations
@@ -30,11 +39,17 @@ from pathlib import Path
 from typing import Any
 
 import casadi
+import numpy as np
 
 from gatetwin.mpc import online
 from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.codegen import NEXT, Layout, SymbolicController, work_sizes, write_generated
+from gatetwin.mpc.envelope import _datum_mm, envelope_register_length, tangent_model
+from gatetwin.mpc.errors import ControlError
+from gatetwin.mpc.observer import DisturbanceObserver
 from gatetwin.mpc.settings import MpcSettings, ObserverSettings
+from gatetwin.mpc.statespace import DiscreteModel
+from gatetwin.plant.model import FopdtPlant, PhysicalPlant, tangent_point
 
 #: Prefix of every generated C function.
 PREFIX = "gt_obs_"
@@ -131,5 +146,179 @@ def generate_observer_c(
     return {name: work_sizes(f) for name, f in fns.items()}
 
 
-__all__ = ["ESTIMATE", "FUNCTIONS", "LIMITS", "PREFIX", "build_observer_functions",
+
+
+# -- the envelope observer -----------------------------------------------------------------------
+#: Prefix of every generated C function of the envelope observer.
+ENVELOPE_PREFIX = "gt_env_"
+#: Names of the envelope observer's generated functions (without the prefix), in order.
+ENVELOPE_FUNCTIONS = ("openings", "start", "riccati", "slow_riccati", "correct", "slow",
+                      "predict", "advance", "level")  # fmt: skip
+#: Entries of the envelope ``slow`` function's ``rule`` output, in order.
+SLOW_RULE = ("anomaly_kind", "anomaly", "slow_cusum")
+
+
+class _PointInputs:
+    """:func:`gatetwin.plant.model.envelope_point` on symbols: its ``i``-th call returns the
+    ``i``-th (level, time constant) pair of ``values`` and records the opening it was asked
+    at, which the C computes the point at (with the kernel's own C, ``physical_kernel.c``)."""
+
+    def __init__(self, values: np.ndarray) -> None:
+        self.values = values
+        self.openings: list[Any] = []
+
+    def __call__(self, opening_mm: Any, flow_m3h: Any, p: list[float]) -> tuple[Any, Any]:
+        i = len(self.openings)
+        self.openings.append(opening_mm)
+        return self.values[2 * i], self.values[2 * i + 1]
+
+
+def envelope_dead_time_s(plant: FopdtPlant | PhysicalPlant) -> float:
+    """The tangent's dead time, which the generated register is built for: none for a
+    physical plant; an envelope FOPDT's only if one dead time holds at every knot."""
+    if isinstance(plant, PhysicalPlant):
+        return 0.0
+    delays = set(plant.schedule.values["dead_time_s"])
+    if len(delays) != 1:
+        raise ControlError("envelope observer FMU: the schedule's dead time must be one value "
+                           f"at every knot (got {sorted(delays)} s)")  # fmt: skip
+    return float(delays.pop())
+
+
+class SymbolicTangent:
+    """The envelope observer's re-linearised model on casadi symbols, from its own code
+    (:func:`gatetwin.plant.model.tangent_point`, :func:`gatetwin.mpc.envelope.tangent_model`).
+
+    ``x`` is :data:`N_POINTS` steady points ``(level_mm, time_constant_s)`` in a row, computed
+    at the openings :meth:`openings` gives for the opening ``e``."""
+
+    def __init__(self, plant: FopdtPlant | PhysicalPlant, sample_period_s: float) -> None:
+        self.plant, self.sample_period_s = plant, sample_period_s
+        self.delay_s = envelope_dead_time_s(plant)
+        self.register = envelope_register_length(plant, sample_period_s)
+
+    def model(self, x: np.ndarray, q: Any, e: Any) -> tuple[DiscreteModel, list[Any]]:
+        """The tangent model at (``q``, ``e``) and the openings its points were asked at."""
+        points = _PointInputs(x)
+        point = tangent_point(points, self.plant, q, e, [], self.delay_s)
+        model = tangent_model(self.plant, point, _datum_mm(self.plant, q), q, e,
+                              self.sample_period_s)  # fmt: skip
+        return model, points.openings
+
+
+#: Steady points the tangent takes (the opening itself and the two of the central difference).
+N_POINTS = 3
+
+
+def build_envelope_functions(
+    plant: FopdtPlant | PhysicalPlant,
+    settings: ObserverSettings,
+    slow_settings: ObserverSettings,
+    sample_period_s: float,
+    anomaly: online.AnomalySettings,
+) -> tuple[dict[str, casadi.Function], Layout]:
+    """The casadi Functions of the envelope observer, and its sizes.
+
+    ``x`` (a model's steady points, :class:`SymbolicTangent`), ``q`` and ``e`` name the model
+    re-linearised at the discharge and opening of a sample; ``x_prev``, ``q_prev``, ``e_prev``
+    the last prediction's. ``openings(e) -> o``: where the points of ``x`` are taken;
+    ``start(x, q, e, y) -> (z, d, level, monitor)``; ``riccati`` and ``slow_riccati``
+    ``(x, q, e, P) -> P``; ``correct(x_prev, q_prev, e_prev, z, d, P, y, monitor, limits)`` as
+    the schedule observer's; ``slow(x_prev, q_prev, e_prev, x, q, e, z, d, P, y, monitor,
+    kind) -> (z, d, P, monitor, rule)`` (:func:`~gatetwin.mpc.online.slow_sample` and
+    :func:`~gatetwin.mpc.online.with_slow_rule`, ``rule`` is :data:`SLOW_RULE`);
+    ``predict(x_prev, q_prev, e_prev, x, q, e, z, d, P) -> (z, d, P, d_now)`` (the
+    disturbance rescaled to the new gain, then predicted); ``advance(x, q, e, z, d) -> z``;
+    ``level(x, q, e, z) -> level``.
+    """
+    tangent = SymbolicTangent(plant, sample_period_s)
+    nz = 1 + tangent.register
+    lay = Layout(0, tangent.register, nz, 0, 0)
+    names = ("q", "q_prev", "e", "e_prev", "y", "d", "kind")
+    s = {n: casadi.SX.sym(n) for n in names}
+    q, q_prev, e, e_prev, y, d, kind = (sym.Sym(v) for v in s.values())
+    xs, x = sym.symbols("x", 2 * N_POINTS)
+    xps, xp = sym.symbols("x_prev", 2 * N_POINTS)
+    zs, z = sym.symbols("z", nz)
+    monitor_sx, monitor = sym.symbols("monitor", len(online.MONITOR))
+    limits_sx, limits = sym.symbols("limits", len(LIMITS))
+    ps = casadi.SX.sym("P", nz + 1, nz + 1)
+    p = sym.from_casadi(ps)
+    fns: dict[str, casadi.Function] = {}
+
+    def add(name: str, ins: list[str], outs: list[Any], out_names: list[str]) -> None:
+        by_name = {**s, "x": xs, "x_prev": xps, "z": zs, "P": ps, "monitor": monitor_sx,
+                   "limits": limits_sx}  # fmt: skip
+        fns[name] = casadi.Function(ENVELOPE_PREFIX + name, [by_name[n] for n in ins],
+                                    [_sx(o) for o in outs], ins, out_names)  # fmt: skip
+
+    def observer(obs_settings: ObserverSettings) -> DisturbanceObserver:
+        obs = DisturbanceObserver(obs_settings)
+        obs.set_estimate(z, d, p, 0.0)
+        return obs
+
+    model, openings = tangent.model(x, q, e)
+    last, _ = tangent.model(xp, q_prev, e_prev)
+    if len(openings) != N_POINTS:
+        raise ControlError(f"envelope observer: the tangent takes {len(openings)} steady points, "
+                           f"the generated code {N_POINTS}")  # fmt: skip
+    add("openings", ["e"], [openings], ["openings"])
+
+    obs = observer(settings)
+    obs.start(model, e, y)
+    level = model.level_mm(obs.state)
+    add("start", ["x", "q", "e", "y"],
+        [obs.state, obs.disturbance_mm, level, list(online.start_monitor(level))],
+        ["z", "d", "level", "monitor"])  # fmt: skip
+    for name, obs_settings in (("riccati", settings), ("slow_riccati", slow_settings)):
+        obs = observer(obs_settings)
+        obs.correct(model, 0.0)
+        obs.predict(model, 0.0)
+        add(name, ["x", "q", "e", "P"], [obs.covariance], ["P_next"])
+
+    obs = observer(settings)
+    estimate, monitor_next = online.monitor_sample(obs, last, y, tuple(monitor), tuple(limits),
+                                                   anomaly)  # fmt: skip
+    add("correct", ["x_prev", "q_prev", "e_prev", "z", "d", "P", "y", "monitor", "limits"],
+        [obs.state, obs.disturbance_mm, obs.covariance, list(estimate), list(monitor_next)],
+        [*NEXT, "estimate", "monitor_next"])  # fmt: skip
+
+    obs = observer(slow_settings)
+    estimate, monitor_next = online.slow_sample(obs, last, model, y, e, tuple(monitor), anomaly)
+    rule_kind, slow_cusum = online.with_slow_rule(kind, estimate)
+    rule = [rule_kind, sym.where(rule_kind > 0.0, 1.0, 0.0), slow_cusum]
+    add("slow", ["x_prev", "q_prev", "e_prev", "x", "q", "e", "z", "d", "P", "y", "monitor",
+                 "kind"],
+        [obs.state, obs.disturbance_mm, obs.covariance, list(monitor_next), rule],
+        [*NEXT, "monitor_next", "rule"])  # fmt: skip
+
+    obs = observer(settings)
+    obs.rescale_disturbance(last.dc_gain_mm_per_mm(), model.dc_gain_mm_per_mm())
+    d_now = obs.disturbance_mm
+    obs.predict(model, e)
+    add("predict", ["x_prev", "q_prev", "e_prev", "x", "q", "e", "z", "d", "P"],
+        [obs.state, obs.disturbance_mm, obs.covariance, d_now], [*NEXT, "d_now"])  # fmt: skip
+
+    add("advance", ["x", "q", "e", "z", "d"], [online.advance(model, z, d, e)], ["z_next"])
+    add("level", ["x", "q", "e", "z"], [model.level_mm(z)], ["level"])
+    return fns, lay
+
+
+def generate_envelope_c(
+    fns: dict[str, casadi.Function], folder: Path, stem: str
+) -> dict[str, dict[str, int]]:
+    """Write the envelope observer's ``<stem>.c`` and ``<stem>.h`` into ``folder``; return
+    each function's work sizes."""
+    cg = casadi.CodeGenerator(f"{stem}.c", {"with_header": False, "verbose": False})
+    for name in ENVELOPE_FUNCTIONS:
+        cg.add(fns[name])
+    write_generated(folder, stem, cg.dump(), "gatetwin.mpc.observer_codegen",
+                    [f"{ENVELOPE_PREFIX}{name}" for name in ENVELOPE_FUNCTIONS],
+                    "the envelope observer")  # fmt: skip
+    return {name: work_sizes(f) for name, f in fns.items()}
+
+
+__all__ = ["ENVELOPE_FUNCTIONS", "ENVELOPE_PREFIX", "ESTIMATE", "FUNCTIONS", "LIMITS", "N_POINTS",
+           "PREFIX", "SLOW_RULE", "SymbolicTangent", "build_envelope_functions",
+           "build_observer_functions", "envelope_dead_time_s", "generate_envelope_c",
            "generate_observer_c"]  # fmt: skip

@@ -43,11 +43,14 @@ flume's wide-range records is a few mm instead of tens, which allows a third rul
   leaves this filter's innovation biased for minutes where the monitoring filter has
   absorbed it into ``disturbance_mm`` within one.
 
-The envelope observer runs in Python only; the observer FMU is the scheduled FOPDT's.
+Both renderings have a C FMU (:mod:`gatetwin.fmu.observer_fmu`, ``gatetwin export-observer``)
+that equals this class to round-off.
 
-The per-sample arithmetic (:func:`monitor_sample`, :func:`forecast_level`) runs on numbers
-and on casadi symbols alike; :mod:`gatetwin.mpc.observer_codegen` builds the observer
-FMU's C from it. This module does not identify, control or diagnose.
+The per-sample arithmetic (:func:`monitor_sample`, :func:`slow_sample`,
+:func:`with_slow_rule`, :func:`forecast_level`, and the envelope's tangent,
+:func:`gatetwin.mpc.envelope.tangent_model`) runs on numbers and on casadi symbols alike;
+:mod:`gatetwin.mpc.observer_codegen` builds the observer FMUs' C from it. This module does
+not identify, control or diagnose.
 """
 
 from __future__ import annotations
@@ -342,6 +345,32 @@ def monitor_sample(
     return estimate, (run, high, low, scale_sq, filtered)
 
 
+def slow_sample(
+    slow: DisturbanceObserver,
+    last: DiscreteModel,
+    model: DiscreteModel,
+    level_mm: Any,
+    opening_mm: Any,
+    monitor: tuple[Any, ...],
+    anomaly: AnomalySettings,
+) -> tuple[tuple[Any, ...], tuple[Any, ...]]:
+    """One sample of the envelope observer's slow filter: :func:`monitor_sample` with the slow
+    limits on ``last`` (the last prediction's model), the disturbance rescaled to ``model``'s
+    gain, the prediction with ``opening_mm`` on ``model``. Numbers or casadi symbols."""
+    estimate, monitor = monitor_sample(slow, last, level_mm, monitor, anomaly.slow_limits(),
+                                       anomaly)  # fmt: skip
+    slow.rescale_disturbance(last.dc_gain_mm_per_mm(), model.dc_gain_mm_per_mm())
+    slow.predict(model, opening_mm)
+    return estimate, monitor
+
+
+def with_slow_rule(kind: Any, slow_estimate: tuple[Any, ...]) -> tuple[Any, Any]:
+    """The anomaly kind with the slow rule (3 when only it holds) and the slow CUSUM,
+    ``max(high, low)`` of the slow filter's estimate (:func:`monitor_sample`'s)."""
+    combined = sym.where(kind > 0.0, kind, sym.where(slow_estimate[6] == 0.0, kind, 3.0))
+    return combined, sym.fmax(slow_estimate[7], slow_estimate[8])
+
+
 def forecast_level(
     model: DiscreteModel, state: np.ndarray, disturbance_mm: Any, opening_mm: Any, samples: int
 ) -> Any:
@@ -380,8 +409,8 @@ def checked_plant(
                                f"physical plant (got {kind} without an envelope)")  # fmt: skip
     elif not isinstance(plant, FopdtPlant):
         kind = getattr(plant, "kind", type(plant).__name__)
-        hint = ("; the envelope observer of a physical plant runs in Python (gatetwin observe)"
-                if isinstance(plant, PhysicalPlant) else "")  # fmt: skip
+        hint = ("; observe a physical plant with the envelope observer (linearisation "
+                "envelope or auto)" if isinstance(plant, PhysicalPlant) else "")  # fmt: skip
         raise ControlError(f"{who}: needs a scheduled FOPDT plant (got {kind}){hint}")
     if plant.effects:
         kinds = ", ".join(e["kind"] for e in plant.effects)
@@ -510,13 +539,10 @@ class OnlineObserver:
         self, model: DiscreteModel, level_mm: float, opening_mm: float, kind: float
     ) -> float:
         """Correct and predict the slow filter; ``kind``, or 3 when only the slow rule holds."""
-        slow, last = self.slow_observer, self._model
-        estimate, self._slow = monitor_sample(slow, last, level_mm, self._slow,
-                                              self.anomaly.slow_limits(), self.anomaly)  # fmt: skip
-        slow.rescale_disturbance(last.dc_gain_mm_per_mm(), model.dc_gain_mm_per_mm())
-        slow.predict(model, opening_mm)
-        self.slow_cusum = max(estimate[7], estimate[8])
-        return kind if kind > 0.0 or estimate[6] == 0.0 else 3.0
+        estimate, self._slow = slow_sample(self.slow_observer, self._model, model, level_mm,
+                                           opening_mm, self._slow, self.anomaly)  # fmt: skip
+        kind, self.slow_cusum = with_slow_rule(kind, estimate)
+        return kind
 
     def run(
         self, level_mm: np.ndarray, opening_mm: np.ndarray, flow_m3h: np.ndarray
@@ -599,5 +625,7 @@ __all__ = [
     "innovation_variance",
     "measured_inputs",
     "monitor_sample",
+    "slow_sample",
     "start_monitor",
+    "with_slow_rule",
 ]

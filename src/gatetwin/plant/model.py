@@ -328,7 +328,16 @@ def local_fopdt(plant: FopdtPlant | ArxPlant | PhysicalPlant, flow_m3h: float,
         p, delay = list(plant.envelope.values()), (plant.nk - 1) * plant.sample_period_s
     else:
         raise ModelFileError("local_fopdt needs an envelope FOPDT or ARX or a physical plant")
-    level, tau = envelope_point(opening_mm, flow_m3h, p)
+    return tangent_point(envelope_point, plant, flow_m3h, opening_mm, p, delay)
+
+
+def tangent_point(
+    point: Any, plant: Any, flow_m3h: Any, opening_mm: Any, p: list[float], delay_s: Any
+) -> dict[str, Any]:
+    """:func:`local_fopdt` with the steady point ``point(opening_mm, flow_m3h, p) -> (level,
+    time constant)`` given: :func:`envelope_point`, or a stand-in that returns symbols (the
+    observer FMU's generated code takes the points its C computes at the openings asked)."""
+    level, tau = point(opening_mm, flow_m3h, p)
     if isinstance(plant, ArxPlant):
         a1 = blocks.arx_pole_scaled(
             plant.schedule.at("a1", flow_m3h),
@@ -336,9 +345,10 @@ def local_fopdt(plant: FopdtPlant | ArxPlant | PhysicalPlant, flow_m3h: float,
             tau,
         )
         tau = -plant.sample_period_s / math.log(a1)
-    gain = (envelope_point(opening_mm + 0.5, flow_m3h, p)[0]
-            - envelope_point(opening_mm - 0.5, flow_m3h, p)[0])  # fmt: skip
-    return {"gain_mm_per_mm": gain, "time_constant_s": tau, "dead_time_s": delay, "level_mm": level}
+    gain = (point(opening_mm + 0.5, flow_m3h, p)[0]
+            - point(opening_mm - 0.5, flow_m3h, p)[0])  # fmt: skip
+    return {"gain_mm_per_mm": gain, "time_constant_s": tau, "dead_time_s": delay_s,
+            "level_mm": level}  # fmt: skip
 
 
 def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:

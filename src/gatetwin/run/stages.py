@@ -220,9 +220,10 @@ CONTROLLER_KINDS = ("pi", "mpc")
 def closed_loop_artefacts(ctx: Any) -> None:
     """``controllers/<model>_<kind>.fmu`` and ``observers/<model>_observer.fmu`` for the MPC
     demo's model (the MPC and the observer on its FOPDT without the effect blocks they do not
-    cover), and ``loop.ssp`` (plant FMU + PI FMU, the demo's set-point scenario), run by
-    gatetwin's SSP master next to the Python loop it packs; both IAEs go into ``mpc.json``
-    (``closed_loop_ssp``)."""
+    cover), ``observers/physical_<G>_observer.fmu`` (the envelope observer of the same gauge's
+    physical model, its blocks dropped), and ``loop.ssp`` (plant FMU + PI FMU, the demo's
+    set-point scenario), run by gatetwin's SSP master next to the Python loop it packs; both
+    IAEs go into ``mpc.json`` (``closed_loop_ssp``)."""
     from gatetwin._io import write_json_atomic
     from gatetwin.fmu.controller import export_controller
     from gatetwin.fmu.observer_fmu import export_observer
@@ -237,8 +238,12 @@ def closed_loop_artefacts(ctx: Any) -> None:
     built = [export_controller(model, kind, folder / f"{model.name}_{kind}.fmu",
                                without_effects=kind == "mpc")
              for kind in CONTROLLER_KINDS]  # fmt: skip
-    built.append(export_observer(model.plant, ctx.out_dir / "observers" /
-                                 f"{model.name}_observer.fmu", without_effects=True))  # fmt: skip
+    observers = ctx.out_dir / "observers"
+    built.append(export_observer(model.plant, observers / f"{model.name}_observer.fmu",
+                                 without_effects=True))  # fmt: skip
+    physical = read_model_file(ctx.out_dir / "models" / f"physical_{FAMILY_GAUGE}.json")
+    built.append(export_observer(physical.plant, observers / f"{physical.name}_observer.fmu",
+                                 without_effects=True))  # fmt: skip
     ctx.progress(f"      controllers/, observers/: {', '.join(p.name for p in built)}")
     settings = DemoSettings()
     scenario = demo_scenarios(MPC_MINUTES, settings)[0]
