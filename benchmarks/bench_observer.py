@@ -189,8 +189,10 @@ def main() -> None:
     ref = OnlineObserver(_physical()).run(y, e, q)
     env_s = time.perf_counter() - start
     worst = max(float(np.max(np.abs(got[k] - ref[k]))) for k in got)
-    print(f"\nrecord C: envelope observer FMU via fmpy {env_fmu_s:.3f} s, Python {env_s:.3f} s, "
-          f"ratio Python/FMU {env_s / env_fmu_s:.1f}; largest output difference {worst:.1e}")
+    print(
+        f"\nrecord C: envelope observer FMU via fmpy {env_fmu_s:.3f} s, Python {env_s:.3f} s, "
+        f"ratio Python/FMU {env_s / env_fmu_s:.1f}; largest output difference {worst:.1e}"
+    )
     print(f"record C: envelope observer (Python, two filters) {env_s:.3f} s, schedule observer "
           f"(Python) {py_s:.3f} s, ratio {env_s / py_s:.1f}")  # fmt: skip
 

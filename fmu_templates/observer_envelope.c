@@ -17,65 +17,19 @@
 #include <math.h>
 #include <string.h>
 
-#include "generated_support.h"
+#include "observer_support.h"
 #include "kernel_point.h"
 
 static const double kernel_p[] = GT_ENV_KERNEL_P;
-
-/* A whole number of sample periods in `span_s`, or -1 when it is not one. */
-static long whole_samples(double span_s)
-{
-    const double n = floor(span_s / GT_GEN_SAMPLE_PERIOD_S + 0.5);
-    if (!(n >= 0.0 && n <= 1e9) ||
-        !(fabs(n * GT_GEN_SAMPLE_PERIOD_S - span_s) <=
-          GT_COMMUNICATION_POINT_RTOL * fmax(span_s, GT_GEN_SAMPLE_PERIOD_S))) {
-        return -1;
-    }
-    return (long)n;
-}
 
 /* --- parameters and inputs ------------------------------------------------------------------ */
 
 static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
 {
-    const double horizon = m->real[VR_HORIZON_S], band = m->real[VR_ANOMALY_BAND_SIGMA];
-    const double run = m->real[VR_ANOMALY_RUN_SAMPLES];
-    const double slack = m->real[VR_ANOMALY_CUSUM_SLACK_SIGMA];
-    const double threshold = m->real[VR_ANOMALY_CUSUM_THRESHOLD];
     if (plant_check_parameter_values(m->real, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
-    if (!(horizon >= 0.0 && horizon <= GT_OBS_MAX_HORIZON_S) || whole_samples(horizon) < 0) {
-        plant_message(msg, "horizon_s = %.17g must be a whole multiple of the sample period "
-                           "%g s in [0, %g] s", horizon, GT_GEN_SAMPLE_PERIOD_S,
-                      GT_OBS_MAX_HORIZON_S);
-        return PLANT_ERROR;
-    }
-    if (!(band > 0.0)) {
-        plant_message(msg, "anomaly_band_sigma = %.17g must be > 0", band);
-        return PLANT_ERROR;
-    }
-    if (!(run >= 1.0 && run <= 1e6 && run == floor(run))) {
-        plant_message(msg, "anomaly_run_samples = %.17g must be a whole number in [1, 1e6]", run);
-        return PLANT_ERROR;
-    }
-    if (!(slack >= 0.0) || !(threshold > 0.0)) {
-        plant_message(msg, "anomaly_cusum_slack_sigma = %.17g must be >= 0 and "
-                           "anomaly_cusum_threshold = %.17g > 0", slack, threshold);
-        return PLANT_ERROR;
-    }
-    return PLANT_OK;
-}
-
-static PlantStatus check_inputs(const ModelData *m, PlantMessage *msg)
-{
-    const double q = m->real[VR_FLOW_M3H];
-    if (!isfinite(m->real[VR_LEVEL]) || !isfinite(m->real[VR_OPENING_MM])) {
-        plant_message(msg, "%s = %.17g and opening_mm = %.17g must be finite",
-                      plant_variables[VR_LEVEL].name, m->real[VR_LEVEL], m->real[VR_OPENING_MM]);
-        return PLANT_ERROR;
-    }
-    return gt_check_flow(q, msg);
+    return gt_check_monitor_parameters(m, msg);
 }
 
 /* --- the steps of one sample --------------------------------------------------------------- */
@@ -100,7 +54,7 @@ static void tangent(ModelData *m, double q, double e, double *x)
 static double forecast(ModelData *m, const double *x, double q, double e, const double *z,
                        double d)
 {
-    const long n = whole_samples(m->real[VR_HORIZON_S]);
+    const long n = gt_whole_samples(m->real[VR_HORIZON_S]);
     double a[GT_GEN_NZ], b[GT_GEN_NZ], level;
     long k;
     memcpy(a, z, sizeof a);
@@ -213,7 +167,7 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
     double q = m->real[VR_FLOW_M3H], y = m->real[VR_LEVEL], e = m->real[VR_OPENING_MM];
     double level, x[GT_ENV_N_X];
     int i;
-    if (check_parameters(m, msg) != PLANT_OK || check_inputs(m, msg) != PLANT_OK) {
+    if (check_parameters(m, msg) != PLANT_OK || gt_check_observer_inputs(m, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     m->parameters_changed = 0;
@@ -247,24 +201,8 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
 
 PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
 {
-    const long n = step_s > 0.0 ? whole_samples(step_s) : -1;
-    long k;
-    if (n < 1) {
-        plant_message(msg, "communication step %.17g s must be a whole multiple of the "
-                           "observer's sample period %.17g s", step_s, GT_GEN_SAMPLE_PERIOD_S);
-        return PLANT_ERROR;
-    }
-    if (n > GT_OBS_MAX_SAMPLES_PER_STEP) {
-        plant_message(msg, "communication step %.17g s spans %ld samples; at most %d per step",
-                      step_s, n, GT_OBS_MAX_SAMPLES_PER_STEP);
-        return PLANT_ERROR;
-    }
-    if (!(fabs(m->time_s + step_s) <= GT_MAX_TIME_S)) {
-        plant_message(msg, "communication step to t = %.17g s passes the time limit %g s",
-                      m->time_s + step_s, GT_MAX_TIME_S);
-        return PLANT_ERROR;
-    }
-    if (check_inputs(m, msg) != PLANT_OK) {
+    long n, k;
+    if (gt_observer_samples(m, step_s, &n, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     for (k = 0; k < n; k++) {
@@ -275,16 +213,6 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
         return PLANT_ERROR;
     }
     return gt_finite_outputs(m, "observer", msg);
-}
-
-PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMessage *msg)
-{
-    if (plant_variables[vr].kind != GT_KIND_OUTPUT) {
-        plant_message(msg, "%s is not an output", plant_variables[vr].name);
-        return PLANT_ERROR;
-    }
-    *value = m->real[vr];
-    return PLANT_OK;
 }
 
 /* --- restored states --------------------------------------------------------------------- */

@@ -42,18 +42,19 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 #: A validity envelope for the test plants (their knots span 30..85 m3/h).
 VALIDITY = {"validity": {"opening_mm": [10.0, 40.0], "flow_m3h": [30.0, 85.0],
                          "level_mm": [150.0, 450.0]}}  # fmt: skip
-#: case -> sequences in the default run (16,150 in all, seconds of fuzzing on one core; a
+#: case -> sequences in the default run (16,250 in all, seconds of fuzzing on one core; a
 #: physical step of 1e5 s integrates 1.7e5 RK4 sub-steps, so the physical FMU gets fewer; the
 #: MPC's initialisation iterates the Riccati map and every sample solves a QP, ~70 ms a
-#: sequence under the sanitizers, so it gets fewest).
+#: sequence under the sanitizers, so it gets fewest; the envelope observer bisects the gate law
+#: three times a sample).
 SEQUENCES = {"fopdt_envelope": 4000, "fopdt_effects": 4000, "arx_effects": 3000,
              "physical": 1000, "pi_controller": 3000, "mpc_controller": 150,
-             "observer": 1000}  # fmt: skip
+             "observer": 1000, "observer_envelope": 100}  # fmt: skip
 #: The MPC controller FMU's horizon: short, to keep its build and its samples quick (the
 #: code paths are those of any horizon).
 MPC_HORIZON = 10
 #: Cases that step whole samples of their default step size only (no variable holds it).
-SAMPLED = ("mpc_controller", "observer")
+SAMPLED = ("mpc_controller", "observer", "observer_envelope")
 CASES = tuple(SEQUENCES)
 #: Plausible values of the plants' inputs (gate up to 90 mm, discharge up to 150 m3/h: inside
 #: and beyond the test plants' envelope); another input (the controller's level and set-point)
@@ -78,7 +79,7 @@ class Fuzzed(NamedTuple):
 
 def _export(case: str, folder: Path) -> Path:
     """The FMI 2.0 C FMU of ``case``."""
-    if case in ("mpc_controller", "observer"):
+    if case in ("mpc_controller", "observer", "observer_envelope"):
         return _export_generated(case, folder)
     if case == "pi_controller":
         model = read_model_file(MODELS / "fopdt_3F.json")
@@ -89,13 +90,17 @@ def _export(case: str, folder: Path) -> Path:
 
 
 def _export_generated(case: str, folder: Path) -> Path:
-    """The MPC controller or the observer FMU of the envelope FOPDT without its seiche."""
+    """The MPC controller or the observer FMU of the envelope FOPDT without its seiche, or the
+    envelope observer FMU of the physical model without it."""
     from gatetwin.fmu.mpc_controller import export_mpc_controller
     from gatetwin.fmu.observer_fmu import export_observer
     from gatetwin.mpc.settings import MpcSettings
 
     plant = replace(read_model_file(MODELS / "fopdt_3F.json").plant, effects=())
     out = folder / f"{case}.fmu"
+    if case == "observer_envelope":
+        physical = replace(read_model_file(MODELS / "physical_3F.json").plant, effects=())
+        return export_observer(physical, out, model_name=f"fuzz_{case}")
     if case == "observer":
         return export_observer(plant, out, model_name=f"fuzz_{case}")
     return export_mpc_controller(plant, out, settings=MpcSettings(horizon=MPC_HORIZON),

@@ -389,8 +389,12 @@ def run_export_observer(args: argparse.Namespace) -> int:
     from gatetwin.fmu.observer_fmu import export_observer
     from gatetwin.modelfile import read_model_file
 
-    given = {"band_sigma": args.band, "run_samples": args.run_samples,
-             "cusum_slack_sigma": args.cusum_slack, "cusum_threshold": args.cusum_threshold}
+    given = {
+        "band_sigma": args.band,
+        "run_samples": args.run_samples,
+        "cusum_slack_sigma": args.cusum_slack,
+        "cusum_threshold": args.cusum_threshold,
+    }
     model = read_model_file(args.model)
     check_writable(args.out)
     path = export_observer(model.plant, args.out, horizon_s=args.horizon,

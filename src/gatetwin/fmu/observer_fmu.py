@@ -92,12 +92,17 @@ from gatetwin.plant.model import FopdtPlant, PhysicalPlant, Plant, plant_to_dict
 
 #: The component's fixed files (the FMI glue and headers come with them,
 #: :func:`~gatetwin.fmu.c_build.build_generated_component`).
-COMPONENT_FILES = ("observer.c", "observer_data.h")
-#: The envelope observer's fixed files (its component first, then the kernel's steady point).
-ENVELOPE_COMPONENT_FILES = ("observer_envelope.c", "observer_envelope_data.h", "kernel_point.c",
+COMPONENT_FILES = ("observer.c", "observer_data.h", "observer_support.c", "observer_support.h")
+#: The C the schedule observer compiles beside its component and generated code: what both
+#: observers share.
+C_FILES = ("observer_support.c",)
+#: The envelope observer's fixed files (its component first, what both observers share, then
+#: the kernel's steady point).
+ENVELOPE_COMPONENT_FILES = ("observer_envelope.c", "observer_envelope_data.h",
+                            "observer_support.c", "observer_support.h", "kernel_point.c",
                             "kernel_point.h")  # fmt: skip
 #: The C the envelope observer compiles beside its component and generated code.
-ENVELOPE_C_FILES = ("kernel_point.c", "physical_kernel.c", "elementary.c")
+ENVELOPE_C_FILES = ("observer_support.c", "kernel_point.c", "physical_kernel.c", "elementary.c")
 #: Most samples one communication step may span (3 h 20 min of 1.2 s samples): a budget of
 #: work per call (~14 µs a sample, so ~0.15 s) that keeps a huge step from stalling the host.
 MAX_SAMPLES_PER_STEP = 10_000
@@ -231,6 +236,7 @@ def _build(cfg: _Config, desc: FmuDescription, work: Path, file: str, fmi_versio
             config_header=observer_config_header(desc, layout, sizes),
             generated_by="gatetwin.fmu.observer_fmu, gatetwin.mpc.observer_codegen",
             tool="gatetwin (C online observer, casadi codegen)", fmi_version=fmi_version,
+            also_compile=C_FILES,
         )  # fmt: skip
     resources = fmu_dir / "resources"
     resources.mkdir()
@@ -344,8 +350,17 @@ def _rows(cfg: _Config) -> list[Row]:
 
 def _envelope_rows(cfg: _Config) -> list[Row]:
     """The envelope observer's own variables: the slow rule's CUSUM."""
-    return [("slow_cusum", "output", "continuous", "calculated", "1",
-             "CUSUM of the slow filter's innovation, max(high, low) (the slow rule)", None)]
+    return [
+        (
+            "slow_cusum",
+            "output",
+            "continuous",
+            "calculated",
+            "1",
+            "CUSUM of the slow filter's innovation, max(high, low) (the slow rule)",
+            None,
+        )
+    ]
 
 
 def _variables(cfg: _Config) -> tuple[VariableSpec, ...]:

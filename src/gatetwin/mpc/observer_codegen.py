@@ -146,8 +146,6 @@ def generate_observer_c(
     return {name: work_sizes(f) for name, f in fns.items()}
 
 
-
-
 # -- the envelope observer -----------------------------------------------------------------------
 #: Prefix of every generated C function of the envelope observer.
 ENVELOPE_PREFIX = "gt_env_"

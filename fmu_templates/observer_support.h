@@ -1,0 +1,25 @@
+/* What the two observer components share (observer.c, the schedule's; observer_envelope.c,
+ * the envelope's): sample counts, the checks of the horizon and the anomaly rules' limits, of
+ * the measured inputs and of a communication step, and the outputs' getter.
+ *
+ * Compiled with the component's own model_config.h (its ModelData, VR_* and GT_GEN_* /
+ * GT_OBS_* macros): both components name their parameters and inputs alike.
+ */
+#ifndef GATETWIN_OBSERVER_SUPPORT_H
+#define GATETWIN_OBSERVER_SUPPORT_H
+
+#include "generated_support.h"
+
+/* A whole number of sample periods in `span_s`, or -1 when it is not one. */
+long gt_whole_samples(double span_s);
+/* horizon_s a whole number of samples within its limit; the anomaly rules' band, run length,
+ * CUSUM slack and threshold in their ranges. */
+PlantStatus gt_check_monitor_parameters(const ModelData *m, PlantMessage *msg);
+/* The measured level and opening finite, the discharge within the meter's range. */
+PlantStatus gt_check_observer_inputs(const ModelData *m, PlantMessage *msg);
+/* The samples a communication step of step_s spans (*n), after checking the step (a whole
+ * number of samples, at most GT_OBS_MAX_SAMPLES_PER_STEP, within the time limit) and the
+ * inputs it holds. */
+PlantStatus gt_observer_samples(const ModelData *m, double step_s, long *n, PlantMessage *msg);
+
+#endif
