@@ -100,10 +100,8 @@ void plant_set_defaults(ModelData *m)
 /* At rest at the opening, level and discharge measured now, as OnlineObserver.reset. */
 PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
 {
-    static const int estimate_vr[GT_OBS_N_ESTIMATE] = GT_OBS_ESTIMATE_VRS;
     double q = m->real[VR_FLOW_M3H], y = m->real[VR_LEVEL], e = m->real[VR_OPENING_MM];
     double level;
-    int i;
     if (check_parameters(m, msg) != PLANT_OK || gt_check_observer_inputs(m, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
@@ -118,12 +116,7 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
         return PLANT_ERROR;
     }
     m->flow_model_m3h = q;
-    for (i = 0; i < GT_OBS_N_ESTIMATE; i++) {
-        m->real[estimate_vr[i]] = 0.0;
-    }
-    m->real[VR_FILTERED_LEVEL_MM] = level;
-    m->real[VR_DISTURBANCE_MM] = m->d;
-    m->real[VR_INNOVATION_SCALE] = 1.0;
+    gt_observer_start_outputs(m, level);
     m->real[VR_PREDICTED_LEVEL_MM] = forecast(m, q, m->z, m->d, e);
     m->initialized = 1;
     return PLANT_OK;
@@ -131,18 +124,7 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
 
 PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
 {
-    long n, k;
-    if (gt_observer_samples(m, step_s, &n, msg) != PLANT_OK) {
-        return PLANT_ERROR;
-    }
-    for (k = 0; k < n; k++) {
-        sample(m, m->real[VR_LEVEL], m->real[VR_OPENING_MM], m->real[VR_FLOW_M3H]);
-    }
-    m->time_s += step_s;
-    if (gt_finite_estimate(m, "after the step", "observer", msg) != PLANT_OK) {
-        return PLANT_ERROR;
-    }
-    return gt_finite_outputs(m, "observer", msg);
+    return gt_observer_do_step(m, step_s, sample, msg);
 }
 
 /* --- restored states --------------------------------------------------------------------- */

@@ -73,6 +73,35 @@ PlantStatus gt_observer_samples(const ModelData *m, double step_s, long *n, Plan
     return gt_check_observer_inputs(m, msg);
 }
 
+PlantStatus gt_observer_do_step(ModelData *m, double step_s, ObserverSample sample,
+                                PlantMessage *msg)
+{
+    long n, k;
+    if (gt_observer_samples(m, step_s, &n, msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    for (k = 0; k < n; k++) {
+        sample(m, m->real[VR_LEVEL], m->real[VR_OPENING_MM], m->real[VR_FLOW_M3H]);
+    }
+    m->time_s += step_s;
+    if (gt_finite_estimate(m, "after the step", "observer", msg) != PLANT_OK) {
+        return PLANT_ERROR;
+    }
+    return gt_finite_outputs(m, "observer", msg);
+}
+
+void gt_observer_start_outputs(ModelData *m, double level_mm)
+{
+    static const int estimate_vr[GT_OBS_N_ESTIMATE] = GT_OBS_ESTIMATE_VRS;
+    int i;
+    for (i = 0; i < GT_OBS_N_ESTIMATE; i++) {
+        m->real[estimate_vr[i]] = 0.0;
+    }
+    m->real[VR_FILTERED_LEVEL_MM] = level_mm;
+    m->real[VR_DISTURBANCE_MM] = m->d;
+    m->real[VR_INNOVATION_SCALE] = 1.0;
+}
+
 PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMessage *msg)
 {
     if (plant_variables[vr].kind != GT_KIND_OUTPUT) {

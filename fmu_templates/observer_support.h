@@ -21,5 +21,14 @@ PlantStatus gt_check_observer_inputs(const ModelData *m, PlantMessage *msg);
  * number of samples, at most GT_OBS_MAX_SAMPLES_PER_STEP, within the time limit) and the
  * inputs it holds. */
 PlantStatus gt_observer_samples(const ModelData *m, double step_s, long *n, PlantMessage *msg);
+/* One observer sample: the component's own, on the measured level y, opening e, discharge q. */
+typedef void (*ObserverSample)(ModelData *m, double y, double e, double q);
+/* A communication step: its samples (gt_observer_samples), each by `sample` on the held
+ * inputs, then the estimate and the outputs checked finite. */
+PlantStatus gt_observer_do_step(ModelData *m, double step_s, ObserverSample sample,
+                                PlantMessage *msg);
+/* The outputs at the start, before any sample: every estimate 0 but the filtered level (the
+ * measured one), the disturbance (the start's) and the innovation scale (1). */
+void gt_observer_start_outputs(ModelData *m, double level_mm);
 
 #endif
