@@ -422,6 +422,29 @@ def add_observe_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--without-effects", action="store_true",
                         help="observe with the model's effect blocks dropped (a model with "
                         "effect blocks is refused otherwise)")  # fmt: skip
+    parser.add_argument("--reference-gauges", metavar="G", nargs="+",
+                        help="other gauges of the same pool: adds the redundancy rule for a "
+                        "drift of the observed gauge (columns gauge_slope_mm_per_s, "
+                        "gauge_drift; anomaly_kind 4 where it alone holds)")  # fmt: skip
+
+
+def _with_gauge_rule(out: dict, record, args: argparse.Namespace) -> dict:
+    """The observer's outputs with the redundancy rule of gatetwin.mpc.gauge_drift added."""
+    import numpy as np
+
+    from gatetwin.mpc.errors import ControlError
+    from gatetwin.mpc.gauge_drift import GaugeDriftMonitor
+    from gatetwin.mpc.online import measured_inputs
+
+    if args.gauge in args.reference_gauges:
+        raise ControlError(f"observe: --reference-gauges lists the observed gauge {args.gauge}")
+    others = [measured_inputs(record, g)[0] for g in args.reference_gauges]
+    rule = GaugeDriftMonitor().run(measured_inputs(record, args.gauge)[0], others)
+    alone = (rule["gauge_drift"] > 0.5) & (out["anomaly"] < 0.5)
+    out = {**out, **rule}
+    out["anomaly"] = np.where(alone, 1.0, out["anomaly"])
+    out["anomaly_kind"] = np.where(alone, 4.0, out["anomaly_kind"])
+    return out
 
 
 def run_observe(args: argparse.Namespace) -> int:
@@ -445,11 +468,17 @@ def run_observe(args: argparse.Namespace) -> int:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # Q beyond the knots: clamped
         out = observer.run(level, opening, flow)
+    if args.reference_gauges:
+        out = _with_gauge_rule(out, record, args)
     columns = {"time_s": np.asarray(record.time_s, dtype=float), **out}
     rows = [",".join(columns)]
     rows += [",".join(f"{v:.10g}" for v in row) for row in zip(*columns.values(), strict=True)]
     write_text_atomic(args.out, "\n".join(rows) + "\n")
     found = detection(columns["time_s"], out["anomaly"], None)
+    rule = ""
+    if args.reference_gauges:
+        rises = detection(columns["time_s"], out["gauge_drift"], None).false_alarms
+        rule = f" (gauge drift rule: {rises})"
     print(f"wrote {args.out}: {len(rows) - 1} samples, {observer.linearisation} observer, "
-          f"anomaly flag rose {found.false_alarms} times")  # fmt: skip
+          f"anomaly flag rose {found.false_alarms} times{rule}")  # fmt: skip
     return 0
