@@ -6,13 +6,11 @@ a drift, and `gatetwin observe --reference-gauges`."""
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gatetwin.diagnose.onset import ONSET_EFFECTS, detection
-from gatetwin.flume.envelope import random_moves_scenario
 from gatetwin.flume.experiments import run_scenario
 from gatetwin.flume.scenario import with_inflow
 from gatetwin.mpc.errors import ControlError
@@ -22,10 +20,8 @@ from gatetwin.mpc.gauge_drift import (
     GaugeDriftMonitor,
     gauge_difference,
 )
+from observer_cases import ROOT, flume_scenario
 
-ROOT = Path(__file__).resolve().parents[1]
-#: A seed neither the bundled records (101-116) nor the calibration records (901-909) use.
-SEED = 1301
 GAUGE = "3F"
 #: The diagnosis suite's drift (0.6 mm/min).
 DRIFT_MM_PER_S = ONSET_EFFECTS["sensor_drift"]["rate_mm_per_s"]
@@ -35,8 +31,7 @@ DRIFT_MM_PER_S = ONSET_EFFECTS["sensor_drift"]["rate_mm_per_s"]
 DRIFT_BOUND_S = WINDOW_SAMPLES * 1.2
 
 
-def _scenario():
-    return random_moves_scenario("T50", 50.0, SEED, n_moves=6)
+_scenario = flume_scenario
 
 
 def _run(scenario):

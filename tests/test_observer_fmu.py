@@ -29,6 +29,7 @@ from gatetwin.mpc.online import (
 )
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import read_record
+from observer_cases import observer_steps
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -92,16 +93,9 @@ def test_a_saved_state_replays_the_same_samples(fmu):
     _, y, e, q = _inputs("C")
     slave, vr = _slave(fmu)
     slave.exitInitializationMode()
-    inputs = [vr["level_3F_mm"], vr["opening_mm"], vr["flow_m3h"]]
-    outs = [vr[n] for n in OUTPUTS]
 
     def run(first: int) -> list[list[float]]:
-        rows = []
-        for k in range(first, first + 20):
-            slave.setReal(inputs, [float(y[k]), float(e[k]), float(q[k])])
-            slave.doStep(currentCommunicationPoint=k * 1.2, communicationStepSize=1.2)
-            rows.append(slave.getReal(outs))
-        return rows
+        return observer_steps(slave, vr, OUTPUTS, y, e, q, first)
 
     run(0)
     state = slave.getFMUstate()

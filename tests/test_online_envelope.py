@@ -6,23 +6,19 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gatetwin.diagnose.onset import detection, with_onset
 from gatetwin.errors import FlumeError
-from gatetwin.flume.envelope import random_moves_scenario
 from gatetwin.flume.experiments import run_scenario
 from gatetwin.flume.scenario import with_inflow
 from gatetwin.modelfile import read_model_file
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.online import ENVELOPE_ANOMALY, OUTPUTS, AnomalySettings, OnlineObserver
+from observer_cases import ROOT, envelope_plant, flume_scenario, held_opening
 
-ROOT = Path(__file__).resolve().parents[1]
-#: A seed neither the bundled records (101-116) nor the calibration records (901-909) use.
-SEED = 1301
 #: An unseen inflow of 5 m3/h raises the level like the pool's step response (time constants
 #: 40-75 s at gauge 3F); the slow rule's CUSUM gains about one SD per sample once the level
 #: effect exceeds its filter's random walk, so 75 (its threshold) is reached within about one
@@ -41,12 +37,10 @@ DRIFT_BOUND_S = 480.0
 
 @pytest.fixture(scope="module")
 def plant():
-    return dataclasses.replace(read_model_file(ROOT / "models/physical_3F.json").plant,
-                               effects=())  # fmt: skip
+    return envelope_plant()
 
 
-def _scenario():
-    return random_moves_scenario("T50", 50.0, SEED, n_moves=6)
+_scenario = flume_scenario
 
 
 @pytest.fixture(scope="module")
@@ -55,9 +49,7 @@ def record():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         rec = run_scenario(_scenario())
-    e = np.asarray(rec.opening_mm, dtype=float)
-    known = np.flatnonzero(np.isfinite(e))
-    e = e[known[np.minimum(np.searchsorted(known, np.arange(e.size)), known.size - 1)]]
+    e = held_opening(np.asarray(rec.opening_mm, dtype=float))
     return rec.time_s, rec.levels_mm["3F"], e, rec.flow_m3h
 
 
