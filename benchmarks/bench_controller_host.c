@@ -71,7 +71,7 @@ int main(int argc, char **argv)
     const fmi2ValueReference outputs[4] = {VR_OPENING_MM, VR_ACTIVE_CONSTRAINTS,
                                            VR_SOLVER_STATUS, VR_SOLVER_ITERATIONS};
     const fmi2ValueReference start_vr = VR_START_OPENING_MM;
-    const double ts = GT_MPC_SAMPLE_PERIOD_S, keep = exp(-GT_MPC_SAMPLE_PERIOD_S / 62.0);
+    const double ts = GT_GEN_SAMPLE_PERIOD_S, keep = exp(-GT_GEN_SAMPLE_PERIOD_S / 62.0);
     double level = 190.0, opening = 25.0, t = 0.0, *step_ns, out[4], in[3];
     long n, k, active = 0, fallbacks = 0;
     double iterations = 0.0;

@@ -145,7 +145,8 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
             return PLANT_ERROR;
         }
     }
-    if (!m->parameters_changed && check_parameters(m, msg) != PLANT_OK) {
+    if (gt_check_drift_state(m, msg) != PLANT_OK ||
+        (!m->parameters_changed && check_parameters(m, msg) != PLANT_OK)) {
         return PLANT_ERROR;
     }
     return PLANT_OK;

@@ -20,6 +20,12 @@ typedef struct {
     double p[GT_GEN_NP];
     double flow_model_m3h; /* discharge of the observer's model (the last prediction's) */
     double monitor[GT_OBS_N_MONITOR]; /* anomaly rules' state (gatetwin.mpc.online.MONITOR) */
+#if GT_DRIFT_N_REFS > 0
+    /* the gauge-drift rule: the last differences to the reference gauges' mean, oldest first,
+     * and the samples seen (at most the window) */
+    double drift_window[GT_DRIFT_WINDOW];
+    double drift_count;
+#endif
     /* scratch of one call: the generated code's work arrays */
     casadi_int iw[GT_GEN_SZ_IW];
     casadi_real w[GT_GEN_SZ_W];

@@ -29,6 +29,12 @@ typedef struct {
     double x_model[GT_ENV_N_X];
     double flow_model_m3h;
     double opening_model_mm;
+#if GT_DRIFT_N_REFS > 0
+    /* the gauge-drift rule: the last differences to the reference gauges' mean, oldest first,
+     * and the samples seen (at most the window) */
+    double drift_window[GT_DRIFT_WINDOW];
+    double drift_count;
+#endif
     /* scratch of one call: the generated code's work arrays */
     casadi_int iw[GT_GEN_SZ_IW];
     casadi_real w[GT_GEN_SZ_W];

@@ -1,5 +1,6 @@
 /* What the two observer components share; see observer_support.h. */
 #include <math.h>
+#include <string.h>
 
 #include "observer_support.h"
 
@@ -39,6 +40,14 @@ PlantStatus gt_check_monitor_parameters(const ModelData *m, PlantMessage *msg)
                            "anomaly_cusum_threshold = %.17g > 0", slack, threshold);
         return PLANT_ERROR;
     }
+#if GT_DRIFT_N_REFS > 0
+    if (!(m->real[VR_GAUGE_DRIFT_THRESHOLD_MM_PER_S] > 0.0 &&
+          m->real[VR_GAUGE_DRIFT_THRESHOLD_MM_PER_S] <= 1e6)) {
+        plant_message(msg, "gauge_drift_threshold_mm_per_s = %.17g must be in (0, 1e6]",
+                      m->real[VR_GAUGE_DRIFT_THRESHOLD_MM_PER_S]);
+        return PLANT_ERROR;
+    }
+#endif
     return PLANT_OK;
 }
 
@@ -49,6 +58,19 @@ PlantStatus gt_check_observer_inputs(const ModelData *m, PlantMessage *msg)
                       plant_variables[VR_LEVEL].name, m->real[VR_LEVEL], m->real[VR_OPENING_MM]);
         return PLANT_ERROR;
     }
+#if GT_DRIFT_N_REFS > 0
+    {
+        static const int ref_vr[GT_DRIFT_N_REFS] = GT_DRIFT_REF_VRS;
+        int i;
+        for (i = 0; i < GT_DRIFT_N_REFS; i++) {
+            if (!isfinite(m->real[ref_vr[i]])) {
+                plant_message(msg, "%s = %.17g must be finite", plant_variables[ref_vr[i]].name,
+                              m->real[ref_vr[i]]);
+                return PLANT_ERROR;
+            }
+        }
+    }
+#endif
     return gt_check_flow(m->real[VR_FLOW_M3H], msg);
 }
 
@@ -73,6 +95,51 @@ PlantStatus gt_observer_samples(const ModelData *m, double step_s, long *n, Plan
     return gt_check_observer_inputs(m, msg);
 }
 
+#if GT_DRIFT_N_REFS > 0
+/* The gauge-drift rule after the observer's sample of the level y (generated from
+ * gatetwin.mpc.gauge_drift.drift_sample and with_drift_rule): the window moves on, the slope
+ * and flag are new, and anomaly_kind and anomaly become 4 and 1 where the rule alone holds. */
+static void drift_sample(ModelData *m, double y)
+{
+    static const int ref_vr[GT_DRIFT_N_REFS] = GT_DRIFT_REF_VRS;
+    static const int rule_vr[GT_DRIFT_N_RULE] = GT_DRIFT_RULE_VRS;
+    double others[GT_DRIFT_N_REFS], window[GT_DRIFT_WINDOW], count, rule[GT_DRIFT_N_RULE];
+    int i;
+    for (i = 0; i < GT_DRIFT_N_REFS; i++) {
+        others[i] = m->real[ref_vr[i]];
+    }
+    {
+        const double *in[6] = {m->drift_window, &m->drift_count, &y, others,
+                               &m->real[VR_GAUGE_DRIFT_THRESHOLD_MM_PER_S],
+                               &m->real[VR_ANOMALY_KIND]};
+        double *out[3] = {window, &count, rule};
+        gt_call(m, GT_DRIFT_FUNCTION, in, 6, out, 3);
+    }
+    memcpy(m->drift_window, window, sizeof window);
+    m->drift_count = count;
+    for (i = 0; i < GT_DRIFT_N_RULE; i++) {
+        m->real[rule_vr[i]] = rule[i];
+    }
+}
+#endif
+
+PlantStatus gt_check_drift_state(const ModelData *m, PlantMessage *msg)
+{
+#if GT_DRIFT_N_REFS > 0
+    const double count = m->drift_count;
+    if (!gt_all_finite(m->drift_window, GT_DRIFT_WINDOW) ||
+        !(count >= 0.0 && count <= GT_DRIFT_WINDOW && count == floor(count))) {
+        plant_message(msg, "state of the gauge-drift rule is not finite or its count is not a "
+                           "whole number in [0, %d]", GT_DRIFT_WINDOW);
+        return PLANT_ERROR;
+    }
+#else
+    (void)m;
+    (void)msg;
+#endif
+    return PLANT_OK;
+}
+
 PlantStatus gt_observer_do_step(ModelData *m, double step_s, ObserverSample sample,
                                 PlantMessage *msg)
 {
@@ -82,6 +149,9 @@ PlantStatus gt_observer_do_step(ModelData *m, double step_s, ObserverSample samp
     }
     for (k = 0; k < n; k++) {
         sample(m, m->real[VR_LEVEL], m->real[VR_OPENING_MM], m->real[VR_FLOW_M3H]);
+#if GT_DRIFT_N_REFS > 0
+        drift_sample(m, m->real[VR_LEVEL]);
+#endif
     }
     m->time_s += step_s;
     if (gt_finite_estimate(m, "after the step", "observer", msg) != PLANT_OK) {
@@ -100,6 +170,12 @@ void gt_observer_start_outputs(ModelData *m, double level_mm)
     m->real[VR_FILTERED_LEVEL_MM] = level_mm;
     m->real[VR_DISTURBANCE_MM] = m->d;
     m->real[VR_INNOVATION_SCALE] = 1.0;
+#if GT_DRIFT_N_REFS > 0
+    memset(m->drift_window, 0, sizeof m->drift_window);
+    m->drift_count = 0.0;
+    m->real[VR_GAUGE_SLOPE_MM_PER_S] = 0.0;
+    m->real[VR_GAUGE_DRIFT] = 0.0;
+#endif
 }
 
 PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMessage *msg)

@@ -3,7 +3,11 @@
  * the measured inputs and of a communication step, and the outputs' getter.
  *
  * Compiled with the component's own model_config.h (its ModelData, VR_* and GT_GEN_* /
- * GT_OBS_* macros): both components name their parameters and inputs alike.
+ * GT_OBS_* / GT_DRIFT_* macros): both components name their parameters and inputs alike.
+ * With reference gauges (GT_DRIFT_N_REFS > 0) each sample ends with the gauge-drift rule
+ * (gatetwin.mpc.gauge_drift, generated as GT_DRIFT_FUNCTION): the slope of the observed
+ * level's difference to the reference gauges' mean over the last GT_DRIFT_WINDOW samples,
+ * its flag, and anomaly_kind 4 where the rule alone holds.
  */
 #ifndef GATETWIN_OBSERVER_SUPPORT_H
 #define GATETWIN_OBSERVER_SUPPORT_H
@@ -28,7 +32,11 @@ typedef void (*ObserverSample)(ModelData *m, double y, double e, double q);
 PlantStatus gt_observer_do_step(ModelData *m, double step_s, ObserverSample sample,
                                 PlantMessage *msg);
 /* The outputs at the start, before any sample: every estimate 0 but the filtered level (the
- * measured one), the disturbance (the start's) and the innovation scale (1). */
+ * measured one), the disturbance (the start's) and the innovation scale (1); the gauge-drift
+ * rule's window empty. */
 void gt_observer_start_outputs(ModelData *m, double level_mm);
+/* A restored state's gauge-drift window finite and its count a whole number within the
+ * window (always PLANT_OK without reference gauges). */
+PlantStatus gt_check_drift_state(const ModelData *m, PlantMessage *msg);
 
 #endif

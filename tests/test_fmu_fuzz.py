@@ -90,8 +90,8 @@ def _export(case: str, folder: Path) -> Path:
 
 
 def _export_generated(case: str, folder: Path) -> Path:
-    """The MPC controller or the observer FMU of the envelope FOPDT without its seiche, or the
-    envelope observer FMU of the physical model without it."""
+    """The MPC controller or the observer FMU (with reference gauges) of the envelope FOPDT
+    without its seiche, or the envelope observer FMU of the physical model without it."""
     from gatetwin.fmu.mpc_controller import export_mpc_controller
     from gatetwin.fmu.observer_fmu import export_observer
     from gatetwin.mpc.settings import MpcSettings
@@ -101,8 +101,9 @@ def _export_generated(case: str, folder: Path) -> Path:
     if case == "observer_envelope":
         physical = replace(read_model_file(MODELS / "physical_3F.json").plant, effects=())
         return export_observer(physical, out, model_name=f"fuzz_{case}")
-    if case == "observer":
-        return export_observer(plant, out, model_name=f"fuzz_{case}")
+    if case == "observer":  # with two reference gauges: the gauge-drift rule's C too
+        return export_observer(plant, out, model_name=f"fuzz_{case}",
+                               reference_gauges=("1D", "2E"))  # fmt: skip
     return export_mpc_controller(plant, out, settings=MpcSettings(horizon=MPC_HORIZON),
                                  model_name=f"fuzz_{case}")  # fmt: skip
 

@@ -383,6 +383,10 @@ def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
                         "effect blocks is refused otherwise)")  # fmt: skip
     parser.add_argument("--fmi", choices=("2", "3"), default="2",
                         help="FMI version of the co-simulation FMU: 2 (default) or 3")  # fmt: skip
+    parser.add_argument("--reference-gauges", metavar="G", nargs="+",
+                        help="other gauges of the same pool: adds an input level_<G>_mm for "
+                        "each and the gauge-drift rule (outputs gauge_slope_mm_per_s, "
+                        "gauge_drift; anomaly_kind 4 where it alone holds)")  # fmt: skip
 
 
 def run_export_observer(args: argparse.Namespace) -> int:
@@ -400,7 +404,8 @@ def run_export_observer(args: argparse.Namespace) -> int:
     path = export_observer(model.plant, args.out, horizon_s=args.horizon,
                            anomaly={k: v for k, v in given.items() if v is not None},
                            without_effects=args.without_effects, fmi_version=f"{args.fmi}.0",
-                           linearisation=args.linearisation)  # fmt: skip
+                           linearisation=args.linearisation,
+                           reference_gauges=args.reference_gauges or ())  # fmt: skip
     print(f"wrote {path}")
     return 0
 
@@ -430,21 +435,14 @@ def add_observe_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _with_gauge_rule(out: dict, record, args: argparse.Namespace) -> dict:
     """The observer's outputs with the redundancy rule of gatetwin.mpc.gauge_drift added."""
-    import numpy as np
-
     from gatetwin.mpc.errors import ControlError
-    from gatetwin.mpc.gauge_drift import GaugeDriftMonitor
+    from gatetwin.mpc.gauge_drift import with_gauge_rule
     from gatetwin.mpc.online import measured_inputs
 
     if args.gauge in args.reference_gauges:
         raise ControlError(f"observe: --reference-gauges lists the observed gauge {args.gauge}")
     others = [measured_inputs(record, g)[0] for g in args.reference_gauges]
-    rule = GaugeDriftMonitor().run(measured_inputs(record, args.gauge)[0], others)
-    alone = (rule["gauge_drift"] > 0.5) & (out["anomaly"] < 0.5)
-    out = {**out, **rule}
-    out["anomaly"] = np.where(alone, 1.0, out["anomaly"])
-    out["anomaly_kind"] = np.where(alone, 4.0, out["anomaly_kind"])
-    return out
+    return with_gauge_rule(out, measured_inputs(record, args.gauge)[0], others)
 
 
 def run_observe(args: argparse.Namespace) -> int:

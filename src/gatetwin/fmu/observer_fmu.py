@@ -29,7 +29,17 @@ outputs ``filtered_level_mm``, ``disturbance_mm``, ``innovation_mm``,
 ``anomaly_cusum_threshold`` and, for the schedule observer, the schedule
 (``schedule.flow_m3h[k]``, ``schedule.<column>[k]``, ``opening_ref_mm``). The envelope
 observer's plant (the kernel's parameters, the datum, ``opening_ref_mm``) and its slow rule's
-slack and threshold are built into its code. The observer starts at rest on the inputs set in
+slack and threshold are built into its code.
+
+Given reference gauges (``reference_gauges``: other gauges of the same pool), either observer
+also runs the redundancy rule of :mod:`gatetwin.mpc.gauge_drift` after each sample: inputs
+``level_<G>_mm`` for each reference gauge, outputs ``gauge_slope_mm_per_s`` (the slope of
+the observed level's difference to the references' mean over the last
+:data:`~gatetwin.mpc.gauge_drift.WINDOW_SAMPLES` samples; 0 until the window is full) and
+``gauge_drift``, fixed parameter ``gauge_drift_threshold_mm_per_s``; ``anomaly_kind`` is 4
+where that rule alone holds.
+
+The observer starts at rest on the inputs set in
 initialisation mode; ``doStep(t, h)`` takes the inputs at ``t`` as the sample at ``t`` (``h``
 a whole number of sample periods, at most :data:`MAX_SAMPLES_PER_STEP`, each taking the held
 inputs); after it the outputs are the estimate at ``t``.
@@ -42,6 +52,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import shutil
 from pathlib import Path
 from typing import Any
@@ -63,11 +74,14 @@ from gatetwin.fmu.generated_component import (
 from gatetwin.mpc.codegen import Layout
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S, register_length
 from gatetwin.mpc.errors import ControlError
+from gatetwin.mpc.gauge_drift import DRIFT_KIND, THRESHOLD_MM_PER_S, WINDOW_SAMPLES
 from gatetwin.mpc.observer_codegen import (
+    DRIFT_RULE,
     ENVELOPE_PREFIX,
     ESTIMATE,
     LIMITS,
     N_POINTS,
+    PREFIX,
     SLOW_RULE,
     build_envelope_functions,
     build_observer_functions,
@@ -123,6 +137,7 @@ class _Config:
     name: str
     envelope: bool = False
     slow_settings: ObserverSettings = SLOW_MONITORING
+    references: tuple[str, ...] = ()
 
 
 def export_observer(
@@ -136,6 +151,7 @@ def export_observer(
     model_name: str = DEFAULT_NAME,
     fmi_version: str = "2.0",
     linearisation: str = "auto",
+    reference_gauges: tuple[str, ...] | list[str] = (),
 ) -> Path:
     """Write the observer FMU of a scheduled FOPDT or of an envelope to ``out_path`` (C, host
     platform).
@@ -172,6 +188,9 @@ def export_observer(
     linearisation : {"auto", "envelope", "schedule"}
         As :class:`~gatetwin.mpc.online.OnlineObserver`'s: ``auto`` takes the envelope for a
         physical plant and the schedule for an FOPDT.
+    reference_gauges : sequence of str
+        Other gauges of the pool: adds the gauge-drift rule (see the module) with an input
+        ``level_<G>_mm`` for each. Empty (default): no such rule.
 
     Raises
     ------
@@ -201,11 +220,33 @@ def export_observer(
             anomaly = dataclasses.replace(default, **anomaly)
         except ControlError as exc:
             raise ExportError(str(exc)) from None
+    references = _references(plant.gauge, reference_gauges)
     cfg = _Config(plant, float(horizon_s), settings or MONITORING, anomaly or default,
-                  model_name, envelope)  # fmt: skip
+                  model_name, envelope, references=references)  # fmt: skip
     target = fmu_target(out_path)
     desc = describe_observer(cfg)
     return write_atomically(target, lambda work, file: _build(cfg, desc, work, file, fmi_version))
+
+
+#: A reference gauge's name: letters, digits, ``_``, ``.``, ``-`` (at most 32), as the
+#: records' ``level_<G>_mm`` columns name gauges; it becomes the input ``level_<G>_mm``.
+_GAUGE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,31}")
+
+
+def _references(gauge: str, names: Any) -> tuple[str, ...]:
+    """The reference gauges, checked: valid names, distinct variables, not the observed one."""
+    if isinstance(names, str):
+        raise ExportError("observer FMU: reference_gauges must be a sequence of gauge names")
+    refs = tuple(names)
+    for g in refs:
+        if not (isinstance(g, str) and _GAUGE_NAME.fullmatch(g)):
+            raise ExportError(f"observer FMU: reference gauge {g!r} is not a gauge name "
+                              "(letters, digits, _ . -; at most 32)")  # fmt: skip
+    variables = [output_name(g) for g in (gauge, *refs)]
+    if len(set(variables)) != len(variables):
+        raise ExportError(f"observer FMU: reference gauges {', '.join(refs)} repeat a gauge or "
+                          f"the observed gauge {gauge}")  # fmt: skip
+    return refs
 
 
 def _load(model_or_path: Any, without_effects: bool) -> Any:
@@ -228,12 +269,12 @@ def _build(cfg: _Config, desc: FmuDescription, work: Path, file: str, fmi_versio
     else:
         register = register_length(cfg.plant, SAMPLE_PERIOD_S)
         fns, layout = build_observer_functions(len(cfg.plant.schedule.flow_m3h), register,
-                                               cfg.settings, SAMPLE_PERIOD_S,
-                                               cfg.anomaly)  # fmt: skip
+                                               cfg.settings, SAMPLE_PERIOD_S, cfg.anomaly,
+                                               len(cfg.references))  # fmt: skip
         sizes = generate_observer_c(fns, sources, "observer_generated")
         build_generated_component(
             fmu_dir, desc, component_files=COMPONENT_FILES, generated_stem="observer_generated",
-            config_header=observer_config_header(desc, layout, sizes),
+            config_header=observer_config_header(desc, layout, sizes, cfg.references),
             generated_by="gatetwin.fmu.observer_fmu, gatetwin.mpc.observer_codegen",
             tool="gatetwin (C online observer, casadi codegen)", fmi_version=fmi_version,
             also_compile=C_FILES,
@@ -252,7 +293,8 @@ def _build_envelope(cfg: _Config, desc: FmuDescription, fmu_dir: Path, fmi_versi
 
     sources = fmu_dir / "sources"
     fns, layout = build_envelope_functions(cfg.plant, cfg.settings, cfg.slow_settings,
-                                           SAMPLE_PERIOD_S, cfg.anomaly)  # fmt: skip
+                                           SAMPLE_PERIOD_S, cfg.anomaly,
+                                           len(cfg.references))  # fmt: skip
     sizes = generate_envelope_c(fns, sources, "observer_envelope_generated")
     kernel = {**generated_kernel(), **generated_blocks()}
     for name in ("physical_kernel.c", "physical_kernel.h", "elementary.c", "elementary.h"):
@@ -260,7 +302,7 @@ def _build_envelope(cfg: _Config, desc: FmuDescription, fmu_dir: Path, fmi_versi
     build_generated_component(
         fmu_dir, desc, component_files=ENVELOPE_COMPONENT_FILES,
         generated_stem="observer_envelope_generated",
-        config_header=envelope_config_header(desc, layout, sizes, cfg.plant),
+        config_header=envelope_config_header(desc, layout, sizes, cfg.plant, cfg.references),
         generated_by="gatetwin.fmu.observer_fmu, gatetwin.mpc.observer_codegen; "
         "physical_kernel.c and elementary.c by gatetwin.plant.kernel_render and "
         "gatetwin.plant.ast_render",
@@ -276,6 +318,9 @@ def _facts(cfg: _Config, desc: FmuDescription | None = None) -> dict[str, Any]:
     if cfg.envelope:
         facts["linearisation"] = "envelope"
         facts["slow_settings"] = dataclasses.asdict(cfg.slow_settings)
+    if cfg.references:
+        facts["reference_gauges"] = list(cfg.references)
+        facts["gauge_drift_window_samples"] = WINDOW_SAMPLES
     if desc is not None:
         facts["guid"] = desc.guid
     return facts
@@ -325,7 +370,9 @@ def _rows(cfg: _Config) -> list[Row]:
         ("anomaly_kind", "output", "discrete", "calculated", "1",
          "0 none; 1 fast (anomaly_run_samples outside the band); 2 persistent (a CUSUM "
          "beyond anomaly_cusum_threshold)" + ("; 3 slow (the slow filter's CUSUM beyond "
-         f"{cfg.anomaly.slow_threshold:g})" if cfg.envelope else ""), None),
+         f"{cfg.anomaly.slow_threshold:g})" if cfg.envelope else "")
+         + (f"; {DRIFT_KIND} gauge drift (gauge_drift alone)" if cfg.references else ""),
+         None),
         ("cusum_high", "output", "continuous", "calculated", "1",
          "CUSUM of a level above the model's prediction", None),
         ("cusum_low", "output", "continuous", "calculated", "1",
@@ -363,10 +410,32 @@ def _envelope_rows(cfg: _Config) -> list[Row]:
     ]
 
 
+def _drift_rows(cfg: _Config) -> list[Row]:
+    """The gauge-drift rule's variables: an input per reference gauge, its two outputs and
+    its threshold (none without reference gauges)."""
+    if not cfg.references:
+        return []
+    level0 = _start_inputs(cfg)[0]
+    window_s = WINDOW_SAMPLES * SAMPLE_PERIOD_S
+    return [
+        *((output_name(g), "input", "continuous", None, "mm",
+           f"Level measured at gauge {g} now (a reference of the gauge-drift rule)", level0)
+          for g in cfg.references),
+        ("gauge_slope_mm_per_s", "output", "continuous", "calculated", "mm/s",
+         f"Slope of {output_name(cfg.plant.gauge)} minus the reference gauges' mean over the "
+         f"last {window_s:g} s (0 until that window is full)", None),
+        ("gauge_drift", "output", "discrete", "calculated", "1",
+         "1 while |gauge_slope_mm_per_s| > gauge_drift_threshold_mm_per_s", None),
+        ("gauge_drift_threshold_mm_per_s", "parameter", "fixed", "exact", "mm/s",
+         "Slope of the gauge's difference to the reference gauges that raises gauge_drift",
+         THRESHOLD_MM_PER_S),
+    ]  # fmt: skip
+
+
 def _variables(cfg: _Config) -> tuple[VariableSpec, ...]:
     if cfg.envelope:
-        return variables_of(_rows(cfg) + _envelope_rows(cfg))
-    return variables_of(_rows(cfg) + schedule_rows(cfg.plant))
+        return variables_of(_rows(cfg) + _envelope_rows(cfg) + _drift_rows(cfg))
+    return variables_of(_rows(cfg) + schedule_rows(cfg.plant) + _drift_rows(cfg))
 
 
 def describe_observer(cfg: _Config) -> FmuDescription:
@@ -402,7 +471,7 @@ def describe_observer(cfg: _Config) -> FmuDescription:
 
 def _code_digest(envelope: bool = False) -> str:
     modules = ("codegen.py", "observer_codegen.py", "online.py", "discrete.py", "observer.py",
-               "statespace.py")  # fmt: skip
+               "statespace.py", "gauge_drift.py")  # fmt: skip
     if envelope:
         return code_digest(ENVELOPE_COMPONENT_FILES, (*modules, "envelope.py"))
     return code_digest(COMPONENT_FILES, modules)
@@ -414,6 +483,7 @@ def run_observer_fmu(
     opening_mm: Any,
     flow_m3h: Any,
     parameters: dict[str, float] | None = None,
+    reference_levels_mm: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run an observer FMU (FMI 2.0 or 3.0) through fmpy over measured samples (one ``doStep``
     per sample).
@@ -421,33 +491,38 @@ def run_observer_fmu(
     Initialises at rest on the first sample, then steps once per sample from ``t = 0`` with
     that sample's inputs; returns each output (:data:`gatetwin.mpc.online.OUTPUTS`) as an
     array, one entry per sample (and ``slow_cusum`` where the FMU has it: the envelope
-    observer's). ``parameters`` overrides fixed parameters by name.
+    observer's; ``gauge_slope_mm_per_s`` and ``gauge_drift`` where it has reference gauges,
+    whose levels ``reference_levels_mm`` gives by gauge). ``parameters`` overrides fixed
+    parameters by name.
     """
     import numpy as np
     from fmpy import extract, read_model_description
 
     from gatetwin.mpc.online import OUTPUTS
 
-    y, e, q = (np.asarray(v, dtype=float) for v in (level_mm, opening_mm, flow_m3h))
+    refs = {output_name(g): np.asarray(v, dtype=float)
+            for g, v in (reference_levels_mm or {}).items()}  # fmt: skip
     md = read_model_description(str(fmu_path))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     level_vr = next(v.valueReference for v in md.modelVariables
                     if v.causality == "input" and v.name.startswith("level_"))  # fmt: skip
-    inputs = [level_vr, vr["opening_mm"], vr["flow_m3h"]]
+    inputs = [level_vr, vr["opening_mm"], vr["flow_m3h"], *(vr[n] for n in refs)]
+    columns = np.column_stack([np.asarray(v, dtype=float)
+                               for v in (level_mm, opening_mm, flow_m3h, *refs.values())])
     unzipped = extract(str(fmu_path))
     slave = _slave(md, unzipped)
     ts = float(md.defaultExperiment.stepSize)
-    names = [*OUTPUTS, *(["slow_cusum"] if "slow_cusum" in vr else [])]
-    out = np.empty((y.size, len(names)))
+    names = [*OUTPUTS, *(n for n in ("slow_cusum", *DRIFT_RULE[:2]) if n in vr)]
+    out = np.empty((columns.shape[0], len(names)))
     try:
         slave.start()
         for name, value in (parameters or {}).items():
             slave.set([vr[name]], [float(value)])
-        slave.set(inputs, [float(y[0]), float(e[0]), float(q[0])])
+        slave.set(inputs, [float(v) for v in columns[0]])
         slave.fmu.exitInitializationMode()
         out_vrs = [vr[n] for n in names]
-        for i in range(y.size):
-            slave.set(inputs, [float(y[i]), float(e[i]), float(q[i])])
+        for i in range(columns.shape[0]):
+            slave.set(inputs, [float(v) for v in columns[i]])
             slave.fmu.doStep(currentCommunicationPoint=float(i * ts),
                              communicationStepSize=float(ts))  # fmt: skip
             out[i] = slave.get(out_vrs)
@@ -493,8 +568,32 @@ def _slave(md: Any, unzipped: str) -> _Slave:
     return _Slave(fmu, fmi3)
 
 
+def _drift_config(desc: FmuDescription, references: tuple[str, ...],
+                  prefix: str) -> tuple[list[str], dict[str, str]]:  # fmt: skip
+    """The gauge-drift rule's lines of ``model_config.h`` and its ``VR_*`` names
+    (``GT_DRIFT_N_REFS`` 0 without reference gauges)."""
+    if not references:
+        return ["/* no reference gauges: no gauge-drift rule */", "#define GT_DRIFT_N_REFS 0"], {}
+    vr = {v.name: v.vr for v in desc.variables}
+    lines = [
+        "/* the gauge-drift rule (gatetwin.mpc.gauge_drift) */",
+        f"#define GT_DRIFT_N_REFS {len(references)}",
+        f"#define GT_DRIFT_WINDOW {WINDOW_SAMPLES}",
+        f"#define GT_DRIFT_N_RULE {len(DRIFT_RULE)}",
+        f"#define GT_DRIFT_FUNCTION {prefix}drift",
+        "#define GT_DRIFT_REF_VRS {" + ", ".join(str(vr[output_name(g)]) for g in references)
+        + "}",
+        "#define GT_DRIFT_RULE_VRS {" + ", ".join(str(vr[n]) for n in DRIFT_RULE) + "}",
+    ]
+    named = ("gauge_slope_mm_per_s", "gauge_drift", "gauge_drift_threshold_mm_per_s")
+    return lines, {n.upper(): n for n in named}
+
+
 def observer_config_header(
-    desc: FmuDescription, layout: Layout, sizes: dict[str, dict[str, int]]
+    desc: FmuDescription,
+    layout: Layout,
+    sizes: dict[str, dict[str, int]],
+    references: tuple[str, ...] = (),
 ) -> str:
     """``model_config.h`` of the observer FMU."""
     vr = {v.name: v.vr for v in desc.variables}
@@ -510,9 +609,11 @@ def observer_config_header(
         "#define GT_OBS_ESTIMATE_VRS {" + ", ".join(str(vr[n]) for n in ESTIMATE) + "}",
         "#define GT_OBS_LIMIT_VRS {" + ", ".join(str(vr[n]) for n in limits) + "}",
     ]
+    drift, drift_vrs = _drift_config(desc, references, PREFIX)
     named = ("opening_mm", "flow_m3h", *ESTIMATE, "predicted_level_mm", "horizon_s", *limits)
-    refs = {"LEVEL": output_name(desc.gauge), **{n.upper(): n for n in named}}
-    return config_header(desc, "observer_data.h", layout, sizes, SAMPLE_PERIOD_S, own, refs)
+    refs = {"LEVEL": output_name(desc.gauge), **{n.upper(): n for n in named}, **drift_vrs}
+    return config_header(desc, "observer_data.h", layout, sizes, SAMPLE_PERIOD_S,
+                         own + drift, refs)  # fmt: skip
 
 
 def envelope_config_header(
@@ -520,6 +621,7 @@ def envelope_config_header(
     layout: Layout,
     sizes: dict[str, dict[str, int]],
     plant: FopdtPlant | PhysicalPlant,
+    references: tuple[str, ...] = (),
 ) -> str:
     """``model_config.h`` of the envelope observer FMU (no schedule parameters: the plant's
     kernel parameters are a constant array)."""
@@ -549,9 +651,10 @@ def envelope_config_header(
     ]
     named = ("opening_mm", "flow_m3h", *ESTIMATE, "predicted_level_mm", "horizon_s", *limits,
              "slow_cusum")  # fmt: skip
-    refs = {"LEVEL": output_name(desc.gauge), **{n.upper(): n for n in named}}
-    return config_header(desc, "observer_envelope_data.h", layout, sizes, SAMPLE_PERIOD_S, own,
-                         refs, schedule=False)  # fmt: skip
+    drift, drift_vrs = _drift_config(desc, references, ENVELOPE_PREFIX)
+    refs = {"LEVEL": output_name(desc.gauge), **{n.upper(): n for n in named}, **drift_vrs}
+    return config_header(desc, "observer_envelope_data.h", layout, sizes, SAMPLE_PERIOD_S,
+                         own + drift, refs, schedule=False)  # fmt: skip
 
 
 __all__ = ["DEFAULT_NAME", "describe_observer", "envelope_config_header", "export_observer",

@@ -27,9 +27,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
 from gatetwin.mpc.errors import ControlError
 
@@ -59,6 +61,40 @@ def slope_weights(window: int, sample_period_s: float) -> np.ndarray:
     return x / (x @ x)
 
 
+#: ``anomaly_kind`` where the redundancy rule alone holds (the observer's own rules give 1-3).
+DRIFT_KIND = 4
+
+
+def drift_sample(
+    window: Sequence[Any],
+    count: Any,
+    level_mm: Any,
+    others_mm: Sequence[Any],
+    weights: Sequence[float],
+    threshold_mm_per_s: Any,
+) -> tuple[tuple[Any, ...], Any, Any, Any]:
+    """One sample of the rule, on numbers or on symbols (:mod:`gatetwin.mpc.symbolic`; the
+    observer FMUs' C is generated from this).
+
+    ``window`` holds the last ``len(weights)`` differences of the level to the others' mean,
+    oldest first, ``count`` how many samples it has seen (at most its length). Returns the
+    window and count after the sample, the slope (mm/s; 0 until the window is full) and the
+    flag (1.0 where the slope's size exceeds ``threshold_mm_per_s``, else 0.0).
+    """
+    n = len(weights)
+    window = (*window[1:], level_mm - sum(others_mm) / len(others_mm))
+    count = sym.where(count >= n, float(n), count + 1.0)
+    fitted = sum(w * v for w, v in zip(weights, window, strict=True))
+    slope = sym.where(count >= n, fitted, 0.0)
+    return window, count, slope, sym.where(sym.fabs(slope) > threshold_mm_per_s, 1.0, 0.0)
+
+
+def with_drift_rule(kind: Any, flag: Any) -> Any:
+    """``anomaly_kind`` with the redundancy rule: :data:`DRIFT_KIND` where its ``flag`` alone
+    holds, the observer's own kind otherwise (on numbers or symbols)."""
+    return sym.where(kind > 0.0, kind, sym.where(flag > 0.0, float(DRIFT_KIND), 0.0))
+
+
 @dataclass
 class GaugeDriftMonitor:
     """The redundancy rule, one sample at a time (:meth:`step`) or over a record (:meth:`run`).
@@ -76,7 +112,8 @@ class GaugeDriftMonitor:
     window_samples: int = WINDOW_SAMPLES
     threshold_mm_per_s: float = THRESHOLD_MM_PER_S
     sample_period_s: float = SAMPLE_PERIOD_S
-    _history: list[float] = field(default_factory=list, init=False, repr=False)
+    _window: tuple[float, ...] = field(default=(), init=False, repr=False)
+    _count: float = field(default=0.0, init=False, repr=False)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.window_samples, int) and self.window_samples >= 3):
@@ -85,18 +122,22 @@ class GaugeDriftMonitor:
         if not self.threshold_mm_per_s > 0.0 or not self.sample_period_s > 0.0:
             raise ControlError("gauge drift: the threshold and the sample period must be > 0")
         self._weights = slope_weights(self.window_samples, self.sample_period_s)
+        self._weights_list = [float(w) for w in self._weights]
+        self._window = (0.0,) * self.window_samples
 
     def step(self, level_mm: float, others_mm: Sequence[float]) -> tuple[float, bool]:
         """The slope (mm/s; NaN until the window is full or while a level in it is missing)
-        and the flag after the sample ``level_mm`` with the other gauges' ``others_mm``."""
+        and the flag after the sample ``level_mm`` with the other gauges' ``others_mm``
+        (:func:`drift_sample`)."""
         if not others_mm:
             raise ControlError("gauge drift: at least one other gauge is needed")
-        self._history.append(float(level_mm) - float(np.mean(others_mm)))
-        del self._history[: -self.window_samples]
-        if len(self._history) < self.window_samples:
+        others = [float(o) for o in others_mm]
+        self._window, self._count, slope, flag = drift_sample(
+            self._window, self._count, float(level_mm), others, self._weights_list,
+            self.threshold_mm_per_s)  # fmt: skip
+        if self._count < self.window_samples:
             return float("nan"), False
-        slope = float(self._weights @ np.asarray(self._history))
-        return slope, bool(abs(slope) > self.threshold_mm_per_s)
+        return slope, flag > 0.5
 
     def run(self, level_mm: np.ndarray, others_mm: Sequence[np.ndarray]) -> dict[str, np.ndarray]:
         """``gauge_slope_mm_per_s`` and ``gauge_drift`` (1.0 flagged, 0.0 not) per sample of a
@@ -109,3 +150,21 @@ class GaugeDriftMonitor:
         with np.errstate(invalid="ignore"):
             flag = (np.abs(slope) > self.threshold_mm_per_s).astype(float)
         return {"gauge_slope_mm_per_s": slope, "gauge_drift": flag}
+
+
+def with_gauge_rule(
+    estimate: dict[str, np.ndarray],
+    level_mm: np.ndarray,
+    others_mm: Sequence[np.ndarray],
+    monitor: GaugeDriftMonitor | None = None,
+) -> dict[str, np.ndarray]:
+    """An observer's outputs over a record (:meth:`gatetwin.mpc.online.OnlineObserver.run`)
+    with the redundancy rule added, as the observer FMU with reference gauges gives them:
+    ``gauge_slope_mm_per_s`` and ``gauge_drift`` (:meth:`GaugeDriftMonitor.run`), and
+    ``anomaly_kind`` and ``anomaly`` through :func:`with_drift_rule`."""
+    rule = (monitor or GaugeDriftMonitor()).run(level_mm, others_mm)
+    kind = [with_drift_rule(k, f) for k, f in zip(estimate["anomaly_kind"], rule["gauge_drift"],
+                                                  strict=True)]  # fmt: skip
+    out = {**estimate, **rule, "anomaly_kind": np.asarray(kind, dtype=float)}
+    out["anomaly"] = (out["anomaly_kind"] > 0.0).astype(float)
+    return out

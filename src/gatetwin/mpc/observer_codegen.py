@@ -20,6 +20,12 @@ monitor_sample`, :func:`~gatetwin.mpc.online.advance`) on casadi symbols:
 * ``level(theta, q, z) -> level`` — the level the model reads in state ``z``;
 * ``predict(theta, q_prev, q, z, d, P, e) -> (z, d, P)`` — the observer's prediction.
 
+Either observer adds, given reference gauges, ``drift(window, count, y, others, threshold,
+kind) -> (window_next, count_next, rule)``: the redundancy rule of
+:mod:`gatetwin.mpc.gauge_drift` (:func:`~gatetwin.mpc.gauge_drift.drift_sample` and
+:func:`~gatetwin.mpc.gauge_drift.with_drift_rule` on symbols; ``rule`` is
+:data:`DRIFT_RULE`).
+
 ``theta`` is the MPC controller's (:func:`gatetwin.mpc.codegen.theta_names`): the schedule
 interpolated at the measured discharge inside the functions.
 
@@ -46,6 +52,7 @@ from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.codegen import NEXT, Layout, SymbolicController, work_sizes, write_generated
 from gatetwin.mpc.envelope import _datum_mm, envelope_register_length, tangent_model
 from gatetwin.mpc.errors import ControlError
+from gatetwin.mpc.gauge_drift import WINDOW_SAMPLES, drift_sample, slope_weights, with_drift_rule
 from gatetwin.mpc.observer import DisturbanceObserver
 from gatetwin.mpc.settings import MpcSettings, ObserverSettings
 from gatetwin.mpc.statespace import DiscreteModel
@@ -63,8 +70,37 @@ ESTIMATE = ("filtered_level_mm", "disturbance_mm", "innovation_mm", "innovation_
 LIMITS = ("band_sigma", "run_samples", "cusum_slack_sigma", "cusum_threshold")
 
 
+#: Entries of the ``drift`` function's ``rule`` output, in order: the FMU's outputs of the same
+#: names (``anomaly_kind`` and ``anomaly`` overwrite the observer's own where the rule alone
+#: holds).
+DRIFT_RULE = ("gauge_slope_mm_per_s", "gauge_drift", "anomaly_kind", "anomaly")
+
+
 def _sx(values: Any) -> casadi.SX:
     return casadi.densify(sym.to_casadi(values))
+
+
+def drift_function(prefix: str, n_references: int, sample_period_s: float,
+                   window_samples: int = WINDOW_SAMPLES) -> casadi.Function:  # fmt: skip
+    """The redundancy rule's ``drift`` function (see the module) for ``n_references`` other
+    gauges, named ``<prefix>drift``."""
+    if n_references < 1:
+        raise ControlError("gauge drift: at least one reference gauge is needed")
+    names = ("count", "y", "threshold", "kind")
+    s = {n: casadi.SX.sym(n) for n in names}
+    window_sx, window = sym.symbols("window", window_samples)
+    others_sx, others = sym.symbols("others", n_references)
+    weights = [float(w) for w in slope_weights(window_samples, sample_period_s)]
+    window_next, count, slope, flag = drift_sample(
+        tuple(window), sym.Sym(s["count"]), sym.Sym(s["y"]), list(others), weights,
+        sym.Sym(s["threshold"]))  # fmt: skip
+    kind = with_drift_rule(sym.Sym(s["kind"]), flag)
+    rule = [slope, flag, kind, sym.where(kind > 0.0, 1.0, 0.0)]
+    return casadi.Function(prefix + "drift",
+                           [window_sx, s["count"], s["y"], others_sx, s["threshold"], s["kind"]],
+                           [_sx(list(window_next)), _sx(count), _sx(rule)],
+                           ["window", "count", "y", "others", "threshold", "kind"],
+                           ["window_next", "count_next", "rule"])  # fmt: skip
 
 
 def build_observer_functions(
@@ -73,8 +109,10 @@ def build_observer_functions(
     settings: ObserverSettings,
     sample_period_s: float,
     anomaly: online.AnomalySettings | None = None,
+    n_references: int = 0,
 ) -> tuple[dict[str, casadi.Function], Layout]:
-    """The casadi Functions of the online observer (see the module), and its sizes."""
+    """The casadi Functions of the online observer (see the module; ``drift`` for
+    ``n_references`` > 0 reference gauges), and its sizes."""
     anomaly = anomaly or online.AnomalySettings()
     mpc_settings = MpcSettings(sample_period_s=sample_period_s, observer=settings)
     ctl = SymbolicController(n_knots, register, mpc_settings)
@@ -125,6 +163,8 @@ def build_observer_functions(
     add("predict", [theta, s["q_prev"], s["q"], zs, s["d"], ps, s["e"]],
         ["theta", "q_prev", "q", "z", "d", "P", "e"],
         [obs.state, obs.disturbance_mm, obs.covariance], NEXT)  # fmt: skip
+    if n_references:
+        fns["drift"] = drift_function(PREFIX, n_references, sample_period_s)
     return fns, lay
 
 
@@ -133,14 +173,14 @@ def generate_observer_c(
 ) -> dict[str, dict[str, int]]:
     """Write ``<stem>.c`` and ``<stem>.h`` into ``folder``; return each function's work sizes."""
     cg = casadi.CodeGenerator(f"{stem}.c", {"with_header": False, "verbose": False})
-    for name in FUNCTIONS:
-        cg.add(fns[name])
+    for f in fns.values():
+        cg.add(f)
     write_generated(
         folder,
         stem,
         cg.dump(),
         "gatetwin.mpc.observer_codegen",
-        [f"{PREFIX}{name}" for name in FUNCTIONS],
+        [f"{PREFIX}{name}" for name in fns],
         "the observer",
     )
     return {name: work_sizes(f) for name, f in fns.items()}
@@ -214,8 +254,10 @@ def build_envelope_functions(
     slow_settings: ObserverSettings,
     sample_period_s: float,
     anomaly: online.AnomalySettings,
+    n_references: int = 0,
 ) -> tuple[dict[str, casadi.Function], Layout]:
-    """The casadi Functions of the envelope observer, and its sizes.
+    """The casadi Functions of the envelope observer (``drift`` for ``n_references`` > 0
+    reference gauges), and its sizes.
 
     ``x`` (a model's steady points, :class:`SymbolicTangent`), ``q`` and ``e`` name the model
     re-linearised at the discharge and opening of a sample; ``x_prev``, ``q_prev``, ``e_prev``
@@ -299,6 +341,8 @@ def build_envelope_functions(
 
     add("advance", ["x", "q", "e", "z", "d"], [online.advance(model, z, d, e)], ["z_next"])
     add("level", ["x", "q", "e", "z"], [model.level_mm(z)], ["level"])
+    if n_references:
+        fns["drift"] = drift_function(ENVELOPE_PREFIX, n_references, sample_period_s)
     return fns, lay
 
 
@@ -308,15 +352,14 @@ def generate_envelope_c(
     """Write the envelope observer's ``<stem>.c`` and ``<stem>.h`` into ``folder``; return
     each function's work sizes."""
     cg = casadi.CodeGenerator(f"{stem}.c", {"with_header": False, "verbose": False})
-    for name in ENVELOPE_FUNCTIONS:
-        cg.add(fns[name])
+    for f in fns.values():
+        cg.add(f)
     write_generated(folder, stem, cg.dump(), "gatetwin.mpc.observer_codegen",
-                    [f"{ENVELOPE_PREFIX}{name}" for name in ENVELOPE_FUNCTIONS],
-                    "the envelope observer")  # fmt: skip
+                    [f"{ENVELOPE_PREFIX}{name}" for name in fns], "the envelope observer")
     return {name: work_sizes(f) for name, f in fns.items()}
 
 
-__all__ = ["ENVELOPE_FUNCTIONS", "ENVELOPE_PREFIX", "ESTIMATE", "FUNCTIONS", "LIMITS", "N_POINTS",
-           "PREFIX", "SLOW_RULE", "SymbolicTangent", "build_envelope_functions",
-           "build_observer_functions", "envelope_dead_time_s", "generate_envelope_c",
-           "generate_observer_c"]  # fmt: skip
+__all__ = ["DRIFT_RULE", "ENVELOPE_FUNCTIONS", "ENVELOPE_PREFIX", "ESTIMATE", "FUNCTIONS",
+           "LIMITS", "N_POINTS", "PREFIX", "SLOW_RULE", "SymbolicTangent",
+           "build_envelope_functions", "build_observer_functions", "drift_function",
+           "envelope_dead_time_s", "generate_envelope_c", "generate_observer_c"]  # fmt: skip
