@@ -21,9 +21,17 @@ on flume records that are not bundled by ``benchmarks/calibrate_observer.py``) o
 clean records and flume bases, its largest difference from the Python envelope observer on
 record C, and the time each takes there.
 
+Last, the envelope observer FMU with the pool's other gauges as references (``gatetwin
+export-observer ... --reference-gauges 1D 2E 4G 5H``: the gauge-drift rule of
+:mod:`gatetwin.mpc.gauge_drift` in C, ``anomaly_kind`` 4 where it alone holds) over the same
+clean records and bases. An effect of the pool (all but ``sensor_drift``) changes every
+gauge's level alike, so each reference gauge gets the change it makes at 3F; the drift is the
+gauge's own; ``flume_inflow`` is the flume's every gauge with the inflow.
+
 Prints the rises of the flag on the clean records (with the largest run outside the band and
 the largest CUSUM, against the thresholds), the detection delay (s from the onset to the
-flag, the rule that raised it: f fast, p persistent, s slow; "-" never within the record) per effect
+flag, the rule that raised it: f fast, p persistent, s slow, d gauge drift; "-" never within
+the record) per effect
 and base, the false alarms, and the time the FMU and the Python observer take per record
 (ratio measured in this run). ``--band``, ``--run-samples``, ``--cusum-slack`` and
 ``--cusum-threshold`` override the defaults.
@@ -37,6 +45,7 @@ import tempfile
 import time
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -48,6 +57,7 @@ from gatetwin.flume.scenario import with_inflow
 from gatetwin.fmu.observer_fmu import export_observer, run_observer_fmu
 from gatetwin.modelfile import read_model_file
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
+from gatetwin.mpc.gauge_drift import DRIFT_KIND
 from gatetwin.mpc.observer_codegen import LIMITS
 from gatetwin.mpc.online import (
     ENVELOPE_ANOMALY,
@@ -61,6 +71,8 @@ from gatetwin.records import read_record
 
 ROOT = Path(__file__).resolve().parents[1]
 BASES = ("C", "D", "Emoves35", "Emoves75", "Erandom60")
+#: The pool's other gauges, references of the gauge-drift rule.
+REFERENCES = ("1D", "2E", "4G", "5H")
 SEED = 20
 
 
@@ -71,12 +83,18 @@ def _records() -> dict[str, tuple[np.ndarray, ...]]:
             record = read_record(path)
             out[path.stem] = (record.time_s, *measured_inputs(record, "3F"),
                               record.metadata.get("role", ""))  # fmt: skip
+            _REFERENCE_LEVELS[path.stem] = {g: measured_inputs(record, g)[0] for g in REFERENCES}
     return out
 
 
-def _flume_inflow(bases: dict) -> dict[str, np.ndarray]:
+#: Each bundled record's levels at the reference gauges (filled by :func:`_records`).
+_REFERENCE_LEVELS: dict[str, dict[str, np.ndarray]] = {}
+
+
+def _flume_inflow(bases: dict, gauges: tuple[str, ...] = ("3F",)) -> dict[str, Any]:
     """Each base's level at 3F when the flume itself gets 5 m³/h more from the onset on
-    (the bundled scenario run again with the same seed; the logged discharge is the base's)."""
+    (the bundled scenario run again with the same seed; the logged discharge is the base's);
+    with more ``gauges``, a dict of each's level."""
     scenarios = {s.name: s for s in reference_scenarios()}
     out = {}
     for name, (t, _, e, _) in bases.items():
@@ -84,7 +102,9 @@ def _flume_inflow(bases: dict) -> dict[str, np.ndarray]:
         scn = with_inflow(scenarios[name], (onset - 0.5) * SAMPLE_PERIOD_S,
                           ONSET_EFFECTS["unmeasured_inflow"]["flow_m3h"])  # fmt: skip
         try:
-            out[name] = run_scenario(scn).levels_mm["3F"]
+            levels = run_scenario(scn).levels_mm
+            out[name] = (levels["3F"] if gauges == ("3F",)
+                         else {g: np.asarray(levels[g], dtype=float) for g in gauges})  # fmt: skip
         except FlumeError:  # the inflow would overtop the flume: no such record
             out[name] = None
     return out
@@ -92,7 +112,11 @@ def _flume_inflow(bases: dict) -> dict[str, np.ndarray]:
 
 def _delays(run, plant, bases: dict, physical: dict | None = None) -> dict[str, list[str]]:
     """``run(level, opening, flow)`` gives the observer's outputs; ``physical``, each base's
-    level with the flume's own unseen inflow (row ``flume_inflow``)."""
+    level with the flume's own unseen inflow (row ``flume_inflow``). A ``run`` that takes
+    ``name`` and ``effect`` keywords (the references' run) is told the base and the effect."""
+    import inspect
+
+    told = "effect" in inspect.signature(run).parameters
     table: dict[str, list[str]] = {}
     effects = [*ONSET_EFFECTS, *(["flume_inflow"] if physical else [])]
     for name, (t, y, e, q) in bases.items():
@@ -105,12 +129,12 @@ def _delays(run, plant, bases: dict, physical: dict | None = None) -> dict[str, 
                     continue
             else:
                 level = with_onset(plant, t, y, e, q, effect, onset)
-            out = run(level, e, q)
+            out = run(level, e, q, name=name, effect=effect) if told else run(level, e, q)
             found = detection(t, out["anomaly"], onset)
             cell = "-"
             if not np.isnan(found.delay_s):
                 at = onset + int(np.flatnonzero(out["anomaly"][onset:] > 0.5)[0])
-                cell = f"{found.delay_s:.1f} {'fps'[int(out['anomaly_kind'][at]) - 1]}"
+                cell = f"{found.delay_s:.1f} {'fpsd'[int(out['anomaly_kind'][at]) - 1]}"
             if found.false_alarms:
                 cell += f" ({found.false_alarms} FA)"
             table.setdefault(effect, []).append(cell)
@@ -195,6 +219,10 @@ def main() -> None:
     )
     print(f"record C: envelope observer (Python, two filters) {env_s:.3f} s, schedule observer "
           f"(Python) {py_s:.3f} s, ratio {env_s / py_s:.1f}")  # fmt: skip
+    with tempfile.TemporaryDirectory() as tmp:
+        ref_fmu = export_observer(_physical(), Path(tmp) / "references.fmu",
+                                  reference_gauges=REFERENCES)  # fmt: skip
+        _with_references(records, plant, ref_fmu)
 
 
 def _physical():
@@ -223,6 +251,41 @@ def _envelope(records: dict, truth, inflow: dict, fmu: Path) -> None:
     envelope_run = lambda y, e, q: run_observer_fmu(fmu, y, e, q)  # noqa: E731
     _print_table("envelope observer FMU, flume (bundled records)",
                  _delays(envelope_run, truth, flume, inflow))  # fmt: skip
+
+
+
+def _with_references(records: dict, truth, fmu: Path) -> None:
+    """The envelope observer FMU with the gauge-drift rule over the clean records and the
+    flume bases (each reference gauge given the change an effect of the pool makes at 3F)."""
+    print(f"\nenvelope observer FMU of physical_3F with reference gauges {', '.join(REFERENCES)}")
+    print("clean records: rises of the anomaly flag, of the gauge-drift flag, largest |slope| "
+          "(mm/s)")  # fmt: skip
+    total = 0
+    for name, (t, y, e, q, role) in records.items():
+        out = run_observer_fmu(fmu, y, e, q, reference_levels_mm=_REFERENCE_LEVELS[name])
+        rises = detection(t, out["anomaly"], None).false_alarms
+        drift = detection(t, out["gauge_drift"], None).false_alarms
+        total += rises
+        print(f"  {name:10s} {role:10s} {rises}  {drift}  "
+              f"{np.abs(out['gauge_slope_mm_per_s']).max():.4f}")  # fmt: skip
+    print(f"  false alarms on the clean bundled records: {total}")
+    flume = {n: records[n][:4] for n in BASES}
+    inflow = _flume_inflow(flume, ("3F", *REFERENCES))
+
+    def run(level, e, q, *, name, effect):
+        if effect == "flume_inflow":
+            refs = {g: inflow[name][g] for g in REFERENCES}
+        elif effect == "sensor_drift":  # the gauge's own
+            refs = _REFERENCE_LEVELS[name]
+        else:  # the pool's: every gauge changes alike
+            change = level - flume[name][1]
+            refs = {g: v + change for g, v in _REFERENCE_LEVELS[name].items()}
+        return run_observer_fmu(fmu, level, e, q, reference_levels_mm=refs)
+
+    physical = {n: (None if v is None else v["3F"]) for n, v in inflow.items()}
+    table = _delays(run, truth, flume, physical)
+    _print_table(f"envelope observer FMU with reference gauges (kind {DRIFT_KIND} = d), flume "
+                 "(bundled records)", table)  # fmt: skip
 
 
 if __name__ == "__main__":
