@@ -253,7 +253,6 @@ def _envelope(records: dict, truth, inflow: dict, fmu: Path) -> None:
                  _delays(envelope_run, truth, flume, inflow))  # fmt: skip
 
 
-
 def _with_references(records: dict, truth, fmu: Path) -> None:
     """The envelope observer FMU with the gauge-drift rule over the clean records and the
     flume bases (each reference gauge given the change an effect of the pool makes at 3F)."""

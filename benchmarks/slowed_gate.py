@@ -45,9 +45,11 @@ def main() -> None:
     rate = ONSET_EFFECTS["slowed_gate"]["rate_mm_per_s"]
     print(f"slowed gate at {rate} mm/s; truth fopdt_3F; envelope observer of physical_3F; "
           f"gauge noise SD {noise} mm (the observer's)")  # fmt: skip
-    print("| base | moves after onset | largest move (mm) | mark peak (mm) | mark > noise SD (s) "
-          "| innovation RMS / max, clean (mm) | peak / RMS | largest innovation change (mm) "
-          "| largest disturbance change / clean range (mm of opening) |")
+    print(
+        "| base | moves after onset | largest move (mm) | mark peak (mm) | mark > noise SD (s) "
+        "| innovation RMS / max, clean (mm) | peak / RMS | largest innovation change (mm) "
+        "| largest disturbance change / clean range (mm of opening) |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for name in BASES:
         record = read_record(bundled_records_dir() / f"{name}.csv")

@@ -129,14 +129,15 @@ def test_run_writes_models_fmus_figures_and_summary(tmp_path):
 
 def _check_closed_loop(out: Path) -> None:
     """controllers/, observers/ (the schedule observer of fopdt_3F, the envelope observer of
-    physical_3F) and loop.ssp: the FMUs pass fmpy's validation, and the SSP
-    master's IAE is the Python loop's (the same arithmetic both ways: 1e-9 relative, rounding
-    only)."""
+    physical_3F, without and with the other gauges as references) and loop.ssp: the FMUs
+    pass fmpy's validation, and the SSP master's IAE is the Python loop's (the same
+    arithmetic both ways: 1e-9 relative, rounding only)."""
     from fmpy.validation import validate_fmu
 
     built = [out / "controllers" / "fopdt_3F_mpc.fmu", out / "controllers" / "fopdt_3F_pi.fmu",
              out / "observers" / "fopdt_3F_observer.fmu",
-             out / "observers" / "physical_3F_observer.fmu"]  # fmt: skip
+             out / "observers" / "physical_3F_observer.fmu",
+             out / "observers" / "physical_3F_observer_gauges.fmu"]  # fmt: skip
     found = [*(out / "controllers").glob("*.fmu"), *(out / "observers").glob("*.fmu")]
     assert sorted(found) == built
     for fmu in built:

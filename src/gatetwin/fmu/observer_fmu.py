@@ -507,8 +507,9 @@ def run_observer_fmu(
     level_vr = next(v.valueReference for v in md.modelVariables
                     if v.causality == "input" and v.name.startswith("level_"))  # fmt: skip
     inputs = [level_vr, vr["opening_mm"], vr["flow_m3h"], *(vr[n] for n in refs)]
-    columns = np.column_stack([np.asarray(v, dtype=float)
-                               for v in (level_mm, opening_mm, flow_m3h, *refs.values())])
+    columns = np.column_stack(
+        [np.asarray(v, dtype=float) for v in (level_mm, opening_mm, flow_m3h, *refs.values())]
+    )
     unzipped = extract(str(fmu_path))
     slave = _slave(md, unzipped)
     ts = float(md.defaultExperiment.stepSize)
@@ -581,8 +582,7 @@ def _drift_config(desc: FmuDescription, references: tuple[str, ...],
         f"#define GT_DRIFT_WINDOW {WINDOW_SAMPLES}",
         f"#define GT_DRIFT_N_RULE {len(DRIFT_RULE)}",
         f"#define GT_DRIFT_FUNCTION {prefix}drift",
-        "#define GT_DRIFT_REF_VRS {" + ", ".join(str(vr[output_name(g)]) for g in references)
-        + "}",
+        "#define GT_DRIFT_REF_VRS {" + ", ".join(str(vr[output_name(g)]) for g in references) + "}",
         "#define GT_DRIFT_RULE_VRS {" + ", ".join(str(vr[n]) for n in DRIFT_RULE) + "}",
     ]
     named = ("gauge_slope_mm_per_s", "gauge_drift", "gauge_drift_threshold_mm_per_s")

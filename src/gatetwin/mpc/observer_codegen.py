@@ -354,8 +354,14 @@ def generate_envelope_c(
     cg = casadi.CodeGenerator(f"{stem}.c", {"with_header": False, "verbose": False})
     for f in fns.values():
         cg.add(f)
-    write_generated(folder, stem, cg.dump(), "gatetwin.mpc.observer_codegen",
-                    [f"{ENVELOPE_PREFIX}{name}" for name in fns], "the envelope observer")
+    write_generated(
+        folder,
+        stem,
+        cg.dump(),
+        "gatetwin.mpc.observer_codegen",
+        [f"{ENVELOPE_PREFIX}{name}" for name in fns],
+        "the envelope observer",
+    )
     return {name: work_sizes(f) for name, f in fns.items()}
 
 

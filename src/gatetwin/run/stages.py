@@ -221,7 +221,9 @@ def closed_loop_artefacts(ctx: Any) -> None:
     """``controllers/<model>_<kind>.fmu`` and ``observers/<model>_observer.fmu`` for the MPC
     demo's model (the MPC and the observer on its FOPDT without the effect blocks they do not
     cover), ``observers/physical_<G>_observer.fmu`` (the envelope observer of the same gauge's
-    physical model, its blocks dropped), and ``loop.ssp`` (plant FMU + PI FMU, the demo's
+    physical model, its blocks dropped) and ``observers/physical_<G>_observer_gauges.fmu``
+    (the same with the run's other gauges as references of the gauge-drift rule), and
+    ``loop.ssp`` (plant FMU + PI FMU, the demo's
     set-point scenario), run by gatetwin's SSP master next to the Python loop it packs; both
     IAEs go into ``mpc.json`` (``closed_loop_ssp``)."""
     from gatetwin._io import write_json_atomic
@@ -244,6 +246,12 @@ def closed_loop_artefacts(ctx: Any) -> None:
     physical = read_model_file(ctx.out_dir / "models" / f"physical_{FAMILY_GAUGE}.json")
     built.append(export_observer(physical.plant, observers / f"{physical.name}_observer.fmu",
                                  without_effects=True))  # fmt: skip
+    references = sorted(path.stem.removeprefix("physical_")
+                        for path in (ctx.out_dir / "models").glob("physical_*.json")
+                        if path.stem != physical.name)  # fmt: skip
+    built.append(export_observer(physical.plant,
+                                 observers / f"{physical.name}_observer_gauges.fmu",
+                                 without_effects=True, reference_gauges=references))  # fmt: skip
     ctx.progress(f"      controllers/, observers/: {', '.join(p.name for p in built)}")
     settings = DemoSettings()
     scenario = demo_scenarios(MPC_MINUTES, settings)[0]
