@@ -169,20 +169,15 @@ def build_observer_functions(
 
 
 def generate_observer_c(
-    fns: dict[str, casadi.Function], folder: Path, stem: str
+    fns: dict[str, casadi.Function], folder: Path, stem: str, what: str = "the observer"
 ) -> dict[str, dict[str, int]]:
-    """Write ``<stem>.c`` and ``<stem>.h`` into ``folder``; return each function's work sizes."""
+    """Write ``<stem>.c`` and ``<stem>.h`` (the C of ``what``) into ``folder``; return each
+    function's work sizes."""
     cg = casadi.CodeGenerator(f"{stem}.c", {"with_header": False, "verbose": False})
     for f in fns.values():
         cg.add(f)
-    write_generated(
-        folder,
-        stem,
-        cg.dump(),
-        "gatetwin.mpc.observer_codegen",
-        [f"{PREFIX}{name}" for name in fns],
-        "the observer",
-    )
+    write_generated(folder, stem, cg.dump(), "gatetwin.mpc.observer_codegen",
+                    [f.name() for f in fns.values()], what)  # fmt: skip
     return {name: work_sizes(f) for name, f in fns.items()}
 
 
@@ -351,18 +346,7 @@ def generate_envelope_c(
 ) -> dict[str, dict[str, int]]:
     """Write the envelope observer's ``<stem>.c`` and ``<stem>.h`` into ``folder``; return
     each function's work sizes."""
-    cg = casadi.CodeGenerator(f"{stem}.c", {"with_header": False, "verbose": False})
-    for f in fns.values():
-        cg.add(f)
-    write_generated(
-        folder,
-        stem,
-        cg.dump(),
-        "gatetwin.mpc.observer_codegen",
-        [f"{ENVELOPE_PREFIX}{name}" for name in fns],
-        "the envelope observer",
-    )
-    return {name: work_sizes(f) for name, f in fns.items()}
+    return generate_observer_c(fns, folder, stem, "the envelope observer")
 
 
 __all__ = ["DRIFT_RULE", "ENVELOPE_FUNCTIONS", "ENVELOPE_PREFIX", "ESTIMATE", "FUNCTIONS",
