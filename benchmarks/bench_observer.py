@@ -112,11 +112,8 @@ def _flume_inflow(bases: dict, gauges: tuple[str, ...] = ("3F",)) -> dict[str, A
 
 def _delays(run, plant, bases: dict, physical: dict | None = None) -> dict[str, list[str]]:
     """``run(level, opening, flow)`` gives the observer's outputs; ``physical``, each base's
-    level with the flume's own unseen inflow (row ``flume_inflow``). A ``run`` that takes
-    ``name`` and ``effect`` keywords (the references' run) is told the base and the effect."""
-    import inspect
-
-    told = "effect" in inspect.signature(run).parameters
+    level with the flume's own unseen inflow (row ``flume_inflow``). ``run`` is also told the
+    base and the effect (``name=``, ``effect=``), which the references' run needs."""
     table: dict[str, list[str]] = {}
     effects = [*ONSET_EFFECTS, *(["flume_inflow"] if physical else [])]
     for name, (t, y, e, q) in bases.items():
@@ -129,7 +126,7 @@ def _delays(run, plant, bases: dict, physical: dict | None = None) -> dict[str, 
                     continue
             else:
                 level = with_onset(plant, t, y, e, q, effect, onset)
-            out = run(level, e, q, name=name, effect=effect) if told else run(level, e, q)
+            out = run(level, e, q, name=name, effect=effect)
             found = detection(t, out["anomaly"], onset)
             cell = "-"
             if not np.isnan(found.delay_s):
@@ -183,7 +180,7 @@ def main() -> None:
             )
         print(f"  {hours:.2f} h of clean records")
         flume = {n: records[n][:4] for n in BASES}
-        fmu_run = lambda y, e, q: run_observer_fmu(fmu, y, e, q, params)  # noqa: E731
+        fmu_run = lambda y, e, q, **_: run_observer_fmu(fmu, y, e, q, params)  # noqa: E731
         physical = _flume_inflow(flume)
         _print_table("flume (bundled records)", _delays(fmu_run, plant, flume, physical))
         truth = dataclasses.replace(plant, envelope=None)
@@ -248,7 +245,7 @@ def _envelope(records: dict, truth, inflow: dict, fmu: Path) -> None:
               f"{out['slow_cusum'].max():.1f}")  # fmt: skip
     print(f"  false alarms on the clean bundled records: {total}")
     flume = {n: records[n][:4] for n in BASES}
-    envelope_run = lambda y, e, q: run_observer_fmu(fmu, y, e, q)  # noqa: E731
+    envelope_run = lambda y, e, q, **_: run_observer_fmu(fmu, y, e, q)  # noqa: E731
     _print_table("envelope observer FMU, flume (bundled records)",
                  _delays(envelope_run, truth, flume, inflow))  # fmt: skip
 

@@ -505,7 +505,8 @@ def run_observer_fmu(
     md = read_model_description(str(fmu_path))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     level_vr = next(v.valueReference for v in md.modelVariables
-                    if v.causality == "input" and v.name.startswith("level_"))  # fmt: skip
+                    if v.causality == "input" and v.name.startswith("level_")
+                    and v.name not in refs)  # fmt: skip
     inputs = [level_vr, vr["opening_mm"], vr["flow_m3h"], *(vr[n] for n in refs)]
     columns = np.column_stack(
         [np.asarray(v, dtype=float) for v in (level_mm, opening_mm, flow_m3h, *refs.values())]
