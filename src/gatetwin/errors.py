@@ -53,3 +53,8 @@ class PipelineError(GatetwinError, RuntimeError):
 class SspError(GatetwinError, ValueError):
     """A System Structure package (``.ssp``) cannot be read or simulated; the message names
     the file and the element at fault."""
+
+
+class PlantError(GatetwinError, ValueError):
+    """A plant model (an EPA SWMM ``.inp`` and the names in it) cannot be driven, or a
+    needed optional extra is missing; the message names the file and the item at fault."""

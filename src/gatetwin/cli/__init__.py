@@ -21,6 +21,7 @@ from gatetwin._io import write_json_atomic
 from gatetwin.cli import diagnose as _diagnose_cmds
 from gatetwin.cli import model as _model_cmds
 from gatetwin.cli import ssp as _ssp_cmds
+from gatetwin.cli import swmm as _swmm_cmds
 from gatetwin.errors import GatetwinError, RecordError
 from gatetwin.records.sidecar import TEST_TYPES
 from gatetwin.records.summary import format_record_summary, format_static_summary
@@ -459,6 +460,12 @@ _COMMANDS: tuple[Command, ...] = (
         "find where a model and a record disagree, name the missing effect, add it, re-validate",
         _diagnose_cmds.add_diagnose_arguments,
         _diagnose_cmds.run_diagnose,
+    ),
+    Command(
+        "swmm",
+        "EPA SWMM as a plant: run experiments on a gate of a SWMM model and write records",
+        _swmm_cmds.add_swmm_arguments,
+        _swmm_cmds.run_swmm,
     ),
     Command(
         "run",

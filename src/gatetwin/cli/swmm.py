@@ -1,0 +1,104 @@
+"""Argument parsing and printing of ``gatetwin swmm ...`` (no logic)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from gatetwin.errors import GatetwinError
+
+
+def add_swmm_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="swmm_command", metavar="SUBCOMMAND", required=True,
+                                parser_class=type(parser))  # fmt: skip
+    exp = sub.add_parser(
+        "experiment", help="run experiments on an EPA SWMM model and write them as records",
+        description="Run experiments on a gate of an EPA SWMM model (pyswmm, the swmm extra) "
+        "and write them as records (CSV + JSON sidecar), sized from the plant's own time "
+        "constant measured by a first step test.",
+    )  # fmt: skip
+    exp.add_argument("model", metavar="MODEL.inp", help="SWMM input file (metric units)")
+    exp.add_argument("--gate", metavar="LINK", required=True,
+                     help="the gate: an [ORIFICES] link, SIDE, RECT_CLOSED")  # fmt: skip
+    exp.add_argument(
+        "--gauges", metavar="NODE=DIST", nargs="+", required=True,
+        help="gauge nodes and their distances upstream of the gate, m (the first nearest the "
+        "gate is the level the step test measures)",
+    )  # fmt: skip
+    exp.add_argument("--inflow", metavar="NODE", nargs="+", required=True,
+                     help="node(s) receiving the inflow")  # fmt: skip
+    exp.add_argument("--design", choices=("static", "step", "prbs", "free", "all"),
+                     required=True, help="what to write; all: the whole records folder")  # fmt: skip
+    exp.add_argument("--out", metavar="DIR", required=True, help="directory to write into")
+    exp.add_argument("--sample-period", type=float, default=10.0, metavar="S",
+                     help="sample period, s (default 10)")  # fmt: skip
+    exp.add_argument("--noise-mm", type=float, default=3.0,
+                     help="gauge noise standard deviation, mm (default 3)")  # fmt: skip
+    exp.add_argument("--gate-speed-mm-s", type=float, default=5.0,
+                     help="actuator speed, mm/s (default 5)")  # fmt: skip
+    exp.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
+    exp.add_argument("--flow", type=float, metavar="M3S",
+                     help="base inflow, m³/s (default: the .inp's constant inflow there)")  # fmt: skip
+    exp.add_argument("--opening", type=float, metavar="MM",
+                     help="base opening, mm (default: half the orifice height)")  # fmt: skip
+
+
+def run_swmm(args: argparse.Namespace) -> int:
+    """Run the ``swmm`` subcommand named on the command line."""
+    return {"experiment": run_swmm_experiment}[args.swmm_command](args)
+
+
+def _gauges(items: list[str]) -> dict[str, float]:
+    out = {}
+    for item in items:
+        node, sep, dist = item.rpartition("=")
+        try:
+            out[node] = float(dist)
+        except ValueError:
+            node = ""
+        if not (sep and node):
+            raise GatetwinError(f"--gauges: {item!r}; expected NODE=DISTANCE_M")
+    return out
+
+
+def run_swmm_experiment(args: argparse.Namespace) -> int:
+    from gatetwin.plants.swmm import SwmmCore, SwmmPlantSpec
+    from gatetwin.plants.swmm_designs import run_design
+    from gatetwin.plants.swmm_experiments import write_outputs
+
+    if not (args.noise_mm >= 0):
+        raise GatetwinError(f"--noise-mm: expected >= 0 mm, got {args.noise_mm}")
+    spec = SwmmPlantSpec(
+        Path(args.model), args.gate, _gauges(args.gauges), tuple(args.inflow),
+        gate_speed_mm_s=args.gate_speed_mm_s, sample_period_s=args.sample_period,
+        steady_tolerance_mm=max(args.noise_mm / 10.0, 0.1),
+    )  # fmt: skip
+    core = SwmmCore(spec)
+    flow_m3s = core.base_flow_m3s if args.flow is None else args.flow
+    if not flow_m3s > 0:
+        raise GatetwinError(f"{spec.inp_path.name}: no constant inflow at "
+                            f"{', '.join(spec.inflow_nodes)}; give --flow")  # fmt: skip
+    opening = core.height_mm / 2 if args.opening is None else args.opening
+    clock = time.perf_counter()
+    try:
+        outputs, base = run_design(core, args.design, float(round(opening)), 3600.0 * flow_m3s,
+                                   noise_mm=args.noise_mm, seed=args.seed,
+                                   progress=_progress)  # fmt: skip
+    finally:
+        core.close()
+    paths = write_outputs(Path(args.out), outputs)
+    wall = time.perf_counter() - clock
+    r = base.response
+    print(f"step response at {spec.output_node}: K = {r.gain_mm_per_mm:.4g} mm/mm, "
+          f"T = {r.time_constant_s:.0f} s, L = {r.dead_time_s:.0f} s")  # fmt: skip
+    for path in paths:
+        print(f"wrote {path} and its sidecar")
+    print(f"wall time {wall:.1f} s for {len(paths)} record(s)")
+    return 0
+
+
+def _progress(message: str) -> None:
+    from gatetwin.cli import print_to_stderr
+
+    print_to_stderr(message)
