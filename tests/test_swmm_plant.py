@@ -203,8 +203,9 @@ def test_bad_input_gets_one_line_and_no_output(canal, tmp_path, capsys, gate, mo
     elif model is not None:
         path = tmp_path / model
     out = tmp_path / "out"
-    err = _refused(capsys, ["swmm", "experiment", str(path), "--gate", gate, "--gauges",
-                            "A2=0", "--inflow", "A0", "--design", "step", "--out", str(out)])  # fmt: skip
+    argv = ["swmm", "experiment", str(path), "--gate", gate, "--gauges", "A2=0",
+            "--inflow", "A0", "--design", "step", "--out", str(out)]  # fmt: skip
+    err = _refused(capsys, argv)
     assert words in err
     assert not out.exists()
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -28,8 +29,10 @@ def add_swmm_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     exp.add_argument("--inflow", metavar="NODE", nargs="+", required=True,
                      help="node(s) receiving the inflow")  # fmt: skip
-    exp.add_argument("--design", choices=("static", "step", "prbs", "free", "all"),
-                     required=True, help="what to write; all: the whole records folder")  # fmt: skip
+    exp.add_argument(
+        "--design", choices=("static", "step", "prbs", "free", "all"), required=True,
+        help="what to write; all: the whole records folder",
+    )  # fmt: skip
     exp.add_argument("--out", metavar="DIR", required=True, help="directory to write into")
     exp.add_argument("--sample-period", type=float, default=10.0, metavar="S",
                      help="sample period, s (default 10)")  # fmt: skip
@@ -38,8 +41,10 @@ def add_swmm_arguments(parser: argparse.ArgumentParser) -> None:
     exp.add_argument("--gate-speed-mm-s", type=float, default=5.0,
                      help="actuator speed, mm/s (default 5)")  # fmt: skip
     exp.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
-    exp.add_argument("--flow", type=float, metavar="M3S",
-                     help="base inflow, m³/s (default: the .inp's constant inflow there)")  # fmt: skip
+    exp.add_argument(
+        "--flow", type=float, metavar="M3S",
+        help="base inflow, m³/s (default: the .inp's constant inflow there)",
+    )  # fmt: skip
     exp.add_argument("--opening", type=float, metavar="MM",
                      help="base opening, mm (default: half the orifice height)")  # fmt: skip
 
@@ -99,6 +104,4 @@ def run_swmm_experiment(args: argparse.Namespace) -> int:
 
 
 def _progress(message: str) -> None:
-    from gatetwin.cli import print_to_stderr
-
-    print_to_stderr(message)
+    print(message, file=sys.stderr, flush=True)
