@@ -61,8 +61,11 @@ def swmm_versions() -> str:
 
 def gauge_name(node: str) -> str:
     """A gauge name for node ``node`` that fits the record's ``level_<G>_mm`` columns:
-    letters and digits only (``"U-1.a"`` → ``"U1a"``)."""
-    name = re.sub(r"[^0-9A-Za-z]+", "", node)
+    letters, digits and inner underscores (``"P1_2"`` stays, ``"U-1.a"`` → ``"U1a"``); a
+    name ending in ``_sd`` (which would read as a level's SD column) loses its underscores."""
+    name = re.sub(r"[^0-9A-Za-z_]+", "", node).strip("_")
+    if name.lower().endswith("_sd"):
+        name = name.replace("_", "")
     if not name:
         raise PlantError(f"gauge node {node!r}: no letter or digit to name its level column")
     return name
