@@ -123,12 +123,23 @@ def check_non_negative(origin: Origin, name: str, values: np.ndarray, unit: str)
         )
 
 
-def check_level(origin: Origin, name: str, values: np.ndarray) -> None:
-    """Refuse a level column that is empty, out of range or apparently in metres."""
+def check_level(
+    origin: Origin,
+    name: str,
+    values: np.ndarray,
+    limits: tuple[float, float] = LEVEL_RANGE_MM,
+    *,
+    logged_in_mm: bool = True,
+) -> None:
+    """Refuse a level column that is empty, outside ``limits`` (mm) or apparently in metres.
+
+    ``values`` are in mm; the metres test applies only to a column the file says is in
+    mm (``logged_in_mm``).
+    """
     finite = values[np.isfinite(values)]
     if not finite.size:
         raise origin.error(column(name), "no values; expected upstream levels in mm")
-    low, high = LEVEL_RANGE_MM
+    low, high = limits
     bad = np.flatnonzero((values < low) | (values > high))
     if bad.size:
         i = bad[0]
@@ -138,7 +149,7 @@ def check_level(origin: Origin, name: str, values: np.ndarray) -> None:
             f"level {values[i]:g} mm outside the physical range {low:g}..{high:g} mm",
         )
     top = float(finite.max())
-    if top < METRES_SUSPECT_BELOW and top > float(finite.min()):
+    if logged_in_mm and top < METRES_SUSPECT_BELOW and top > float(finite.min()):
         raise origin.error(
             column(name),
             f"every value is below {METRES_SUSPECT_BELOW:g} (largest {top:g}): looks like "
@@ -190,11 +201,35 @@ def check_bounds(origin: Origin, name: str, values: np.ndarray, limit: float, un
     """Refuse magnitudes above ``limit`` (missing values pass)."""
     bad = np.flatnonzero(np.abs(values) > limit)
     if bad.size:
+        raise _beyond(origin, name, values, int(bad[0]), limit, unit)
+
+
+def _beyond(
+    origin: Origin, name: str, values: np.ndarray, i: int, limit: float, unit: str
+) -> RecordError:
+    return origin.error(
+        origin.row(i), column(name),
+        f"{values[i]:g} {unit} is beyond the physical bound of {limit:g} {unit}; "
+        "expected a value in the record's units",
+    )  # fmt: skip
+
+
+def check_range(
+    origin: Origin, name: str, values: np.ndarray, limits: tuple[float, float], unit: str
+) -> None:
+    """Refuse values outside ``limits`` (missing values pass); the message for a value
+    above is that of :func:`check_bounds`."""
+    low, high = limits
+    above = np.flatnonzero(values > high)
+    if above.size:
+        raise _beyond(origin, name, values, int(above[0]), high, unit)
+    bad = np.flatnonzero(values < low)
+    if bad.size:
         i = bad[0]
         raise origin.error(
             origin.row(i), column(name),
-            f"{values[i]:g} {unit} is beyond the physical bound of {limit:g} {unit}; "
-            "expected a value in the record's units",
+            f"{values[i]:g} {unit} is below the bound of {low:g} {unit}; expected a value in "
+            "the record's units (or 'bounds' in the sidecar)",
         )  # fmt: skip
 
 

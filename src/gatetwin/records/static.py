@@ -7,7 +7,7 @@ This module does not fit the rating; :mod:`gatetwin.identify.rating` does.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -19,11 +19,12 @@ from gatetwin.records.columns import (
     frozen,
     gauge_names,
     is_static_column,
-    require_static_columns,
+    static_table,
     value_range,
 )
 from gatetwin.records.limits import ReadLimits
 from gatetwin.records.table import read_header, read_table
+from gatetwin.records.units import INTERNAL_UNITS, parse_column
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,8 @@ class StaticTable:
         File the table was read from.
     sha256 : str
         Hash of the file's bytes.
+    units : dict
+        The units the file came in (as :attr:`Record.units`); arrays are in mm and m³/h.
     """
 
     flow_m3h: np.ndarray
@@ -53,6 +56,7 @@ class StaticTable:
     level_sd_mm: dict[str, np.ndarray]
     path: str = ""
     sha256: str = ""
+    units: dict[str, Any] = field(default_factory=lambda: dict(INTERNAL_UNITS))
 
     @property
     def n_points(self) -> int:
@@ -74,7 +78,9 @@ def read_static_table(path: str | Path, *, limits: ReadLimits | None = None) -> 
     ----------
     path : str or Path
         CSV (or Parquet) with ``flow_m3h``, ``opening_mm``, one or more ``level_<G>_mm``
-        and optional ``level_<G>_sd_mm`` columns, one row per steady operating point.
+        and optional ``level_<G>_sd_mm`` columns, one row per steady operating point, in
+        these or any other units of :mod:`gatetwin.records.units` (``flow_m3s``,
+        ``opening_m``, ``level_<G>_cm``, ...).
     limits : ReadLimits, optional
         File size and line length limits; default from the environment.
 
@@ -84,25 +90,26 @@ def read_static_table(path: str | Path, *, limits: ReadLimits | None = None) -> 
         With a one-line message naming the file, row or column, as
         :func:`~gatetwin.records.read_record`.
     """
-    table = read_table(path, keep=is_static_column, text_columns=(), limits=limits)
+    table = static_table(read_table(path, keep=is_static_column, text_columns=(), limits=limits))
     origin = Origin(table.path, first_line=table.first_line)
-    require_static_columns(table.path, table.header, tuple(table.columns))
     flow = table.floats("flow_m3h")
     opening = table.floats("opening_mm")
     for name, values, unit, top in (("flow_m3h", flow, "m³/h", FLOW_MAX_M3H),
                                     ("opening_mm", opening, "mm", OPENING_MAX_MM)):  # fmt: skip
-        checks.check_no_missing(origin, name, values)
-        checks.check_non_negative(origin, name, values, unit)
-        checks.check_bounds(origin, name, values, top, unit)
+        checks.check_no_missing(origin, table.source(name), values)
+        checks.check_non_negative(origin, table.source(name), values, unit)
+        checks.check_bounds(origin, table.source(name), values, top, unit)
     levels = {g: table.floats(f"level_{g}_mm") for g in gauge_names(table.header)}
     for gauge, values in levels.items():
-        checks.check_level(origin, f"level_{gauge}_mm", values)
+        name = table.source(f"level_{gauge}_mm")
+        checks.check_level(origin, name, values, logged_in_mm=name.endswith("_mm"))
     sds = {
         g: table.floats(f"level_{g}_sd_mm") for g in levels if f"level_{g}_sd_mm" in table.columns
     }
     for gauge, values in sds.items():
-        checks.check_non_negative(origin, f"level_{gauge}_sd_mm", values, "mm")
-        checks.check_bounds(origin, f"level_{gauge}_sd_mm", values, OPENING_MAX_MM, "mm")
+        name = table.source(f"level_{gauge}_sd_mm")
+        checks.check_non_negative(origin, name, values, "mm")
+        checks.check_bounds(origin, name, values, OPENING_MAX_MM, "mm")
     return StaticTable(
         flow_m3h=frozen(flow),
         opening_mm=frozen(opening),
@@ -110,6 +117,7 @@ def read_static_table(path: str | Path, *, limits: ReadLimits | None = None) -> 
         level_sd_mm={g: frozen(v) for g, v in sds.items()},
         path=table.path,
         sha256=table.sha256,
+        units=table.units.filled(list(levels)),
     )
 
 
@@ -121,10 +129,10 @@ def detect_table_kind(path: str | Path, *, limits: ReadLimits | None = None) -> 
     :func:`~gatetwin.records.read_record` reports what is wrong with it.
     """
     header = read_header(path, limits)
-    names = set(header)
-    if "time_s" in names or not {"flow_m3h", "opening_mm"} <= names:
+    found = {p.quantity for p in map(parse_column, header) if p is not None and p.known}
+    if "time_s" in header or not {"flow", "opening", "level"} <= found:
         return "record"
-    return "static" if gauge_names(header) else "record"
+    return "static"
 
 
 def _static_summary(table: StaticTable) -> dict[str, Any]:
@@ -134,6 +142,7 @@ def _static_summary(table: StaticTable) -> dict[str, Any]:
         "path": table.path,
         "sha256": table.sha256,
         "n_points": table.n_points,
+        "units": table.units,
         "flow_m3h": value_range(table.flow_m3h),
         "opening_mm": value_range(table.opening_mm),
         "gauges": [
