@@ -289,3 +289,13 @@ def test_sample_period_bounds(capsys, tmp_path: Path) -> None:
 def test_bad_bounds_are_refused(capsys, tmp_path: Path, bounds, word: str) -> None:
     path = _write(tmp_path, MM, sidecar={"bounds": bounds})
     _refused_in_one_line(capsys, path, tmp_path, "field.json", word)
+
+
+def test_a_value_message_names_the_files_column(capsys, tmp_path: Path) -> None:
+    path = _write(tmp_path, ("m", "m3s", "m", "m"))
+    lines = path.read_text(encoding="utf-8").splitlines()
+    cells = lines[5].split(",")
+    cells[4] = "250"  # 250 m of water: a level logged in cm under a metre header
+    lines[5] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    _refused_in_one_line(capsys, path, tmp_path, "row 6", "column 'level_A_m'", "250000 mm")

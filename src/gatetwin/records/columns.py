@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from gatetwin.errors import RecordError
-from gatetwin.records.checks import QUOTE_CHARS, column
+from gatetwin.records.checks import QUOTE_CHARS, Origin, column
 from gatetwin.records.units import HeaderUnits, parse_column, to_internal
 
 if TYPE_CHECKING:
@@ -105,9 +105,9 @@ class TableColumns:
         header, columns, units = to_internal(self.path, self.header, self.columns)
         return replace(self, header=header, columns=columns, units=units)
 
-    def source(self, internal: str) -> str:
-        """The file's name of the column called ``internal`` after conversion."""
-        return self.units.source(internal)
+    def origin(self) -> Origin:
+        """Where the columns came from, naming them as the file does."""
+        return Origin(self.path, first_line=self.first_line, columns=self.units.names())
 
     @property
     def n_rows(self) -> int:

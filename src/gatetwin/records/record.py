@@ -203,10 +203,6 @@ class _Columns:
     levels_mm: dict[str, np.ndarray]
     sources: HeaderUnits = field(default_factory=HeaderUnits)
 
-    def source(self, internal: str) -> str:
-        """The column's name in the file (its internal name for arrays)."""
-        return self.sources.source(internal)
-
     def in_mm(self, gauge: str) -> bool:
         """Whether the file logged ``gauge``'s level in mm."""
         found = self.sources.columns.get(f"level_{gauge}_mm")
@@ -342,7 +338,7 @@ def record_from_arrays(
 
 def _record_from_table(table: TableColumns, sidecar: Sidecar, test: str | None) -> Record:
     table = record_table(table)
-    origin = Origin(table.path, first_line=table.first_line)
+    origin = table.origin()
     columns = _record_columns(origin, table)
     return _build_record(origin, columns, sidecar, test, table.sha256, table.path)
 
@@ -457,7 +453,8 @@ def _sample_period(origin: Origin, time_s: np.ndarray, sidecar: Sidecar) -> floa
 
 
 def _check_values(origin: Origin, cols: _Columns, bounds: Bounds) -> None:
-    """Check the values (in mm and m³/h) against ``bounds``, naming the file's columns."""
+    """Check the values (in mm and m³/h) against ``bounds``; ``origin`` names the columns
+    as the file does."""
     n = cols.time_s.size
     if n < 2:
         raise origin.error(f"{n} sample(s); expected at least 2")
@@ -465,15 +462,14 @@ def _check_values(origin: Origin, cols: _Columns, bounds: Bounds) -> None:
     checks.check_bounds(origin, "time_s", cols.time_s, TIME_ABS_MAX_S, "s")
     checks.check_time(origin, cols.time_s)
     checks.check_gaps(origin, cols.time_s, bounds.gap_max_s)
-    flow, opening = cols.source("flow_m3h"), cols.source("opening_mm")
-    checks.check_no_missing(origin, flow, cols.flow_m3h)
-    checks.check_non_negative(origin, flow, cols.flow_m3h, "m³/h")
-    checks.check_range(origin, flow, cols.flow_m3h, bounds.flow_m3h, "m³/h")
-    checks.check_non_negative(origin, opening, cols.opening_mm, "mm")
-    checks.check_range(origin, opening, cols.opening_mm, bounds.opening_mm, "mm")
+    checks.check_no_missing(origin, "flow_m3h", cols.flow_m3h)
+    checks.check_non_negative(origin, "flow_m3h", cols.flow_m3h, "m³/h")
+    checks.check_range(origin, "flow_m3h", cols.flow_m3h, bounds.flow_m3h, "m³/h")
+    checks.check_non_negative(origin, "opening_mm", cols.opening_mm, "mm")
+    checks.check_range(origin, "opening_mm", cols.opening_mm, bounds.opening_mm, "mm")
     for gauge, values in cols.levels_mm.items():
-        name = cols.source(f"level_{gauge}_mm")
-        checks.check_level(origin, name, values, bounds.level_mm, logged_in_mm=cols.in_mm(gauge))
+        checks.check_level(origin, f"level_{gauge}_mm", values, bounds.level_mm,
+                           logged_in_mm=cols.in_mm(gauge))  # fmt: skip
     checks.check_hold_words(origin, cols.hold)
 
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from gatetwin.records import checks
-from gatetwin.records.checks import FLOW_MAX_M3H, OPENING_MAX_MM, Origin
+from gatetwin.records.checks import FLOW_MAX_M3H, OPENING_MAX_MM
 from gatetwin.records.columns import (
     frozen,
     gauge_names,
@@ -91,25 +91,24 @@ def read_static_table(path: str | Path, *, limits: ReadLimits | None = None) -> 
         :func:`~gatetwin.records.read_record`.
     """
     table = static_table(read_table(path, keep=is_static_column, text_columns=(), limits=limits))
-    origin = Origin(table.path, first_line=table.first_line)
+    origin = table.origin()
     flow = table.floats("flow_m3h")
     opening = table.floats("opening_mm")
     for name, values, unit, top in (("flow_m3h", flow, "m³/h", FLOW_MAX_M3H),
                                     ("opening_mm", opening, "mm", OPENING_MAX_MM)):  # fmt: skip
-        checks.check_no_missing(origin, table.source(name), values)
-        checks.check_non_negative(origin, table.source(name), values, unit)
-        checks.check_bounds(origin, table.source(name), values, top, unit)
+        checks.check_no_missing(origin, name, values)
+        checks.check_non_negative(origin, name, values, unit)
+        checks.check_bounds(origin, name, values, top, unit)
     levels = {g: table.floats(f"level_{g}_mm") for g in gauge_names(table.header)}
     for gauge, values in levels.items():
-        name = table.source(f"level_{gauge}_mm")
-        checks.check_level(origin, name, values, logged_in_mm=name.endswith("_mm"))
+        in_mm = origin.columns.get(f"level_{gauge}_mm", "").endswith("_mm")
+        checks.check_level(origin, f"level_{gauge}_mm", values, logged_in_mm=in_mm)
     sds = {
         g: table.floats(f"level_{g}_sd_mm") for g in levels if f"level_{g}_sd_mm" in table.columns
     }
     for gauge, values in sds.items():
-        name = table.source(f"level_{gauge}_sd_mm")
-        checks.check_non_negative(origin, name, values, "mm")
-        checks.check_bounds(origin, name, values, OPENING_MAX_MM, "mm")
+        checks.check_non_negative(origin, f"level_{gauge}_sd_mm", values, "mm")
+        checks.check_bounds(origin, f"level_{gauge}_sd_mm", values, OPENING_MAX_MM, "mm")
     return StaticTable(
         flow_m3h=frozen(flow),
         opening_mm=frozen(opening),

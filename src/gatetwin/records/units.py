@@ -106,10 +106,9 @@ class HeaderUnits:
 
     columns: dict[str, UnitColumn] = field(default_factory=dict)
 
-    def source(self, internal: str) -> str:
-        """The file's name of the column with internal name ``internal``."""
-        found = self.columns.get(internal)
-        return found.name if found is not None else internal
+    def names(self) -> dict[str, str]:
+        """The file's name of each column, by internal name (for messages)."""
+        return {internal: c.name for internal, c in self.columns.items()}
 
     def units(self) -> dict[str, object]:
         """The units the file came in: ``{"opening": "m", "flow": "m3s", "level": "m"}``.
