@@ -129,6 +129,14 @@ def test_chunked_history_converts_each_file(tmp_path: Path) -> None:
     _close(first.levels_mm["A"], second.levels_mm["A"])
 
 
+def test_chunked_parquet_history_names_an_unknown_unit(tmp_path: Path) -> None:
+    pandas = pytest.importorskip("pandas")
+    frame = pandas.read_csv(_write(tmp_path, MM)).rename(columns={"level_B_mm": "level_B_ft"})
+    pq.write_table(pa.Table.from_pandas(frame, preserve_index=False), tmp_path / "h.parquet")
+    with pytest.raises(RecordError, match="h.parquet: column 'level_B_ft': unknown unit 'ft'"):
+        list(iter_chunks(open_history(tmp_path / "h.parquet"), rows=100))
+
+
 def test_static_table_in_other_units(capsys, tmp_path: Path) -> None:
     mm = tmp_path / "mm.csv"
     mm.write_text("flow_m3h,opening_mm,level_A_mm,level_A_sd_mm\n72000,400,2301.5,3\n"

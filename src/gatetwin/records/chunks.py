@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -119,12 +119,13 @@ def _parquet_chunks(path: Path, rows: int, first_row: int) -> Iterator[Chunk]:
     try:
         parquet = pq.ParquetFile(path)
         header = tuple(parquet.schema_arrow.names)
+        full = tuple(c.strip() for c in header)
         kept = [c for c in header if is_record_column(c.strip())]
         batches = parquet.iter_batches(batch_size=rows, columns=kept)
         for batch in batches:
-            table = record_table(arrow_columns(
-                name, pa.Table.from_batches([batch]), keep=is_record_column,
-                text_columns=("state",), first_row=first_row + 1))  # fmt: skip
+            table = arrow_columns(name, pa.Table.from_batches([batch]), keep=is_record_column,
+                                  text_columns=("state",), first_row=first_row + 1)  # fmt: skip
+            table = record_table(replace(table, header=full))  # units named by every column
             yield _chunk(Origin(name, first_line=first_row + 1), table, first_row)
             first_row += table.n_rows
     except RecordError:
