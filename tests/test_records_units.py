@@ -21,7 +21,7 @@ import pytest
 
 from gatetwin.cli import main
 from gatetwin.errors import RecordError
-from gatetwin.records import read_record, read_static_table
+from gatetwin.records import detect_table_kind, read_record, read_static_table
 from gatetwin.records.chunks import iter_chunks, open_history
 
 #: Each value is parsed from decimal text (≤ 1/2 ulp), and scaled once by a factor that is
@@ -150,6 +150,7 @@ def test_static_table_in_other_units(capsys, tmp_path: Path) -> None:
     _close(a.levels_mm["A"], b.levels_mm["A"])
     _close(a.level_sd_mm["A"], b.level_sd_mm["A"])
     assert b.units["flow"] == "m3s" and b.summary()["units"]["level"] == "m"
+    assert detect_table_kind(m) == detect_table_kind(mm) == "static"
 
 
 # --------------------------------------------------------------------------- refusals
