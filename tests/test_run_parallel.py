@@ -1,4 +1,4 @@
-"""``gatetwin.run.parallel``: work started on local processes, collected later, in order."""
+"""``gatetwin.run.parallel``: a stage's independent pieces on local processes, in order."""
 
 from __future__ import annotations
 
@@ -8,42 +8,26 @@ import os
 
 import pytest
 
-from gatetwin.run.parallel import Background, available_cpus
+from gatetwin.run.parallel import available_cpus, map_in_processes
 
 
 def test_results_come_back_in_the_jobs_order_from_other_processes() -> None:
-    background = Background(workers=2)
-    try:
-        background.start("roots", math.sqrt, [16.0, 1.0, 81.0, 4.0, 9.0])
-        background.start("pids", operator.call, [os.getpid] * 4)
-        assert background.started("roots") and not background.started("other")
-        assert background.results("roots") == [4.0, 1.0, 9.0, 2.0, 3.0]
-        pids = background.results("pids")
-        assert os.getpid() not in pids and 1 <= len(set(pids)) <= 2
-        assert not background.started("roots")  # collected once
-    finally:
-        background.close()
+    jobs = [16.0, 1.0, 81.0, 4.0, 9.0]
+    assert map_in_processes(math.sqrt, jobs, workers=2) == [4.0, 1.0, 9.0, 2.0, 3.0]
+    pids = map_in_processes(operator.call, [os.getpid] * 4, workers=2)
+    assert os.getpid() not in pids and 1 <= len(set(pids)) <= 2
 
 
-def test_a_task_error_is_raised_where_the_results_are_collected() -> None:
-    background = Background(workers=2)
-    try:
-        background.start("roots", math.sqrt, [4.0, -1.0])
-        with pytest.raises(ValueError, match="math domain error"):
-            background.results("roots")
-    finally:
-        background.close()
+def test_one_worker_or_one_job_runs_here() -> None:
+    assert map_in_processes(operator.call, [os.getpid], workers=2) == [os.getpid()]
+    assert map_in_processes(operator.call, [os.getpid] * 2, workers=1) == [os.getpid()] * 2
+    assert map_in_processes(math.sqrt, []) == []
 
 
-def test_close_without_start_and_twice_is_harmless() -> None:
-    background = Background()
-    background.close()
-    background.start("roots", math.sqrt, [4.0])
-    background.close()
-    background.close()
-    assert not background.started("roots")
+def test_a_task_error_is_raised_here_as_the_serial_loop_raises_it() -> None:
+    with pytest.raises(ValueError, match="math domain error"):
+        map_in_processes(math.sqrt, [4.0, -1.0], workers=2)
 
 
 def test_available_cpus_is_a_positive_count() -> None:
     assert 1 <= available_cpus() <= (os.cpu_count() or 1)
-    assert Background().workers == available_cpus()

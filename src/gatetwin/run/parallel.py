@@ -1,12 +1,12 @@
-"""Work of ``gatetwin run`` started on local processes by one stage, collected by a later one.
+"""Independent pieces of one ``gatetwin run`` stage on local processes, results in order.
 
 Processes, never threads, for Python work: numba kernels, CasADi solvers and FMU binaries
 are not assumed thread-safe, and the GIL serialises pure Python anyway. The processes are
 spawned (a fresh interpreter, no fork of this process's threads or locks) and run their
 numerical libraries on one thread each (:data:`gatetwin.fleet.execute.POOL_THREADS`): the
 processes are the parallelism. A task is a module-level function of one picklable argument;
-it computes what it would compute in this process, so the stages' outputs are those of a
-run that calls the tasks one after another, here.
+it computes what it would compute in this process, so the stage's outputs are those of a
+run that calls the tasks one after another.
 """
 
 from __future__ import annotations
@@ -26,45 +26,18 @@ def available_cpus() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-class Background:
-    """Tasks a stage starts on spawned processes and a later stage collects, so that work
-    which needs only files already written runs while the stages between go on.
+def map_in_processes(task: Callable[[Any], Any], jobs: Sequence[Any],
+                     workers: int | None = None) -> list[Any]:  # fmt: skip
+    """``[task(job) for job in jobs]``, the jobs spread over up to ``workers`` processes
+    (default :func:`available_cpus`); in this process when one worker (or one job) is all
+    there is. A task's exception is raised here, as the serial loop would raise it."""
+    from gatetwin.fleet.execute import POOL_THREADS, spawn_environment
 
-    Parameters
-    ----------
-    workers : int, optional
-        Processes of the pool (default :func:`available_cpus`), started at the first
-        :meth:`start`.
-    """
-
-    def __init__(self, workers: int | None = None) -> None:
-        self.workers = workers or available_cpus()
-        self._pool: ProcessPoolExecutor | None = None
-        self._futures: dict[str, list[Any]] = {}
-
-    def start(self, key: str, task: Callable[[Any], Any], jobs: Sequence[Any]) -> None:
-        """Submit ``task(job)`` for every job, to be collected as ``key``."""
-        from gatetwin.fleet.execute import POOL_THREADS, spawn_environment
-
-        if self._pool is None:
-            context = multiprocessing.get_context("spawn")
-            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=context)
+    n = min(workers or available_cpus(), len(jobs))
+    if n <= 1:
+        return [task(job) for job in jobs]
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=n, mp_context=context) as pool:
         with spawn_environment(POOL_THREADS):  # the pool spawns its processes on submit
-            self._futures[key] = [self._pool.submit(task, job) for job in jobs]
-
-    def started(self, key: str) -> bool:
-        """Whether ``key`` was started and not collected yet."""
-        return key in self._futures
-
-    def results(self, key: str) -> list[Any]:
-        """The results of ``key``'s jobs, in order, once all are done (a task's exception is
-        raised here)."""
-        return [future.result() for future in self._futures.pop(key)]
-
-    def close(self) -> None:
-        """Cancel what has not started, wait for what runs (its files are then complete or
-        absent before the caller removes the folder) and end the processes."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            self._pool = None
-        self._futures.clear()
+            futures = [pool.submit(task, job) for job in jobs]
+        return [future.result() for future in futures]

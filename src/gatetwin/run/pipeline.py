@@ -34,7 +34,6 @@ from gatetwin.run.outdir import (
     make_world_readable,
     replace_output,
 )
-from gatetwin.run.parallel import Background
 
 __all__ = ["MARKER", "STAGES", "PipelineContext", "PipelineStage", "run_pipeline"]
 
@@ -59,9 +58,6 @@ class PipelineContext:
     fleet : FleetSettings or None
         Where the per-record work of validation and diagnosis runs, one record per task
         (a local process pool or a dask scheduler); ``None`` for record after record here.
-    background : Background
-        Work a stage starts on local processes for a later stage to collect
-        (:class:`~gatetwin.run.parallel.Background`); closed when the run ends.
     """
 
     out_dir: Path
@@ -70,7 +66,6 @@ class PipelineContext:
     results: dict[str, Any] = field(default_factory=dict)
     progress: Callable[[str], None] = print
     fleet: Any = None
-    background: Background = field(default_factory=Background)
 
 
 @dataclass(frozen=True)
@@ -263,10 +258,6 @@ STAGES: tuple[PipelineStage, ...] = (
     PipelineStage("checking records", check_records),
     PipelineStage("writing the record summary", write_record_summary),
     PipelineStage("identifying models", identify_models),
-    PipelineStage(
-        "starting the MPC demo and the closed loop's FMUs on other processes",
-        _stages.start_closed_loop_work,
-    ),
     PipelineStage("exporting FMUs (C and python; FMI 2.0 and 3.0)", export_fmus),
     PipelineStage("tables and figures", tables_and_figures),
     PipelineStage("validating every FMU against every record (fmpy)", _stages.validate_all),
@@ -327,12 +318,9 @@ def run_pipeline(
     inputs = Path(records_dir) if records_dir is not None else bundled_records_dir()
     clean_stale_work(target, say)
     work = make_work_dir(target)
-    ctx = PipelineContext(out_dir=work, records_dir=inputs, progress=say, fleet=fleet)
     try:
-        try:
-            times = _run_stages(ctx, stages, say)
-        finally:  # nothing may still write into work once the run is over, whatever the end
-            ctx.background.close()
+        ctx = PipelineContext(out_dir=work, records_dir=inputs, progress=say, fleet=fleet)
+        times = _run_stages(ctx, stages, say)
         _write_stage_times(work, times, say)
         (work / MARKER).write_text("written by gatetwin run\n", encoding="utf-8")
         (work / RUN_PID_FILE).unlink()

@@ -191,6 +191,7 @@ def mpc_demo(ctx: Any) -> None:
     """MPC against PI on the exported FOPDT (3F) and on the flume: ``mpc.json``."""
     from gatetwin._io import write_json_atomic
     from gatetwin.modelfile import read_model_file
+    from gatetwin.run.parallel import map_in_processes
 
     model = read_model_file(ctx.out_dir / "models" / "fopdt_3F.json")
     scenarios: dict[str, Any] = {}
@@ -198,9 +199,9 @@ def mpc_demo(ctx: Any) -> None:
     envelope: dict[str, Any] = {}
     for kind in MPC_PLANTS:
         ctx.progress(f"      {kind}: {MPC_MINUTES:g} simulated minutes per scenario")
-    if not ctx.background.started("mpc"):  # a pipeline without start_closed_loop_work
-        ctx.background.start("mpc", _mpc_on_plant, _mpc_jobs(ctx))
-    for kind, result in zip(MPC_PLANTS, ctx.background.results("mpc"), strict=True):
+    # the plants are independent loops: one process each (the same results as one by one)
+    jobs = [(model.plant, kind, ctx.out_dir / "figures" / f"mpc_{kind}") for kind in MPC_PLANTS]
+    for kind, result in zip(MPC_PLANTS, map_in_processes(_mpc_on_plant, jobs), strict=True):
         runs[kind] = {k: v for k, v in result.items() if k != "scenarios"}
         for name, pair in result["scenarios"].items():
             scenarios[f"{kind}_{name}"] = {**pair, "plant": kind}
@@ -211,27 +212,6 @@ def mpc_demo(ctx: Any) -> None:
     write_json_atomic(ctx.out_dir / "mpc.json", doc)
     ctx.results["mpc"] = doc
     ctx.results.setdefault("summary_sections", []).append(_mpc_markdown(doc))
-
-
-def start_closed_loop_work(ctx: Any) -> None:
-    """Start what :func:`mpc_demo` and :func:`closed_loop_artefacts` compute from the model
-    files alone (the demo's plants, the controller and observer FMUs, the SSP loop) on local
-    processes, one piece per task, while the stages between go on; those stages collect it.
-    The pieces are what the two stages would compute themselves, so are their outputs."""
-    parts = _closed_loop_jobs(ctx)
-    ctx.background.start("mpc", _mpc_on_plant, _mpc_jobs(ctx))
-    ctx.background.start("closed_loop", _closed_loop_part, parts)
-    ctx.progress(f"      {len(MPC_PLANTS)} MPC demo plant(s) and the closed loop's {len(parts)} "
-                 f"piece(s) on {ctx.background.workers} process(es)")  # fmt: skip
-
-
-def _mpc_jobs(ctx: Any) -> list[tuple[Any, str, Any]]:
-    """One :func:`_mpc_on_plant` job per plant of :data:`MPC_PLANTS`: they are independent
-    loops (the same results as one after another)."""
-    from gatetwin.modelfile import read_model_file
-
-    model = read_model_file(ctx.out_dir / "models" / "fopdt_3F.json")
-    return [(model.plant, kind, ctx.out_dir / "figures" / f"mpc_{kind}") for kind in MPC_PLANTS]
 
 
 def _mpc_on_plant(job: tuple[Any, str, Any]) -> dict[str, Any]:
@@ -256,10 +236,24 @@ def closed_loop_artefacts(ctx: Any) -> None:
     set-point scenario), run by gatetwin's SSP master next to the Python loop it packs; both
     IAEs go into ``mpc.json`` (``closed_loop_ssp``)."""
     from gatetwin._io import write_json_atomic
+    from gatetwin.run.parallel import map_in_processes
 
-    if not ctx.background.started("closed_loop"):  # a pipeline without start_closed_loop_work
-        ctx.background.start("closed_loop", _closed_loop_part, _closed_loop_jobs(ctx))
-    *built, loop = ctx.background.results("closed_loop")
+    models = ctx.out_dir / "models"
+    fopdt, physical = (models / f"{k}_{FAMILY_GAUGE}.json" for k in ("fopdt", "physical"))
+    references = sorted(path.stem.removeprefix("physical_")
+                        for path in models.glob("physical_*.json")
+                        if path.stem != physical.stem)  # fmt: skip
+    controllers, observers = ctx.out_dir / "controllers", ctx.out_dir / "observers"
+    # each FMU and the SSP loop are built from files alone: one process each, as many at once
+    # as there are CPUs (the same files as one after another)
+    jobs = [*(("controller", fopdt, controllers / f"{fopdt.stem}_{kind}.fmu", kind)
+              for kind in CONTROLLER_KINDS),
+            ("observer", fopdt, observers / f"{fopdt.stem}_observer.fmu", ()),
+            ("observer", physical, observers / f"{physical.stem}_observer.fmu", ()),
+            ("observer", physical, observers / f"{physical.stem}_observer_gauges.fmu",
+             tuple(references)),
+            ("ssp", fopdt, ctx.out_dir, None)]  # fmt: skip
+    *built, loop = map_in_processes(_closed_loop_part, jobs)
     ctx.progress(f"      controllers/, observers/: {', '.join(p.name for p in built)}")
     doc = ctx.results["mpc"]
     doc["closed_loop_ssp"] = loop
@@ -267,24 +261,6 @@ def closed_loop_artefacts(ctx: Any) -> None:
     ctx.progress(f"      loop.ssp ({loop['scenario']}, PI, noise-free): IAE {loop['iae_ssp']:.1f} "
                  f"mm·s by the SSP master, {loop['iae_python_loop']:.1f} mm·s by the Python "
                  "loop")  # fmt: skip
-
-
-def _closed_loop_jobs(ctx: Any) -> list[tuple[str, Any, Any, Any]]:
-    """The :func:`_closed_loop_part` jobs: each FMU and the SSP loop is built from files
-    alone (the same files as one after another)."""
-    models = ctx.out_dir / "models"
-    fopdt, physical = (models / f"{k}_{FAMILY_GAUGE}.json" for k in ("fopdt", "physical"))
-    references = sorted(path.stem.removeprefix("physical_")
-                        for path in models.glob("physical_*.json")
-                        if path.stem != physical.stem)  # fmt: skip
-    controllers, observers = ctx.out_dir / "controllers", ctx.out_dir / "observers"
-    return [*(("controller", fopdt, controllers / f"{fopdt.stem}_{kind}.fmu", kind)
-              for kind in CONTROLLER_KINDS),
-            ("observer", fopdt, observers / f"{fopdt.stem}_observer.fmu", ()),
-            ("observer", physical, observers / f"{physical.stem}_observer.fmu", ()),
-            ("observer", physical, observers / f"{physical.stem}_observer_gauges.fmu",
-             tuple(references)),
-            ("ssp", fopdt, ctx.out_dir, None)]  # fmt: skip
 
 
 def _closed_loop_part(job: tuple[str, Any, Any, Any]) -> Any:
