@@ -16,7 +16,6 @@ import os
 import shutil
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -170,29 +169,16 @@ def export_fmus(ctx: PipelineContext) -> None:
         platforms = "host"
         ctx.progress("      C FMUs carry the host's binary only: pip install 'gatetwin[cross]' "
                      "adds Windows, macOS and 64-bit ARM")  # fmt: skip
-    jobs = [(read_model_file(path), kind) for path in ctx.results["model_paths"]
-            for kind in FMU_KINDS]  # fmt: skip
-    for model, (_, backend, version) in jobs:
-        ctx.progress(f"      exporting {model.name} ({backend}, FMI {version})")
-
-    def export(job: tuple[Any, tuple[str, str, str]]) -> Path:
-        model, (folder, backend, version) = job
-        return export_fmu(model.plant, ctx.out_dir / "fmus" / folder / f"{model.name}.fmu",
-                          backend=backend, model_name=model.name,
-                          provenance=fmu_provenance(model), fmi_version=version,
-                          platforms=platforms if backend == "c" else "host")  # fmt: skip
-
-    # C builds are compiler processes, as many at once as there are CPUs; the python builds
-    # import their slaves into this interpreter (sys.path, sys.modules): one after another,
-    # here, while the compilers run
-    with ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1)) as pool:
-        compiling = {k: pool.submit(export, job) for k, job in enumerate(jobs)
-                     if job[1][1] == "c"}  # fmt: skip
-        built = {k: export(job) for k, job in enumerate(jobs) if k not in compiling}
-        built.update({k: future.result() for k, future in compiling.items()})
     fmus: dict[str, list[Path]] = {folder: [] for folder, _, _ in FMU_KINDS}
-    for k, (_, (folder, _, _)) in enumerate(jobs):
-        fmus[folder].append(built[k])
+    for path in ctx.results["model_paths"]:
+        model = read_model_file(path)
+        for folder, backend, version in FMU_KINDS:
+            out = ctx.out_dir / "fmus" / folder / f"{model.name}.fmu"
+            ctx.progress(f"      exporting {model.name} ({backend}, FMI {version})")
+            built = export_fmu(model.plant, out, backend=backend, model_name=model.name,
+                               provenance=fmu_provenance(model), fmi_version=version,
+                               platforms=platforms if backend == "c" else "host")  # fmt: skip
+            fmus[folder].append(built)
     ctx.results["fmus"] = fmus
     _cross_checks(ctx, fmus["c"])
 

@@ -191,7 +191,7 @@ def mpc_demo(ctx: Any) -> None:
     """MPC against PI on the exported FOPDT (3F) and on the flume: ``mpc.json``."""
     from gatetwin._io import write_json_atomic
     from gatetwin.modelfile import read_model_file
-    from gatetwin.run.parallel import map_in_processes
+    from gatetwin.mpc import run_mpc_demo
 
     model = read_model_file(ctx.out_dir / "models" / "fopdt_3F.json")
     scenarios: dict[str, Any] = {}
@@ -199,9 +199,8 @@ def mpc_demo(ctx: Any) -> None:
     envelope: dict[str, Any] = {}
     for kind in MPC_PLANTS:
         ctx.progress(f"      {kind}: {MPC_MINUTES:g} simulated minutes per scenario")
-    # the plants are independent loops: one process each (the same results as one by one)
-    jobs = [(model.plant, kind, ctx.out_dir / "figures" / f"mpc_{kind}") for kind in MPC_PLANTS]
-    for kind, result in zip(MPC_PLANTS, map_in_processes(_mpc_on_plant, jobs), strict=True):
+        result = run_mpc_demo(model.plant, plant_kind=kind, minutes=MPC_MINUTES,
+                              out_plots_dir=ctx.out_dir / "figures" / f"mpc_{kind}")  # fmt: skip
         runs[kind] = {k: v for k, v in result.items() if k != "scenarios"}
         for name, pair in result["scenarios"].items():
             scenarios[f"{kind}_{name}"] = {**pair, "plant": kind}
@@ -212,14 +211,6 @@ def mpc_demo(ctx: Any) -> None:
     write_json_atomic(ctx.out_dir / "mpc.json", doc)
     ctx.results["mpc"] = doc
     ctx.results.setdefault("summary_sections", []).append(_mpc_markdown(doc))
-
-
-def _mpc_on_plant(job: tuple[Any, str, Any]) -> dict[str, Any]:
-    """:func:`~gatetwin.mpc.run_mpc_demo` on one plant kind: ``(plant, kind, plots folder)``."""
-    from gatetwin.mpc import run_mpc_demo
-
-    plant, kind, plots = job
-    return run_mpc_demo(plant, plant_kind=kind, minutes=MPC_MINUTES, out_plots_dir=plots)
 
 
 #: Controller FMUs ``gatetwin run`` builds for the MPC demo's model (``controllers/``).
@@ -236,73 +227,51 @@ def closed_loop_artefacts(ctx: Any) -> None:
     set-point scenario), run by gatetwin's SSP master next to the Python loop it packs; both
     IAEs go into ``mpc.json`` (``closed_loop_ssp``)."""
     from gatetwin._io import write_json_atomic
-    from gatetwin.run.parallel import map_in_processes
-
-    models = ctx.out_dir / "models"
-    fopdt, physical = (models / f"{k}_{FAMILY_GAUGE}.json" for k in ("fopdt", "physical"))
-    references = sorted(path.stem.removeprefix("physical_")
-                        for path in models.glob("physical_*.json")
-                        if path.stem != physical.stem)  # fmt: skip
-    controllers, observers = ctx.out_dir / "controllers", ctx.out_dir / "observers"
-    # each FMU and the SSP loop are built from files alone: one process each, as many at once
-    # as there are CPUs (the same files as one after another)
-    jobs = [*(("controller", fopdt, controllers / f"{fopdt.stem}_{kind}.fmu", kind)
-              for kind in CONTROLLER_KINDS),
-            ("observer", fopdt, observers / f"{fopdt.stem}_observer.fmu", ()),
-            ("observer", physical, observers / f"{physical.stem}_observer.fmu", ()),
-            ("observer", physical, observers / f"{physical.stem}_observer_gauges.fmu",
-             tuple(references)),
-            ("ssp", fopdt, ctx.out_dir, None)]  # fmt: skip
-    *built, loop = map_in_processes(_closed_loop_part, jobs)
-    ctx.progress(f"      controllers/, observers/: {', '.join(p.name for p in built)}")
-    doc = ctx.results["mpc"]
-    doc["closed_loop_ssp"] = loop
-    write_json_atomic(ctx.out_dir / "mpc.json", doc)
-    ctx.progress(f"      loop.ssp ({loop['scenario']}, PI, noise-free): IAE {loop['iae_ssp']:.1f} "
-                 f"mm·s by the SSP master, {loop['iae_python_loop']:.1f} mm·s by the Python "
-                 "loop")  # fmt: skip
-
-
-def _closed_loop_part(job: tuple[str, Any, Any, Any]) -> Any:
-    """One piece of :func:`closed_loop_artefacts`: ``(what, model file, target, option)``;
-    a controller FMU (option: its kind), an observer FMU (option: its reference gauges) or
-    the SSP loop (target: the output folder), whose ``closed_loop_ssp`` entry it returns."""
     from gatetwin.fmu.controller import export_controller
     from gatetwin.fmu.observer_fmu import export_observer
     from gatetwin.modelfile import read_model_file
-
-    what, path, target, option = job
-    model = read_model_file(path)
-    if what == "controller":
-        return export_controller(model, option, target, without_effects=option == "mpc")
-    if what == "observer":
-        extra = {"reference_gauges": list(option)} if option else {}
-        return export_observer(model.plant, target, without_effects=True, **extra)
-    return _ssp_loop(model, target)
-
-
-def _ssp_loop(model: Any, out_dir: Any) -> dict[str, Any]:
-    """``loop.ssp`` (plant FMU + PI FMU, the demo's first scenario) and ``loop.csv`` from
-    gatetwin's SSP master, next to the Python loop it packs: the ``closed_loop_ssp`` entry."""
     from gatetwin.mpc.demo import DemoSettings, demo_scenarios
     from gatetwin.mpc.loop import loop_metrics
     from gatetwin.ssp import simulate_ssp, write_ssp
     from gatetwin.ssp.reference import python_loop
 
+    model = read_model_file(ctx.out_dir / "models" / f"fopdt_{FAMILY_GAUGE}.json")
+    folder = ctx.out_dir / "controllers"
+    built = [export_controller(model, kind, folder / f"{model.name}_{kind}.fmu",
+                               without_effects=kind == "mpc")
+             for kind in CONTROLLER_KINDS]  # fmt: skip
+    observers = ctx.out_dir / "observers"
+    built.append(export_observer(model.plant, observers / f"{model.name}_observer.fmu",
+                                 without_effects=True))  # fmt: skip
+    physical = read_model_file(ctx.out_dir / "models" / f"physical_{FAMILY_GAUGE}.json")
+    built.append(export_observer(physical.plant, observers / f"{physical.name}_observer.fmu",
+                                 without_effects=True))  # fmt: skip
+    references = sorted(path.stem.removeprefix("physical_")
+                        for path in (ctx.out_dir / "models").glob("physical_*.json")
+                        if path.stem != physical.name)  # fmt: skip
+    built.append(export_observer(physical.plant,
+                                 observers / f"{physical.name}_observer_gauges.fmu",
+                                 without_effects=True, reference_gauges=references))  # fmt: skip
+    ctx.progress(f"      controllers/, observers/: {', '.join(p.name for p in built)}")
     settings = DemoSettings()
     scenario = demo_scenarios(MPC_MINUTES, settings)[0]
-    package = write_ssp(model, out_dir / "loop.ssp", controller="pi", scenario=scenario,
+    package = write_ssp(model, ctx.out_dir / "loop.ssp", controller="pi", scenario=scenario,
                         settings=settings)  # fmt: skip
-    run = simulate_ssp(package, out_csv=out_dir / "loop.csv")
+    run = simulate_ssp(package, out_csv=ctx.out_dir / "loop.csv")
     level = f"controller.level_{model.plant.gauge}_mm"
+    iae_ssp = run.iae(level, "controller.setpoint_mm")
     reference = python_loop(package, model.plant, scenario, settings)
-    return {
+    iae_python = loop_metrics(reference)["iae"]
+    doc = ctx.results["mpc"]
+    doc["closed_loop_ssp"] = {
         "package": "loop.ssp", "result": "loop.csv", "model": model.name, "controller": "pi",
         "scenario": scenario.name, "minutes": MPC_MINUTES, "noise": False,
-        "iae_ssp": run.iae(level, "controller.setpoint_mm"),
-        "iae_python_loop": loop_metrics(reference)["iae"],
+        "iae_ssp": iae_ssp, "iae_python_loop": iae_python,
         "max_abs_level_difference_mm": float(abs(run.columns[level] - reference.level_mm).max()),
     }  # fmt: skip
+    write_json_atomic(ctx.out_dir / "mpc.json", doc)
+    ctx.progress(f"      loop.ssp ({scenario.name}, PI, noise-free): IAE {iae_ssp:.1f} mm·s by "
+                 f"the SSP master, {iae_python:.1f} mm·s by the Python loop")  # fmt: skip
 
 
 MPC_COLUMNS = ("iae", "max_dev_mm", "settling_s", "travel_mm", "violations",
