@@ -1,10 +1,11 @@
-"""Suite-wide checks: every FMU gatetwin writes during the tests has well-formed XML."""
+"""Suite-wide checks (every FMU gatetwin writes during the tests has well-formed XML) and the
+fixtures several test modules share, built once per session."""
 
 from __future__ import annotations
 
 import pytest
 
-from fmu_support import gatetwin_fmus, model_description_problem
+from fmu_support import compiler, export_all, gatetwin_fmus, model_description_problem
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -18,3 +19,12 @@ def every_written_model_description_is_well_formed(tmp_path_factory):
         if (why := model_description_problem(path))
     ]
     assert not problems, "\n".join(problems)
+
+
+@pytest.fixture(scope="session")
+def test_plant_fmus(tmp_path_factory):
+    """Every (backend, family) FMU of the test plants (:func:`fmu_support.export_all`), built
+    once for the modules that only read them; skips without a C compiler."""
+    if compiler() is None:
+        pytest.skip("no C compiler (cc/gcc) on PATH")
+    return export_all(tmp_path_factory.mktemp("test_plant_fmus"))

@@ -23,7 +23,6 @@ from fmu_support import (
     compile_host,
     compiler,
     driven_inputs,
-    export_all,
     extract_all,
     fmu_run,
     open_fmu,
@@ -40,11 +39,8 @@ REFUSED = {"c": fmi2Error, "python": 2}
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory) -> dict[tuple[str, str], Path]:
-    if compiler() is None:
-        pytest.skip("no C compiler (cc/gcc) on PATH")
-    folder = tmp_path_factory.mktemp("fmus")
-    return extract_all(export_all(folder), folder / "extracted")
+def fmus(test_plant_fmus, tmp_path_factory) -> dict[tuple[str, str], Path]:
+    return extract_all(test_plant_fmus, tmp_path_factory.mktemp("extracted"))
 
 
 @pytest.fixture

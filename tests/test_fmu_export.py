@@ -15,7 +15,7 @@ from xml.etree import ElementTree as ET
 import pytest
 from fmpy.validation import validate_fmu
 
-from fmu_support import BACKENDS, FAMILIES, PLANTS, PROVENANCE, compiler, export_all
+from fmu_support import BACKENDS, FAMILIES, PLANTS, PROVENANCE, compiler
 from gatetwin.errors import ExportError
 from gatetwin.fmu import export_fmu
 from gatetwin.fmu.description import describe, model_config_header
@@ -24,10 +24,8 @@ needs_cc = pytest.mark.skipif(compiler() is None, reason="no C compiler (cc/gcc)
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory) -> dict[tuple[str, str], Path]:
-    if compiler() is None:
-        pytest.skip("no C compiler (cc/gcc) on PATH")
-    return export_all(tmp_path_factory.mktemp("fmus"))
+def fmus(test_plant_fmus) -> dict[tuple[str, str], Path]:
+    return test_plant_fmus
 
 
 def _xml(path: Path) -> ET.Element:

@@ -48,6 +48,28 @@ def test_run_writes_summary_and_progress(records_dir: Path, tmp_path: Path) -> N
     assert _siblings(out) == ["out"]  # no temporary directories left
 
 
+def test_stage_times_are_printed_and_close_the_summary(records_dir: Path, tmp_path: Path) -> None:
+    """Each stage's wall-clock time: in the progress lines after the last stage, and as the
+    last section of summary.md, one row per stage that ran, in order, then the total."""
+    lines: list[str] = []
+    out = run_pipeline(tmp_path / "out", progress=lines.append, records_dir=records_dir,
+                       stages=CHECKING)  # fmt: skip
+    summary = (out / "summary.md").read_text(encoding="utf-8")
+    head, times = summary.split("## Stage times")
+    assert "| A.csv | record |" in head
+    rows = [
+        r.split("|")[1:3] for r in times.splitlines() if r.startswith("| ") and "stage" not in r
+    ]
+    assert [t.strip() for t, _ in rows] == [s.title for s in CHECKING] + ["total"]
+    seconds = [float(v) for _, v in rows]
+    assert all(v >= 0 for v in seconds)
+    # each is rounded to 0.1 s: the total is their sum within the rounding of each
+    assert abs(seconds[-1] - sum(seconds[:-1])) <= 0.05 * len(CHECKING) + 1e-9
+    at = lines.index("stage times (s):")
+    assert [line.split()[0] for line in lines[at + 1:]] == ["finding", "checking", "writing",
+                                                             "total"]  # fmt: skip
+
+
 def test_failed_run_leaves_nothing_and_keeps_old_output(records_dir: Path, tmp_path: Path) -> None:
     out = run_pipeline(tmp_path / "out", records_dir=records_dir, stages=CHECKING)
     before = (out / "records.json").read_text(encoding="utf-8")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -305,9 +306,8 @@ def run_pipeline(
     work = make_work_dir(target)
     try:
         ctx = PipelineContext(out_dir=work, records_dir=inputs, progress=say, fleet=fleet)
-        for number, stage in enumerate(stages, 1):
-            say(f"[{number}/{len(stages)}] {stage.title} ...")
-            stage.run(ctx)
+        times = _run_stages(ctx, stages, say)
+        _write_stage_times(work, times, say)
         (work / MARKER).write_text("written by gatetwin run\n", encoding="utf-8")
         (work / RUN_PID_FILE).unlink()
         make_world_readable(work)
@@ -316,3 +316,39 @@ def run_pipeline(
         shutil.rmtree(work, ignore_errors=True)
         raise
     return target
+
+
+def _run_stages(ctx: PipelineContext, stages: Sequence[PipelineStage],
+                say: Callable[[str], None]) -> list[tuple[str, float]]:  # fmt: skip
+    """Run ``stages`` in order; each one's title and wall-clock time, s."""
+    times = []
+    for number, stage in enumerate(stages, 1):
+        say(f"[{number}/{len(stages)}] {stage.title} ...")
+        start = time.perf_counter()
+        stage.run(ctx)
+        times.append((stage.title, time.perf_counter() - start))
+    return times
+
+
+def stage_times_markdown(times: Sequence[tuple[str, float]]) -> str:
+    """The "Stage times" section: one row per stage, wall-clock seconds, and the total."""
+    lines = ["## Stage times", "", "Wall-clock seconds of each stage on the machine that ran "
+             "it (they vary from run to run; every other output does not).", "",
+             "| stage | time (s) |", "|---|---|"]  # fmt: skip
+    lines += [f"| {title} | {seconds:.1f} |" for title, seconds in times]
+    lines.append(f"| total | {sum(s for _, s in times):.1f} |")
+    return "\n".join(lines) + "\n"
+
+
+def _write_stage_times(work: Path, times: Sequence[tuple[str, float]],
+                       say: Callable[[str], None]) -> None:  # fmt: skip
+    """Print the stage times and append them to ``summary.md`` when a stage wrote one."""
+    width = max((len(title) for title, _ in times), default=0)
+    say("stage times (s):")
+    for title, seconds in times:
+        say(f"      {title:<{width}}  {seconds:6.1f}")
+    say(f"      {'total':<{width}}  {sum(s for _, s in times):6.1f}")
+    summary = work / "summary.md"
+    if summary.is_file():
+        text = summary.read_text(encoding="utf-8")
+        summary.write_text(text + "\n" + stage_times_markdown(times), encoding="utf-8")

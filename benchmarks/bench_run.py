@@ -1,0 +1,107 @@
+"""Wall-clock time of a fresh ``gatetwin run``, stage by stage.
+
+Runs ``python -m gatetwin run --out <temp>/out`` in a new process (this checkout's ``src``
+first on the path) in a temporary folder, reads the "Stage times" table the run appends to
+its ``summary.md``, prints it and writes it as JSON with the machine, the date, the commit
+and the command. The first run on a machine also pays numba's and Zig's one-time caches
+(``~/.cache``); run it twice to see both. Never asserted: the times depend on the machine
+and on what else it runs.
+
+usage: python benchmarks/bench_run.py [--json bench_run.json] [--keep DIR] [-- RUN OPTIONS]
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+#: One row of the "Stage times" table: ``| title | seconds |``.
+ROW = re.compile(r"^\| (?P<title>.+?) \| (?P<seconds>[0-9.]+) \|$")
+
+
+def stage_times(summary: str) -> dict[str, float]:
+    """Stage title -> seconds from the "## Stage times" section of a run's summary.md."""
+    section = summary.split("## Stage times", 1)
+    if len(section) != 2:
+        raise SystemExit("summary.md has no '## Stage times' section")
+    times = {}
+    for line in section[1].splitlines():
+        if line.startswith("## "):
+            break
+        if (found := ROW.match(line)) and found["title"] != "total":
+            times[found["title"]] = float(found["seconds"])
+    return times
+
+
+def machine() -> dict[str, object]:
+    """What the times were measured on."""
+    load = os.getloadavg() if hasattr(os, "getloadavg") else None
+    return {"platform": platform.platform(), "processor": platform.processor() or None,
+            "python": platform.python_version(), "cpus": os.cpu_count(),
+            "load_average_at_start": load}  # fmt: skip
+
+
+def commit() -> str | None:
+    try:
+        done = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True,
+                              text=True, check=True)  # fmt: skip
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return done.stdout.strip()
+
+
+def run(extra: list[str], keep: Path | None) -> dict[str, object]:
+    """One fresh run; its stage times, its total wall-clock time and the command."""
+    with tempfile.TemporaryDirectory(prefix="bench-run-") as tmp:
+        out = keep or Path(tmp) / "out"
+        command = [sys.executable, "-m", "gatetwin", "run", "--out", str(out), *extra]
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+            p for p in (str(ROOT / "src"), os.environ.get("PYTHONPATH")) if p)}  # fmt: skip
+        start = time.perf_counter()
+        done = subprocess.run(command, cwd=tmp, env=env, capture_output=True, text=True,
+                              check=False)  # fmt: skip
+        wall = time.perf_counter() - start
+        if done.returncode != 0:
+            raise SystemExit(f"gatetwin run failed ({done.returncode}): "
+                             f"{done.stderr.strip().splitlines()[-1:]}")  # fmt: skip
+        times = stage_times((out / "summary.md").read_text(encoding="utf-8"))
+    return {"command": " ".join(command), "wall_s": round(wall, 2),
+            "stages_s": times, "stages_total_s": round(sum(times.values()), 2)}  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--json",
+        type=Path,
+        default=Path("bench_run.json"),
+        help="where to write the times (default: bench_run.json)",
+    )
+    parser.add_argument("--keep", type=Path, help="write the run's output here and keep it")
+    parser.add_argument("extra", nargs="*", help="options passed on to 'gatetwin run'")
+    args = parser.parse_args(argv)
+    doc = {"date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+           "machine": machine(), "commit": commit(),
+           **run(args.extra, args.keep.resolve() if args.keep else None)}  # fmt: skip
+    width = max(len(t) for t in doc["stages_s"])
+    for title, seconds in doc["stages_s"].items():
+        print(f"{title:<{width}}  {seconds:7.1f} s")
+    print(f"{'sum of the stages':<{width}}  {doc['stages_total_s']:7.1f} s")
+    print(f"{'whole process':<{width}}  {doc['wall_s']:7.1f} s (imports and start-up included)")
+    args.json.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    print(f"wrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
