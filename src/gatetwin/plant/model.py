@@ -216,12 +216,25 @@ class ArxPlant:
 ENVELOPE_EFFECTS = ("seiche",)
 
 #: Lower bounds of the parameters that must be positive (the rest only finite).
-POSITIVE = ("width_m", "speed_mm_s", "stall_depth_m", "resolution_mm", "max_substep_s")
+POSITIVE = (
+    "width_m",
+    "speed_mm_s",
+    "stall_depth_m",
+    "resolution_mm",
+    "max_substep_s",
+    "flow_scale_m3h",
+    "depth_max_m",
+)
+#: Kernel parameters added after the first model files were written, with the values those
+#: files' equations had built in (the discharge normalisation and the bisection bracket they
+#: were identified with): a file without them reads as it always did.
+FORMAT_DEFAULTS = {"flow_centre_m3h": 55.0, "flow_scale_m3h": 100.0, "depth_max_m": 2.0}
 
 
 def check_physical_parameters(values: dict[str, float] | list[float]) -> list[float]:
     """The parameter vector in kernel order; raises :class:`ModelFileError` on a bad one."""
     if isinstance(values, dict):
+        values = {**FORMAT_DEFAULTS, **values}
         missing = [n for n, _, _ in kernel.PARAMETERS if n not in values]
         if missing:
             raise ModelFileError(f"physical: parameters lack {', '.join(missing)}")
@@ -353,7 +366,7 @@ def tangent_point(
 
 def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     """The kernel's bisection, run to its fixed number of steps (as the C FMU runs it)."""
-    low, high = kernel.DEPTH_BRACKET_M
+    low, high = kernel.DEPTH_LOW_M, p[kernel.DEPTH_MAX_INDEX]
     for _ in range(kernel.BISECTION_STEPS):
         low, high = physical_kernel_portable.bisection_step(low, high, opening_mm, flow_m3h, p)
     return 0.5 * (low + high)
