@@ -35,9 +35,13 @@ from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import EffectSet, parse_effects
 from gatetwin.plant.kernel_render import portable_kernel
 
-#: Inputs outside these bounds are physically impossible for any gate we model.
-OPENING_RANGE_MM = (0.0, 2000.0)
-FLOW_RANGE_M3H = (0.0, 5000.0)
+#: Inputs outside these bounds are physically impossible for any gate we model: an opening
+#: up to 50 m (the largest radial and lift gates of river barrages open some 20 m) and a
+#: discharge up to 36,000,000 m³/h (10,000 m³/s, a large river's flood through one gate).
+#: A model's own validity envelope (its provenance) is far narrower; these only refuse what
+#: no gate can do, at every scale from a lab flume to a barrage.
+OPENING_RANGE_MM = (0.0, 50_000.0)
+FLOW_RANGE_M3H = (0.0, 36_000_000.0)
 #: Largest ARX order a plant holds (the model-file schema's limit; the FMUs take up to 8).
 ARX_ORDER_LIMIT = 50
 
