@@ -141,8 +141,9 @@ def _step_controller(fmu: Path, start_mm: float) -> float:
 
 @pytest.mark.slow
 def test_field_gate_public_path(records: Path, tmp_path: Path) -> None:
-    models = tmp_path / "models"
-    _gatetwin("models", "--records", str(records), "--out", str(models), "--workers", "1")
+    out = tmp_path / "models"
+    _gatetwin("models", "--records", str(records), "--out", str(out), "--workers", "1")
+    models = out / records.name  # one gate's folder: its models go under its name
     physical = json.loads((models / "physical_P1.json").read_text())
     assert {p.name for p in models.glob("*_P1.json")} == {"fopdt_P1.json", "physical_P1.json"}
     fit = physical["provenance"]["metrics"]["fit"]
