@@ -5,7 +5,7 @@
 
 double kernel_steady_depth_m(const double *p, double opening_mm, double flow_m3h)
 {
-    double low = GT_DEPTH_LOW_M, high = GT_DEPTH_HIGH_M;
+    double low = GT_DEPTH_LOW_M, high = p[GT_DEPTH_MAX_INDEX];
     int i;
     for (i = 0; i < GT_BISECTION_STEPS; i++) {
         gt_bisection_step(low, high, opening_mm, flow_m3h, p, &low, &high);

@@ -35,7 +35,7 @@ EXPECTED: dict[str, list[str]] = {
     "not_utf8.csv": ["row 4", "0xb5", "expected UTF-8"],
     "utf16.csv": ["row 1", "NUL byte", "expected UTF-8"],
     "levels_in_metres.csv": ["column 'level_3F_mm'", "looks like metres; expected mm"],
-    "level_out_of_range.csv": ["row 40", "column 'level_5H_mm'", "5000 mm", "outside"],
+    "level_out_of_range.csv": ["row 40", "column 'level_5H_mm'", "500000 mm", "outside"],
     "nan_literal.csv": ["row 10", "column 'level_3F_mm'", "'nan'", "not a finite number"],
     "inf_literal.csv": ["row 11", "column 'flow_m3h'", "'inf'", "not a finite number"],
     "ragged_row.csv": ["row 25", "5 fields", "expected 6"],

@@ -182,8 +182,8 @@ def test_numbers_of_the_grammar_are_read(tmp_path: Path, cell: str) -> None:
         (0, "1e300", ["column 'time_s'", "physical bound"]),
         (0, "-1e300", ["column 'time_s'", "physical bound"]),
         (1, "1e6", ["column 'opening_mm'", "physical bound"]),
-        (3, "1e7", ["column 'flow_m3h'", "physical bound"]),
-        (4, "1e5", ["column 'level_3F_mm'", "outside the physical range"]),
+        (3, "1e9", ["column 'flow_m3h'", "physical bound"]),
+        (4, "1e6", ["column 'level_3F_mm'", "outside the physical range"]),
     ],
 )
 def test_magnitudes_beyond_physics_are_refused(
@@ -204,7 +204,7 @@ def test_a_gap_longer_than_a_day_is_refused(tmp_path: Path) -> None:
 
 def test_static_table_bounds(tmp_path: Path) -> None:
     path = tmp_path / "static.csv"
-    path.write_text("flow_m3h,opening_mm,level_3F_mm\n20,15,300\n2e6,20,280\n", encoding="utf-8")
+    path.write_text("flow_m3h,opening_mm,level_3F_mm\n20,15,300\n2e9,20,280\n", encoding="utf-8")
     with pytest.raises(RecordError, match="row 3: column 'flow_m3h'"):
         read_static_table(path)
 

@@ -145,7 +145,7 @@ CSV_FILES: dict[str, Callable[[], str | bytes]] = {
     "not_utf8.csv": _not_utf8,
     "utf16.csv": lambda: to_text(base_rows()).encode("utf-16"),
     "levels_in_metres.csv": lambda: to_text(_scaled_levels(base_rows(), 0.001)),
-    "level_out_of_range.csv": lambda: to_text(set_cell(base_rows(), 40, "level_5H_mm", "5000")),
+    "level_out_of_range.csv": lambda: to_text(set_cell(base_rows(), 40, "level_5H_mm", "500000")),
     "nan_literal.csv": lambda: to_text(set_cell(base_rows(), 10, "level_3F_mm", "nan")),
     "inf_literal.csv": lambda: to_text(set_cell(base_rows(), 11, "flow_m3h", "inf")),
     "ragged_row.csv": _ragged,

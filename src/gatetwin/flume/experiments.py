@@ -192,7 +192,8 @@ def write_reference_records(
         path = write_text_atomic(out / "static.csv", static_table())
         side = {"synthetic": True, "generator": f"gatetwin virtual flume {FLUME_VERSION}",
                 "flume_version": FLUME_VERSION, "seed": 110, "kind": "static rating table",
-                "gauges": dict(FlumeConfig().gauges_m)}  # fmt: skip
+                "gauges": dict(FlumeConfig().gauges_m),
+                "gate_width_m": FlumeConfig().width_m}  # fmt: skip
         write_text_atomic(out / "static.json", json.dumps(side, indent=2) + "\n")
         paths.append(path)
     return paths

@@ -192,6 +192,7 @@ def log_run(
         "seed": seed,
         "sample_period_s": cfg.sample_period_s,
         "gauges": dict(cfg.gauges_m),
+        "gate_width_m": cfg.width_m,
         **(sidecar or {}),
     }
     return LoggedRecord(run.time_s + jitter, opening, hold, flow, levels, meta)

@@ -77,7 +77,9 @@ def _probe_points(plant: Plant, provenance: dict[str, Any]) -> list[tuple[float,
     if isinstance(stated, (list, tuple)) and len(stated) == 2:
         openings = [float(stated[0]), float(stated[1])]
     elif isinstance(plant, PhysicalPlant):
-        openings = [5.0, 50.0]
+        # opening ratios e/h of 1/400 and 1/40 of the plant's deepest bracketed depth
+        top_mm = 1000.0 * plant.parameters["depth_max_m"]
+        openings = [top_mm / 400.0, top_mm / 40.0]
     else:
         openings = [plant.opening_ref_mm]
     lo, hi = OPENING_RANGE_MM

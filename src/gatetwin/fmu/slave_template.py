@@ -428,7 +428,7 @@ class GatetwinPlant(GuardedSlave):
 
     def _physical_depth(self, gate_mm: float, q: float) -> float:
         p = self._physical()
-        low, high = physical_kernel.DEPTH_BRACKET_M
+        low, high = physical_kernel.DEPTH_LOW_M, p[physical_kernel.DEPTH_MAX_INDEX]
         for _ in range(physical_kernel.BISECTION_STEPS):
             low, high = physical_kernel_portable.bisection_step(low, high, gate_mm, q, p)
         return 0.5 * (low + high)

@@ -4,7 +4,8 @@ Three stages, each on the data that determines its parameters, then a joint refi
 
 1. **Gate law and gauge offset** (11 parameters) from every steady point: the static table's
    rows and the settled end of every long hold in the dynamic records (the last
-   :data:`STEADY_SAMPLES` valid samples of a hold lasting at least :data:`STEADY_HOLD_S`).
+   :data:`STEADY_SAMPLES` valid samples of a hold lasting at least
+   :data:`STEADY_HOLD_SAMPLES` sample periods).
    Residuals are levels (mm) against the kernel's steady level.
 2. **Actuator** (no-load speed, stall depth) from the gate's moves: each move's opening change
    over the time between the last hold sample before it and the first after, against the
@@ -23,8 +24,24 @@ The simulator here is the kernel compiled by numba (:func:`kernel_simulator`): t
 arithmetic as every other rendering, stepping as :class:`gatetwin.plant.physical.
 PhysicalSimulator` does (tests hold the two equal).
 
-Not identified: the actuator's resolution (1 mm, the reference study's actuator) and the
-sub-step (0.6 s, half the sample period); the channel width is the flume's 0.30 m.
+Fixed before the fit, from the data (:func:`fixed_parameters`; the model file's report
+states each value and where it came from):
+
+* ``width_m``: the sidecar's ``gate_width_m``; without one, the width at which the static
+  points at the smallest opening ratios pass their discharge with the textbook free-flow
+  coefficient :data:`~gatetwin.identify.physical_start.TEXTBOOK_CD` (width and Cd are not
+  separable in free underflow);
+* ``resolution_mm``: the sidecar's ``actuator_resolution_mm``, else the opening's quantum in
+  the records (the largest power of ten dividing every recorded opening);
+* ``flow_centre_m3h`` / ``flow_scale_m3h``: the static table's mid-range discharge (two
+  significant figures) and the power of ten at or above its span;
+* ``depth_max_m``: the power of two at or above four times the highest level (a quarter of the
+  smallest opening ratio the data reach, at the largest discharge, still lies in the bracket);
+* ``max_substep_s``: half the sample period, or a tenth of the shortest small-signal time
+  constant of the starting model at the steady points, whichever is shorter.
+
+The storage area starts from the scan of :func:`_area_start` (time constants from one sample
+period to the longest record), the actuator from its moves.
 """
 
 from __future__ import annotations
@@ -40,6 +57,7 @@ from scipy.optimize import least_squares
 from scipy.stats import f as f_dist
 
 from gatetwin.errors import IdentificationError
+from gatetwin.identify import physical_start as start
 from gatetwin.identify.preprocess import reconstructed_opening
 from gatetwin.plant import blocks
 from gatetwin.plant import physical_kernel as kernel
@@ -48,12 +66,15 @@ from gatetwin.plant.kernel_render import numba_kernel
 from gatetwin.plant.model import PhysicalPlant, Schedule
 from gatetwin.records import Record
 
-#: A hold this long has settled (about 5 time constants at the slowest condition), s.
-STEADY_HOLD_S = 360.0
+#: A hold this many sample periods long counts as settled.
+STEADY_HOLD_SAMPLES = 300
 #: Samples averaged at the end of a settled hold.
 STEADY_SAMPLES = 40
-#: Fixed parameters (see the module docstring).
-FIXED = {"width_m": 0.30, "resolution_mm": 1.0, "max_substep_s": 0.6}
+#: Parameters fixed from the data before the fit (see the module docstring).
+FIXED = ("width_m", "resolution_mm", "max_substep_s", "flow_centre_m3h", "flow_scale_m3h",
+         "depth_max_m")  # fmt: skip
+#: Storage-area starts scanned (log-spaced time constants, one sample period to a record).
+AREA_SCAN = 25
 LAW = [n for n, _, _ in kernel.PARAMETERS[:9]] + ["offset_mm", "offset_per_flow2_mm"]
 STORAGE = ["area_m2", "area_per_depth_m"]
 #: The seiche's parameters (period, decay time, amplitude), fitted last; "no seiche".
@@ -78,12 +99,8 @@ START = {
     "cd_log_width_per_q": 0.0,
     "cd_log_shape": 0.0,
     "offset_mm": 0.0,
-    "offset_per_flow2_mm": 30.0,
-    "area_m2": 1.8,
+    "offset_per_flow2_mm": 0.0,
     "area_per_depth_m": 0.0,
-    "speed_mm_s": 1.5,
-    "stall_depth_m": 0.5,
-    **FIXED,
 }
 
 
@@ -108,6 +125,7 @@ class PhysicalFit:
     dynamic_rmse_mm: dict[str, float]
     actuator_moves: int
     seiche: dict[str, Any]
+    fixed_sources: dict[str, str]
 
     def report(self) -> dict[str, Any]:
         return {
@@ -117,7 +135,8 @@ class PhysicalFit:
             "steady_rmse_mm": self.steady_rmse_mm,
             "dynamic_rmse_mm": self.dynamic_rmse_mm,
             "actuator_moves": self.actuator_moves,
-            "fixed": dict(FIXED),
+            "fixed": {n: self.plant.parameters[n] for n in FIXED},
+            "fixed_from": dict(self.fixed_sources),
         }
 
 
@@ -129,7 +148,8 @@ def steady_points(static: Any, records: dict[str, Record], gauge: str) -> Steady
         if gauge not in rec.levels_mm:
             continue
         for seg in rec.holds:
-            if rec.time_s[seg.stop - 1] - rec.time_s[seg.start] < STEADY_HOLD_S:
+            held = rec.time_s[seg.stop - 1] - rec.time_s[seg.start]
+            if held < STEADY_HOLD_SAMPLES * rec.sample_period_s:
                 continue
             idx = np.arange(seg.start, seg.stop)
             level = rec.levels_mm[gauge][idx]
@@ -153,12 +173,12 @@ def kernel_simulator() -> tuple[Callable[..., Any], Callable[..., Any]]:
     k = numba_kernel(kernel.__name__)
     substep, bisect, level = k.substep, k.bisection_step, k.level_mm
     target_of, count_of = k.actuator_target_mm, k.substep_count
-    low0, high0 = kernel.DEPTH_BRACKET_M
+    low0, high_index = kernel.DEPTH_LOW_M, kernel.DEPTH_MAX_INDEX
     n_bisect = kernel.BISECTION_STEPS
 
     @njit(cache=False)
     def depth0(e: float, q: float, p: np.ndarray) -> float:
-        low, high = low0, high0
+        low, high = low0, p[high_index]
         for _ in range(n_bisect):
             low, high = bisect(low, high, e, q, p)
         return 0.5 * (low + high)
@@ -278,8 +298,8 @@ def actuator_moves(records: dict[str, Record], gauge: str, values: dict[str, flo
             duration = rec.time_s[i1] - rec.time_s[i0] - rec.sample_period_s
             if not (duration > 0 and np.isfinite(level[i0])):
                 continue
-            q100 = rec.flow_m3h[i0] / 100.0
-            offset = values["offset_mm"] + values["offset_per_flow2_mm"] * q100 * q100
+            qs = rec.flow_m3h[i0] / values["flow_scale_m3h"]
+            offset = values["offset_mm"] + values["offset_per_flow2_mm"] * qs * qs
             speeds.append(abs(step.after.opening_mm - step.before.opening_mm) / duration)
             depths.append((level[i0] + offset) / 1000.0)
     return np.asarray(speeds), np.asarray(depths)
@@ -296,9 +316,12 @@ def _fit_actuator(speeds: np.ndarray, depths: np.ndarray, values: dict[str, floa
         load = depths / x[1]
         return x[0] * np.maximum(kernel.SPEED_FLOOR, 1.0 - load * load) - speeds
 
-    x0 = [float(np.max(speeds)), max(0.5, 1.5 * float(np.max(depths)))]
-    result = least_squares(residual, x0, bounds=([1e-3, 1.05 * float(np.max(depths))],
-                                                 [1e3, 10.0]))  # fmt: skip
+    # start: the fastest move unloaded, stalling at half again the deepest start; bounds: a
+    # micrometre a second to a metre a second, stalling above the deepest to ten times it
+    deepest = float(np.max(depths))
+    x0 = [float(np.max(speeds)), 1.5 * deepest]
+    result = least_squares(residual, x0, bounds=([1e-3, 1.05 * deepest],
+                                                 [1e3, 10.0 * deepest]))  # fmt: skip
     return {**values, "speed_mm_s": float(result.x[0]), "stall_depth_m": float(result.x[1])}
 
 
@@ -325,9 +348,11 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
     drives = _drives(records, gauge)
     if not drives:
         raise IdentificationError(f"physical {gauge}: no dynamic record has this gauge")
-    values, _ = _fit(LAW, dict(START), lambda p: _steady_residuals(points, p))
+    fixed, sources = fixed_parameters(static, records, gauge, points)
+    values, _ = _fit(LAW, {**START, **fixed}, lambda p: _steady_residuals(points, p))
     speeds, depths = actuator_moves(records, gauge, values)
     values = _fit_actuator(speeds, depths, values)
+    values = _storage_start(values, points, drives, sources)
     values, _ = _fit(STORAGE, values, lambda p: np.concatenate(_dynamic_residuals(drives, p)))
     # joint: each source weighted by its residual RMS (its noise level) after the stages
     rms_static = _rms(_steady_residuals(points, _vector(values)))
@@ -361,7 +386,74 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
         },
         actuator_moves=int(speeds.size),
         seiche=seiche_report,
+        fixed_sources=sources,
     )
+
+
+def fixed_parameters(static: Any, records: dict[str, Record], gauge: str, points: SteadyPoints
+                     ) -> tuple[dict[str, float], dict[str, str]]:  # fmt: skip
+    """The parameters fixed before the fit and where each came from (``max_substep_s``
+    provisional: half the sample period until :func:`_storage_start` knows the storage)."""
+    width, width_from = start.gate_width_m(static, records, gauge)
+    resolution, resolution_from = start.opening_quantum_mm(records)
+    centre, scale, flow_from = start.flow_normalisation(static)
+    values = {
+        "width_m": width, "resolution_mm": resolution,
+        "max_substep_s": 0.5 * start.sample_period_s(records),
+        "flow_centre_m3h": centre, "flow_scale_m3h": scale,
+        "depth_max_m": start.depth_bracket_m(points.level_mm, records, gauge),
+        "area_m2": 1.0, "speed_mm_s": 1.0, "stall_depth_m": values_depth(points),
+    }  # fmt: skip
+    sources = {
+        "width_m": width_from, "resolution_mm": resolution_from, "flow_centre_m3h": flow_from,
+        "flow_scale_m3h": flow_from,
+        "depth_max_m": f"power of two at or above {start.DEPTH_MARGIN:g} x the highest level",
+    }  # fmt: skip
+    return values, sources
+
+
+def values_depth(points: SteadyPoints) -> float:
+    """A placeholder stall depth above every steady level (the actuator fit replaces it), m."""
+    return max(1e-3, 10.0 * float(np.max(points.level_mm)) / 1000.0)
+
+
+def _conductance_m2s(points: SteadyPoints, values: dict[str, float]) -> np.ndarray:
+    """∂Q_g/∂h at every steady point (the kernel's central difference), m²/s."""
+    p = list(_vector(values))
+    d = kernel.DEPTH_DIFFERENCE_M
+    out = []
+    for e, q in zip(points.opening_mm, points.flow_m3h, strict=True):
+        gate = kernel.actuator_target_mm(float(e), p)
+        low, high = kernel.DEPTH_LOW_M, p[kernel.DEPTH_MAX_INDEX]
+        for _ in range(kernel.BISECTION_STEPS):
+            low, high = kernel.bisection_step(low, high, gate, float(q), p)
+        h = 0.5 * (low + high)
+        upper = kernel.gate_flow_m3s(h + d, gate, float(q), p)
+        lower = kernel.gate_flow_m3s(h - d, gate, float(q), p)
+        out.append((upper - lower) / (2.0 * d))
+    return np.asarray(out)
+
+
+def _storage_start(values: dict[str, float], points: SteadyPoints, drives: Sequence[_Drive],
+                   sources: dict[str, str]) -> dict[str, float]:  # fmt: skip
+    """Start the storage area from the scan of time constants that best fits the records, and
+    fix the sub-step from the shortest time constant it gives (``sources`` updated)."""
+    conductance = _conductance_m2s(points, values)
+    positive = conductance[np.isfinite(conductance) & (conductance > 0)]
+    if positive.size == 0:
+        raise IdentificationError("physical: the gate law passes no flow at any steady point")
+    period = 2.0 * values["max_substep_s"]
+    longest = max(float(d.time_s[-1] - d.time_s[0]) for d in drives)
+    best, best_rms = values["area_m2"], math.inf
+    for area in start.area_scan_m2(period, longest, float(np.median(positive)), AREA_SCAN):
+        trial = _vector({**values, "area_m2": float(area)})
+        rms = _rms(np.concatenate(_dynamic_residuals(drives, trial)))
+        if rms < best_rms:
+            best, best_rms = float(area), rms
+    substep, substep_from = start.max_substep_s(period, best / positive)
+    sources["max_substep_s"] = substep_from
+    sources["area_m2"] = "start: the best of a scan of time constants (fitted after)"
+    return {**values, "area_m2": best, "max_substep_s": substep}
 
 
 def _fit_seiche(drives: Sequence[_Drive], p: np.ndarray, weights: list[float]

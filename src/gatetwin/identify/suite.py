@@ -10,6 +10,7 @@ and only the run's validation matrix uses them.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -39,7 +40,6 @@ from gatetwin.plant.simulate import simulate
 from gatetwin.records import Record, detect_table_kind, read_record, read_static_table
 from gatetwin.records.sidecar import VALIDATION_ROLE
 
-ARX_GAUGE = "3F"
 #: Validity band around the operating opening: the step (5 mm) or the PRBS amplitude
 #: (±5 mm) the conditions were identified over, plus 5 mm.
 OPENING_BAND_MM = 10.0
@@ -58,6 +58,26 @@ class Identified:
     static: Any = None
     models: dict[str, dict[str, Any]] = field(default_factory=dict)
     held_out: dict[str, dict[str, Any]] = field(default_factory=dict)
+    arx_gauge: str = ""
+
+
+def signal_to_noise(level_mm: np.ndarray) -> float:
+    """A level record's standard deviation over its noise's, the noise's from the first
+    differences (``sd(Δy)/√2``: white noise dominates the differences of a slow pool)."""
+    y = level_mm[np.isfinite(level_mm)]
+    noise = float(np.std(np.diff(y))) / math.sqrt(2.0) if y.size > 2 else 0.0
+    return float(np.std(y)) / noise if noise > 0 else 0.0
+
+
+def arx_gauge_of(records: list[Record]) -> str:
+    """The gauge the discrete model is identified at: the one every PRBS record has with the
+    highest mean signal-to-noise ratio (:func:`signal_to_noise`) over them."""
+    common = set.intersection(*(set(r.levels_mm) for r in records))
+    if not common:
+        raise IdentificationError("the PRBS records share no gauge for the discrete model")
+    score = {g: float(np.mean([signal_to_noise(r.levels_mm[g]) for r in records]))
+             for g in sorted(common)}  # fmt: skip
+    return max(score, key=lambda g: (score[g], g))
 
 
 def role_of(record: Record) -> str:
@@ -77,6 +97,7 @@ def load_folder(folder: Path, progress: Any = None) -> Identified:
 def load_records(paths: list[Path], where: str, progress: Any = None) -> Identified:
     """Like :func:`load_folder` on the CSV files ``paths`` (``where`` names them in errors)."""
     out = Identified()
+    prbs: dict[str, Record] = {}
     for path in paths:
         if detect_table_kind(path) == "static":
             table = read_static_table(path)
@@ -95,10 +116,19 @@ def load_records(paths: list[Path], where: str, progress: Any = None) -> Identif
         if rec.test == "step":
             out.steps[path.stem] = identify_step(rec)
         elif rec.test == "prbs":
-            out.prbs[path.stem] = identify_prbs(rec, gauge=ARX_GAUGE, orders=ARX_ORDERS)
+            prbs[path.stem] = rec
+    _identify_prbs(out, prbs)
     if not out.ratings:
         raise IdentificationError(f"{where}: no static rating table (static.csv) found")
     return out
+
+
+def _identify_prbs(out: Identified, prbs: dict[str, Record]) -> None:
+    """The PRBS records identified at the gauge :func:`arx_gauge_of` picks."""
+    if prbs:
+        out.arx_gauge = arx_gauge_of(list(prbs.values()))
+        for name, rec in prbs.items():
+            out.prbs[name] = identify_prbs(rec, gauge=out.arx_gauge, orders=ARX_ORDERS)
 
 
 def _step_conditions(ident: Identified, gauge: str, role: str) -> list[StepCondition]:
@@ -175,6 +205,8 @@ def fopdt_model(ident: Identified, gauge: str,
         )
         validity = {k: physical["validity"][k] for k in ("opening_range_mm", "level_range_mm")}
         validity["flow_m3h"] = physical["validity"]["flow_m3h"]
+        if "sample_period_s" in physical["validity"]:
+            validity["sample_period_s"] = physical["validity"]["sample_period_s"]
         for c in conds:
             middle = c.opening_mm + 0.5 * c.delta_e_mm  # the step's K is a secant over it
             local = local_fopdt(plant, c.flow_m3h, middle)
@@ -227,7 +259,7 @@ def fopdt_model(ident: Identified, gauge: str,
     return doc
 
 
-def arx_model(ident: Identified, gauge: str = ARX_GAUGE,
+def arx_model(ident: Identified, gauge: str | None = None,
               physical: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
     """The discrete model file of ``gauge``, scheduled over the PRBS conditions.
 
@@ -238,6 +270,7 @@ def arx_model(ident: Identified, gauge: str = ARX_GAUGE,
     ``structure``. One structure for every condition, so that the schedule interpolates
     like with like.
     """
+    gauge = gauge or ident.arx_gauge
     selections = {name: select_discrete(ident.records[name], gauge, ARX_ORDERS)
                   for name in ident.prbs}  # fmt: skip
     structure, scores = _best_structure(selections)
@@ -346,7 +379,7 @@ def physical_model(ident: Identified, gauge: str) -> dict[str, Any]:
     held = {n: free_run_fit(plant, r, gauge) for n, r in ident.records.items()
             if role_of(r) != "fit" and gauge in r.levels_mm}  # fmt: skip
     fits = {n: free_run_fit(plant, r, gauge) for n, r in fit_records.items()}
-    return physical_document(
+    doc = physical_document(
         f"physical_{gauge}",
         plant,
         ranges,
@@ -361,6 +394,9 @@ def physical_model(ident: Identified, gauge: str) -> dict[str, Any]:
             "metrics": {"free_run_fit": fits, "held_out": held, "fit": fit.report()},
         },
     )
+    # the records' sample period: what a controller or observer of this model samples at
+    doc["validity"]["sample_period_s"] = min(r.sample_period_s for r in fit_records.values())
+    return doc
 
 
 def _rows(ident: Identified) -> str:
@@ -386,6 +422,6 @@ def identify_records(paths: list[Path], where: str, progress: Any = None) -> Ide
         ident.models[physical["name"]] = physical
         ident.held_out[gauge] = doc["provenance"]["metrics"]["held_out"]
     if ident.prbs:
-        doc = arx_model(ident, physical=ident.models.get(f"physical_{ARX_GAUGE}"))
+        doc = arx_model(ident, physical=ident.models.get(f"physical_{ident.arx_gauge}"))
         ident.models[doc["name"]] = doc
     return ident

@@ -244,8 +244,8 @@ def c_source(module: types.ModuleType, prefix: str) -> tuple[str, str]:
         head + f"#ifndef {guard}\n#define {guard}\n\n#define {prefix.upper()}N_PARAMETERS "
         f"{module.N_PARAMETERS}\n#define {prefix.upper()}BISECTION_STEPS "
         f"{module.BISECTION_STEPS}\n#define {prefix.upper()}DEPTH_LOW_M "
-        f"{_c(module.DEPTH_BRACKET_M[0])}\n#define {prefix.upper()}DEPTH_HIGH_M "
-        f"{_c(module.DEPTH_BRACKET_M[1])}\n\n" + "\n".join(protos) + "\n\n#endif\n"
+        f"{_c(module.DEPTH_LOW_M)}\n#define {prefix.upper()}DEPTH_MAX_INDEX "
+        f"{module.DEPTH_MAX_INDEX}\n\n" + "\n".join(protos) + "\n\n#endif\n"
     )
     source = (head + f'#include <math.h>\n\n#include "elementary.h"\n#include "{stem}.h"\n\n'
               + "\n".join(defs))  # fmt: skip

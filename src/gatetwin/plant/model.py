@@ -35,9 +35,13 @@ from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import EffectSet, parse_effects
 from gatetwin.plant.kernel_render import portable_kernel
 
-#: Inputs outside these bounds are physically impossible for any gate we model.
-OPENING_RANGE_MM = (0.0, 2000.0)
-FLOW_RANGE_M3H = (0.0, 5000.0)
+#: Inputs outside these bounds are physically impossible for any gate we model: an opening
+#: up to 50 m (the largest radial and lift gates of river barrages open some 20 m) and a
+#: discharge up to 36,000,000 m³/h (10,000 m³/s, a large river's flood through one gate).
+#: A model's own validity envelope (its provenance) is far narrower; these only refuse what
+#: no gate can do, at every scale from a lab flume to a barrage.
+OPENING_RANGE_MM = (0.0, 50_000.0)
+FLOW_RANGE_M3H = (0.0, 36_000_000.0)
 #: Largest ARX order a plant holds (the model-file schema's limit; the FMUs take up to 8).
 ARX_ORDER_LIMIT = 50
 
@@ -216,12 +220,25 @@ class ArxPlant:
 ENVELOPE_EFFECTS = ("seiche",)
 
 #: Lower bounds of the parameters that must be positive (the rest only finite).
-POSITIVE = ("width_m", "speed_mm_s", "stall_depth_m", "resolution_mm", "max_substep_s")
+POSITIVE = (
+    "width_m",
+    "speed_mm_s",
+    "stall_depth_m",
+    "resolution_mm",
+    "max_substep_s",
+    "flow_scale_m3h",
+    "depth_max_m",
+)
+#: Kernel parameters added after the first model files were written, with the values those
+#: files' equations had built in (the discharge normalisation and the bisection bracket they
+#: were identified with): a file without them reads as it always did.
+FORMAT_DEFAULTS = {"flow_centre_m3h": 55.0, "flow_scale_m3h": 100.0, "depth_max_m": 2.0}
 
 
 def check_physical_parameters(values: dict[str, float] | list[float]) -> list[float]:
     """The parameter vector in kernel order; raises :class:`ModelFileError` on a bad one."""
     if isinstance(values, dict):
+        values = {**FORMAT_DEFAULTS, **values}
         missing = [n for n, _, _ in kernel.PARAMETERS if n not in values]
         if missing:
             raise ModelFileError(f"physical: parameters lack {', '.join(missing)}")
@@ -353,7 +370,7 @@ def tangent_point(
 
 def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     """The kernel's bisection, run to its fixed number of steps (as the C FMU runs it)."""
-    low, high = kernel.DEPTH_BRACKET_M
+    low, high = kernel.DEPTH_LOW_M, p[kernel.DEPTH_MAX_INDEX]
     for _ in range(kernel.BISECTION_STEPS):
         low, high = physical_kernel_portable.bisection_step(low, high, opening_mm, flow_m3h, p)
     return 0.5 * (low + high)

@@ -6,9 +6,15 @@ the gate law, behind an actuator that moves at a speed falling with the water lo
     A(h) dh/dt = Q_in/3600 − Q_g(h, e, Q_in)                    (h: depth at the gate, m)
     Q_g = min(Cd(e/h, Q_in) · b · e · √(2 g h),  b · √g · (2h/3)^1.5)    (m³/s; e in m)
     Cd  = c∞ + (c₀ − c∞) / (1 + exp((ln r − m)/w))^ν             (r = e/h; c₀, c∞, m, ln w
-                                                                   linear in Q/100 − 0.55)
+                                                                   linear in (Q − Q_c)/Q_s)
     A(h) = max(A₀ + A₁ (h − 0.2 m), 0.05 m²)
-    level at the gauge = 1000 h − o₀ − o₂ (Q_g·36)²              (mm; Q_g·36 = Q_g in 100 m³/h)
+    level at the gauge = 1000 h − o₀ − o₂ (3600 Q_g / Q_s)²      (mm; Q_g in units of Q_s)
+
+The discharge's centre ``Q_c`` and scale ``Q_s`` (m³/h) are parameters fixed at
+identification from the data's own discharge range (see :mod:`gatetwin.identify.physical`),
+so the coefficients are of order one at any gate size. The steady depth is found by bisection
+on ``[DEPTH_LOW_M, depth_max_m]``, the upper end a parameter too (a lab flume and a canal pool
+differ by an order of magnitude in depth).
 
 The discharge coefficient falls from its small-opening value c₀ towards c∞ as the opening
 grows relative to the depth, with a logistic in ln r; the critical-flow cap is the gate lifted
@@ -38,32 +44,33 @@ import math
 
 #: The parameter vector, in order: (name, unit, description).
 PARAMETERS = (
-    ("cd_small", "1", "Cd at small openings (c0) at Q = 55 m3/h"),
-    ("cd_small_per_q", "1", "change of c0 per 100 m3/h"),
-    ("cd_large", "1", "Cd at large openings (c_inf) at Q = 55 m3/h"),
-    ("cd_large_per_q", "1", "change of c_inf per 100 m3/h"),
-    ("cd_mid_log_ratio", "1", "ln(e/h) at the middle of the Cd transition (m) at Q = 55 m3/h"),
-    ("cd_mid_per_q", "1", "change of m per 100 m3/h"),
-    ("cd_log_width", "1", "ln of the transition width w in ln(e/h), at Q = 55 m3/h"),
-    ("cd_log_width_per_q", "1", "change of ln w per 100 m3/h"),
+    ("cd_small", "1", "Cd at small openings (c0) at Q = flow_centre_m3h"),
+    ("cd_small_per_q", "1", "change of c0 per flow_scale_m3h"),
+    ("cd_large", "1", "Cd at large openings (c_inf) at Q = flow_centre_m3h"),
+    ("cd_large_per_q", "1", "change of c_inf per flow_scale_m3h"),
+    ("cd_mid_log_ratio", "1", "ln(e/h) at the middle of the Cd transition (m) at Q_c"),
+    ("cd_mid_per_q", "1", "change of m per flow_scale_m3h"),
+    ("cd_log_width", "1", "ln of the transition width w in ln(e/h), at Q = flow_centre_m3h"),
+    ("cd_log_width_per_q", "1", "change of ln w per flow_scale_m3h"),
     ("cd_log_shape", "1", "ln of the transition's asymmetry exponent nu"),
     ("width_m", "m", "Channel width at the gate, b"),
     ("offset_mm", "mm", "Depth at the gate minus level at the gauge at zero discharge, o0"),
-    ("offset_per_flow2_mm", "mm", "Offset growth with (gate discharge / 100 m3/h)^2, o2"),
+    ("offset_per_flow2_mm", "mm", "Offset growth with (gate discharge / flow_scale_m3h)^2, o2"),
     ("area_m2", "m2", "Effective storage area of the pool at 0.2 m depth, A0"),
     ("area_per_depth_m", "m", "Change of the storage area per metre of depth, A1 (m2/m)"),
     ("speed_mm_s", "mm/s", "Actuator speed without water load, v0"),
     ("stall_depth_m", "m", "Depth at the gate at which the actuator would stall, h_stall"),
     ("resolution_mm", "mm", "Actuator position resolution: the command is rounded to it"),
     ("max_substep_s", "s", "Longest integration sub-step"),
+    ("flow_centre_m3h", "m3/h", "Discharge at which the Cd coefficients hold, Q_c"),
+    ("flow_scale_m3h", "m3/h", "Discharge unit of the Cd slopes and of o2, Q_s"),
+    ("depth_max_m", "m", "Upper end of the steady-depth bisection bracket"),
 )
 N_PARAMETERS = len(PARAMETERS)
 #: Index of each parameter in ``p``.
 INDEX = {name: i for i, (name, _, _) in enumerate(PARAMETERS)}
 
 G = 9.81
-#: Centre of the discharge dependence, in units of 100 m³/h.
-FLOW_CENTRE = 0.55
 #: Depth about which the storage area is linear, m.
 AREA_DEPTH_REF_M = 0.2
 #: Smallest storage area, m² (keeps the equation well posed for any parameter).
@@ -73,9 +80,12 @@ DEPTH_MIN_M = 1e-4
 RATIO_MIN = 1e-6
 #: The actuator never slows below this fraction of its no-load speed.
 SPEED_FLOOR = 0.05
-#: Bracket and iteration count of the steady-depth bisection (2 m / 2^44 = 1.1e-13 m).
-DEPTH_BRACKET_M = (1e-4, 2.0)
+#: Lower end and iteration count of the steady-depth bisection (the upper end is the
+#: parameter ``depth_max_m``; 2 m / 2^44 = 1.1e-13 m, 32 m / 2^44 = 1.8e-12 m).
+DEPTH_LOW_M = 1e-4
 BISECTION_STEPS = 44
+#: Index of the bracket's upper end in ``p``.
+DEPTH_MAX_INDEX = 20
 #: Half-width of the central difference of the gate law in the depth, m.
 DEPTH_DIFFERENCE_M = 1e-6
 
@@ -106,7 +116,8 @@ floor = math.floor
 # -- the model -----------------------------------------------------------------------------------
 def discharge_coefficient(ratio: float, flow_m3h: float, p: list[float]) -> float:
     """Cd at opening ratio ``e/h`` and discharge ``flow_m3h``."""
-    qq = flow_m3h / 100.0 - FLOW_CENTRE
+    # written as Q/Q_s − Q_c/Q_s: with Q_s a power of ten the same arithmetic at any scale
+    qq = flow_m3h / p[19] - p[18] / p[19]
     c_small = p[0] + p[1] * qq
     c_large = p[2] + p[3] * qq
     middle = p[4] + p[5] * qq
@@ -173,7 +184,7 @@ def bisection_step(
 
 def level_mm(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     """Level at the gauge, mm, for a depth at the gate and the gate's position."""
-    passing = gate_flow_m3s(depth_m, opening_mm, flow_m3h, p) * 36.0
+    passing = gate_flow_m3s(depth_m, opening_mm, flow_m3h, p) * (3600.0 / p[19])
     return 1000.0 * depth_m - p[10] - p[11] * passing * passing
 
 

@@ -13,8 +13,10 @@ import numpy as np
 
 from gatetwin.errors import RecordError
 
-#: Physically possible upstream levels, mm (anything outside is a unit or logger error).
-LEVEL_RANGE_MM = (-100.0, 2000.0)
+#: Physically possible upstream levels, mm: a gauge zero up to 1 m above the sill or bed,
+#: up to 100 m of water (beyond any canal or river gate; outside is a unit or logger
+#: error). Levels logged as elevations above a datum set their own range in the sidecar.
+LEVEL_RANGE_MM = (-1e3, 1e5)
 #: A gauge whose every finite value is below this looks like it was logged in metres.
 METRES_SUSPECT_BELOW = 2.0
 #: Largest sample time magnitude, s (about 317 years: Unix time in seconds fits, a
@@ -22,11 +24,16 @@ METRES_SUSPECT_BELOW = 2.0
 TIME_ABS_MAX_S = 1e10
 #: Largest gate opening, mm (100 m: beyond any gate; larger is a unit error).
 OPENING_MAX_MM = 1e5
-#: Largest discharge, m³/h (about 280 m³/s: beyond any canal gate; larger is a unit error).
-FLOW_MAX_M3H = 1e6
+#: Largest discharge, m³/h (1e5 m³/s, half the Amazon's mean discharge: beyond any gate
+#: structure; larger is a unit error).
+FLOW_MAX_M3H = 3.6e8
 #: Largest logging gap, s (one day at the nominal period; longer breaks a simulation
 #: that steps through the record).
 GAP_MAX_S = 86400.0
+#: Accepted nominal sample periods, s: 1 ms is faster than any gate logger (a shorter
+#: median step is a time unit error, e.g. hours logged as seconds); an hour is the slowest
+#: SCADA log that still sees a canal pool respond (its time constants are tens of minutes).
+SAMPLE_PERIOD_RANGE_S = (1e-3, 3600.0)
 #: Characters of a cell an error message quotes at most.
 QUOTE_CHARS = 60
 
@@ -201,3 +208,19 @@ def check_gaps(origin: Origin, time_s: np.ndarray, max_gap_s: float = GAP_MAX_S)
             f"gap of {time_s[i] - time_s[i - 1]:g} s after {time_s[i - 1]:g} s, longer than "
             f"{max_gap_s:g} s; expected a continuous log (split it into records at the gap)",
         )  # fmt: skip
+
+
+def check_sample_period(
+    name: str, period_s: float, source: str, limits: tuple[float, float] = SAMPLE_PERIOD_RANGE_S
+) -> None:
+    """Refuse a nominal sample period outside ``limits`` (s); ``source`` says where it came from.
+
+    ``name`` labels the message (the record's file or label).
+    """
+    low, high = limits
+    if not low <= period_s <= high:
+        raise RecordError(
+            f"{name}: sample period {period_s:g} s ({source}) outside the accepted range "
+            f"{low:g}..{high:g} s; expected the logger's period in seconds (set "
+            "'bounds': {'sample_period_s': [lo, hi]} in the sidecar for another range)"
+        )

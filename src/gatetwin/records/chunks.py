@@ -179,7 +179,9 @@ def history_sample_period(history: History, rows: int) -> float:
     median_s = float(np.mean([low, high]))
     given = history.sidecar.sample_period_s
     if given is None:
+        checks.check_sample_period(history.path, median_s, "the median time step")
         return median_s
+    checks.check_sample_period(history.path, given, "sidecar field 'sample_period_s'")
     if median_s > segments.GAP_FACTOR * given:
         raise RecordError(
             f"{history.path}: sample period {given:g} s (sidecar field 'sample_period_s') but "

@@ -238,8 +238,8 @@ def read_record(
     * Test type: ``test`` argument, else sidecar, else detected (no step: ``free``; 1–3
       steps between holds of ≥ 40 samples: ``step``; ≥ 4 steps: ``prbs``; else ``free``).
     * Values beyond physics are refused: ``|time_s|`` above 1e10 s, a time step above
-      one day (``GAP_MAX_S``), an opening above 1e5 mm, a flow above 1e6 m³/h, a level
-      outside -100..2000 mm.
+      one day (``GAP_MAX_S``), a sample period outside 1e-3..3600 s, an opening above
+      1e5 mm, a flow above 3.6e8 m³/h (1e5 m³/s), a level outside -1000..1e5 mm.
     * A ``step`` record needs ≥ 40 valid (finite-level) hold samples at every gauge
       before and after its first step; a ``prbs`` record ≥ 2 steps and ≥ 30 usable hold
       samples at every gauge (the first 2 of each hold segment are not usable).
@@ -412,7 +412,9 @@ def _sample_period(origin: Origin, time_s: np.ndarray, given_s: float | None) ->
     """The nominal sample period: as given, else the median time step."""
     median_s = float(np.median(np.diff(time_s)))
     if given_s is None:
+        checks.check_sample_period(origin.name, median_s, "the median time step")
         return median_s
+    checks.check_sample_period(origin.name, given_s, "sidecar field 'sample_period_s'")
     if median_s > segments.GAP_FACTOR * given_s:
         raise origin.error(
             f"sample period {given_s:g} s (sidecar field 'sample_period_s') but the median "
