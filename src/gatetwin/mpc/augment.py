@@ -57,6 +57,7 @@ def _append(
     known_drive: float = 0.0,
     in_level: bool = True,
     fixed_values: tuple[float, ...] = (),
+    uncertain: bool = False,
 ) -> DiscreteModel:
     """Append one block ``(A, B, C, D)``; its input is ``u``, a known constant or none."""
     a_blk, b_blk, c_blk, _ = ss
@@ -72,11 +73,13 @@ def _append(
     if in_level:
         arrays["c_level"][new] = c_blk[0]
     fixed = tuple(range(nz, nz + len(fixed_values)))
+    uncertain_states = tuple(range(nz, nz + size)) if uncertain else ()
     return replace(
         model,
         **arrays,
         fixed_states=(*model.fixed_states, *fixed),
         fixed_values=(*model.fixed_values, *fixed_values),
+        uncertain_states=(*model.uncertain_states, *uncertain_states),
     )
 
 
@@ -84,7 +87,9 @@ def append_output_blocks(model: DiscreteModel, fx: EffectSet, flow_m3h: float) -
     """``model`` with the seiche, inflow and drift blocks of ``fx`` appended (in that order)."""
     ts = model.sample_period_s
     if fx.seiche:
-        model = _append(model, fx.seiche.state_space(ts), driven_by_input=True)
+        # the seiche is a fitted sinusoid of the pool's wave reflections: the observer
+        # corrects it from the readings (see DiscreteModel.uncertain_states)
+        model = _append(model, fx.seiche.state_space(ts), driven_by_input=True, uncertain=True)
     if fx.inflow:
         model = _append(
             model,

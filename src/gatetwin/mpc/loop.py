@@ -245,11 +245,27 @@ def _violations(run: ClosedLoopRun) -> dict[str, int]:
     return out
 
 
+def gate_reversals_per_hour(run: ClosedLoopRun) -> float:
+    """Reversals of the applied opening per hour of the run, 1/h.
+
+    The moves of the applied (actuator's) opening from the start opening on, zero moves
+    dropped; a reversal is a move of the other sign than the move before it. A controller
+    that hunts about a quantised opening reverses at every move; one that settles, rarely.
+    """
+    applied = np.concatenate([[run.scenario.opening_mm], run.applied_mm])
+    moves = np.sign(np.diff(applied))
+    moves = moves[moves != 0]
+    ts = run.time_s[1] - run.time_s[0] if run.time_s.size > 1 else SAMPLE_PERIOD_S
+    hours = run.time_s.size * ts / 3600.0
+    return float(np.count_nonzero(moves[1:] != moves[:-1]) / hours)
+
+
 def loop_metrics(run: ClosedLoopRun, settings: LoopSettings | None = None) -> dict[str, Any]:
     """Scores of a run on the true level (JSON-ready; ``None`` where undefined).
 
     Keys: ``iae`` (∫|level − set-point| dt, mm·s), ``max_dev_mm`` (largest
     |level − set-point|, mm; for a set-point step this includes the step itself),
+    ``gate_reversals_per_hour`` (:func:`gate_reversals_per_hour`, 1/h),
     ``settling_s`` (longest time from an event until the level stays within the settle
     band until the next event; ``None`` if some response never settles), ``overshoot_mm``
     (largest excursion past the set-point on the far side of an event's first deviation),
@@ -275,6 +291,7 @@ def loop_metrics(run: ClosedLoopRun, settings: LoopSettings | None = None) -> di
         "overshoot_mm": float(max(overshoot, default=0.0)),
         "travel_mm": float(np.sum(np.abs(np.diff(applied)))),
         "command_travel_mm": float(np.sum(np.abs(np.diff(command)))),
+        "gate_reversals_per_hour": gate_reversals_per_hour(run),
         "violations": int(sum(viol.values())),
         "violations_by_kind": viol,
         "solve_ms_median": float(np.median(run.solve_s) * 1e3),
@@ -291,6 +308,7 @@ __all__ = [
     "Controller",
     "LoopSettings",
     "Scenario",
+    "gate_reversals_per_hour",
     "loop_metrics",
     "run_closed_loop",
 ]

@@ -2,10 +2,15 @@
 
 The model state ``z`` is augmented with an input disturbance ``d`` (mm of opening, a
 random walk): ``z(k+1) = A z + B u + B_d d``, ``d(k+1) = d``. Process noise enters the
-newest level state and ``d``; the register of past inputs is known and gets none. The
-filter starts from the steady-state covariance (``scipy.linalg.solve_discrete_are``) and
-then propagates its covariance with the model of each sample, so a change of discharge
-(new ``K``, ``T``, ``L``) is followed consistently.
+newest level state and ``d``; the register of past inputs is known and gets none. A
+seiche's states get some too (:attr:`DiscreteModel.uncertain_states`): its prediction from
+the gate's moves alone is a fitted sinusoid, and where the pool's real wave differs (the
+flume's is a staircase of reflections, no rebound) an uncorrected prediction puts the
+difference, every seiche period, into the level and ``d``, which the MPC then answers: a
+limit cycle at about the seiche's period. The filter starts from the steady-state
+covariance (``scipy.linalg.solve_discrete_are``) and then propagates its covariance with
+the model of each sample, so a change of discharge (new ``K``, ``T``, ``L``) is followed
+consistently.
 
 Why an input and not an output disturbance: a gain error, or the flume's own response to
 a change of inflow, acts on the level through the pool's storage — through the same lag
@@ -44,10 +49,17 @@ def _augmented(model: DiscreteModel) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _process_noise(model: DiscreteModel, settings: ObserverSettings) -> np.ndarray:
+    """Process noise of ``[z, d]``: on the level state, on ``d``, and on each uncertain
+    state with an effect on the reading, sized so that its term in the reading wanders
+    by ``level_sd_mm`` per sample, as the level does."""
     nz = model.n_states
     q = np.zeros((nz + 1, nz + 1))
     q[0, 0] = settings.level_sd_mm**2
     q[nz, nz] = settings.disturbance_sd_mm**2
+    for i in model.uncertain_states:
+        weight = float(model.c[i])
+        if weight != 0.0:
+            q[i, i] = (settings.level_sd_mm / weight) ** 2
     return q
 
 

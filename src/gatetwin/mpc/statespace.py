@@ -53,6 +53,11 @@ class DiscreteModel:
     fixed_states, fixed_values : tuple
         States with no equilibrium, set at the start and never corrected by the observer
         (the sensor drift's offset and rate), and their start values.
+    uncertain_states : tuple
+        States of output blocks driven by the input whose prediction from the input alone
+        is uncertain (the seiche's): the observer gives them process noise, so that it
+        corrects them from the readings instead of trusting their open-loop prediction
+        (:func:`gatetwin.mpc.observer.steady_prior_covariance`).
     """
 
     a: np.ndarray
@@ -69,6 +74,7 @@ class DiscreteModel:
     output_offset_mm: float = None  # type: ignore[assignment]
     fixed_states: tuple[int, ...] = ()
     fixed_values: tuple[float, ...] = ()
+    uncertain_states: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         if self.affine is None:
