@@ -99,6 +99,8 @@ class TwinPoint:
         Operating discharge (m³/h) and opening (mm).
     gate_step_mm : float
         The experiments' gate step, mm.
+    level_mm : float
+        The twin's steady level there, mm.
     """
 
     gain_mm_per_mm: float
@@ -107,6 +109,7 @@ class TwinPoint:
     flow_m3h: float
     opening_mm: float
     gate_step_mm: float
+    level_mm: float = math.nan
 
     @classmethod
     def of(cls, plant: FopdtPlant, flow_m3h: float, opening_mm: float,
@@ -117,8 +120,9 @@ class TwinPoint:
         if not (math.isfinite(k) and k != 0 and t > 0 and lag >= 0):
             raise PlantError(f"twin {plant.gauge}: K = {k}, T = {t} s, L = {lag} s at "
                              f"{flow_m3h:g} m³/h; no loop can be designed on it")  # fmt: skip
+        level = s.at("level_ref_mm", flow_m3h) + k * (opening_mm - plant.opening_ref_mm)
         return cls(float(k), float(t), float(lag), float(flow_m3h), float(opening_mm),
-                   float(gate_step_mm))  # fmt: skip
+                   float(gate_step_mm), float(level))  # fmt: skip
 
     @property
     def response_s(self) -> float:
@@ -164,10 +168,39 @@ def loop_settings(point: TwinPoint, *, sample_period_s: float, noise_sd_mm: floa
     step = abs(k) * point.gate_step_mm
     # white gauge noise: a correlation time far below the sample period (phi = e^-10)
     noise = MeasurementNoise(sd_mm=noise_sd_mm, correlation_s=ts / 10, resolution_mm=0.1)
-    return DemoSettings(flow_m3h=point.flow_m3h, inflow_step_to_m3h=INFLOW_UP * point.flow_m3h,
+    wide = {
+        "wide_flow_m3h": point.flow_m3h,
+        "wide_flow_step_m3h": 0.3 * point.flow_m3h,
+        "wide_levels_mm": (point.level_mm, point.level_mm + step),
+    }
+    up = INFLOW_UP * point.flow_m3h
+    return DemoSettings(**wide, flow_m3h=point.flow_m3h, inflow_step_to_m3h=up,
                         opening_mm=point.opening_mm, setpoint_step_mm=step, noise=noise,
                         actuator_resolution_mm=0.1, mpc=mpc, pi=pi,
                         loop=LoopSettings(settle_band_mm=3 * sd, sample_period_s=ts))  # fmt: skip
+
+
+def mpc_demo_inputs(plant: FopdtPlant, spec_path: str | Path) -> tuple[Any, Any]:
+    """``(settings, core_factory)`` of ``gatetwin mpc-demo --plant swmm``: the SWMM plant of
+    a plant spec file (``noise_sd_mm`` in it, default 0: exact gauges) and the loop's
+    settings derived from the twin ``plant`` at its reference opening and the model's
+    base inflow; opening range the gate's; no level band (the twin states none here)."""
+    from gatetwin.plants.swmm_experiments import gate_step_mm
+
+    spec = read_spec(spec_path)
+    doc = json.loads(Path(spec_path).read_text(encoding="utf-8"))
+    noise = float(doc.get("noise_sd_mm", 0.0))
+    if not (math.isfinite(noise) and noise >= 0):
+        raise PlantError(f"{spec_path}: noise_sd_mm {noise}; expected >= 0 mm")
+    factory = core_factory(spec)
+    core = factory()
+    opening = plant.opening_ref_mm
+    point = TwinPoint.of(plant, 3600.0 * core.base_flow_m3s, opening, gate_step_mm(opening))
+    settings = loop_settings(point, sample_period_s=spec.sample_period_s, noise_sd_mm=noise,
+                             gate_speed_mm_s=spec.gate_speed_mm_s,
+                             opening_range_mm=(0.0, core.height_mm),
+                             level_band_mm=None)  # fmt: skip
+    return settings, factory
 
 
 def canal_scenarios(point: TwinPoint, setpoint_step_mm: float) -> tuple[Scenario, ...]:
@@ -230,6 +263,7 @@ __all__ = [
     "canal_scenarios",
     "core_factory",
     "loop_settings",
+    "mpc_demo_inputs",
     "read_spec",
     "settings_summary",
     "spec_to_dict",
