@@ -366,14 +366,14 @@ def _add_mpc_demo_arguments(parser: argparse.ArgumentParser) -> None:
 def _run_mpc_demo(args: argparse.Namespace) -> int:
     from gatetwin.mpc.demo import load_demo_plant, run_mpc_demo
 
-    plant, extra = load_demo_plant(args.model), {}
     if (args.plant == "swmm") != (args.swmm_plant is not None):
         raise GatetwinError("--swmm-plant goes with --plant swmm, and --plant swmm needs it")
+    if args.plant == "swmm" and args.model is None:
+        raise GatetwinError("--plant swmm: give --model, an FOPDT identified on that model")
+    plant, extra = load_demo_plant(args.model), {}
     if args.plant == "swmm":
         from gatetwin.plants.swmm_loop import mpc_demo_inputs
 
-        if args.model is None:
-            raise GatetwinError("--plant swmm: give --model, an FOPDT identified on that model")
         extra["settings"], extra["core_factory"] = mpc_demo_inputs(plant, args.swmm_plant)
     result = run_mpc_demo(
         plant, plant_kind=args.plant, minutes=args.minutes,
