@@ -50,7 +50,7 @@ def test_flow_and_step_match_table_1(condition):
 
 @pytest.fixture(scope="module")
 def rating_3f():
-    return fit_static_table(read_static_table(str(RECORDS / "static.csv")))["3F"]
+    return fit_static_table(read_static_table(str(RECORDS / "static.csv")), 0.30)["3F"]
 
 
 @pytest.mark.parametrize("cond", ["A", "B"])

@@ -297,15 +297,20 @@ def run_export(args: argparse.Namespace) -> int:
 
 
 def add_export_controller_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("model", metavar="MODEL.json", help="FOPDT model file (SIMC tuning)")
+    parser.add_argument(
+        "model", metavar="MODEL.json",
+        help="FOPDT or physical model file (SIMC tuning; a physical model linearised along "
+        "its discharge range); operating point, limits, sample period, horizon and weights "
+        "come from it",
+    )  # fmt: skip
     parser.add_argument(
         "--kind", choices=("pi", "mpc"), default="pi",
         help="controller: pi (default), or mpc (the demo's single-point MPC)",
     )  # fmt: skip
     parser.add_argument(
         "--horizon", metavar="N", type=int,
-        help="mpc: prediction horizon in samples (default: the demo's 100; the step's cost "
-        "grows about as N^3, see README)",
+        help="mpc: prediction horizon in prediction steps (default: the model's settling "
+        "time, 4 T + L, in at most 100 steps; the step's cost grows about as N^3, see README)",
     )  # fmt: skip
     parser.add_argument(
         "--without-effects", action="store_true",
@@ -326,15 +331,15 @@ def run_export_controller(args: argparse.Namespace) -> int:
     from gatetwin.modelfile import read_model_file
 
     check_controller_kind(args.kind)
+    if args.horizon is not None and args.kind != "mpc":
+        raise GatetwinError("--horizon applies to --kind mpc")
+    model = read_model_file(args.model)
     settings = None
     if args.horizon is not None:
-        if args.kind != "mpc":
-            raise GatetwinError("--horizon applies to --kind mpc")
-        from gatetwin.mpc.demo import DemoSettings
+        from gatetwin.fmu.controller_settings import controller_plant, derived_settings
 
-        demo = DemoSettings()
-        settings = replace(demo, mpc=replace(demo.mpc, horizon=args.horizon))
-    model = read_model_file(args.model)
+        derived = derived_settings(model, controller_plant(model))
+        settings = replace(derived, mpc=replace(derived.mpc, horizon=args.horizon))
     check_writable(args.out)
     if args.without_effects and args.kind != "mpc":
         raise GatetwinError("--without-effects applies to --kind mpc")

@@ -49,6 +49,7 @@ from gatetwin.fmu.c_build import (
     templates_dir,
     zip_folder,
 )
+from gatetwin.fmu.controller_settings import controller_plant, derived_settings
 from gatetwin.fmu.description import (
     VariableSpec,
     component_config_lines,
@@ -144,9 +145,10 @@ def _export_mpc(model: ModelFile, out_path: str | os.PathLike[str],
 
     from gatetwin.fmu.mpc_controller import export_mpc_controller
 
-    plant = model.plant
-    if without_effects and isinstance(plant, FopdtPlant):
+    plant = controller_plant(model)
+    if without_effects:
         plant = replace(plant, effects=())
+    settings = settings or derived_settings(model, plant)
     return export_mpc_controller(plant, out_path,
                                  settings=settings.mpc if settings else None,
                                  model_name=model_name or f"{model.name}_mpc",
@@ -380,14 +382,17 @@ def export_controller(
     Parameters
     ----------
     model : ModelFile
-        A read model file (:func:`gatetwin.modelfile.read_model_file`) of an FOPDT plant.
+        A read model file (:func:`gatetwin.modelfile.read_model_file`) of an FOPDT or a
+        physical plant (linearised along its discharge range,
+        :func:`gatetwin.fmu.controller_settings.controller_plant`).
     kind : {"pi", "mpc"}
         ``"pi"``: the SIMC PI; ``"mpc"``: the demo's single-point MPC
         (:func:`gatetwin.fmu.mpc_controller.export_mpc_controller`, with ``settings.mpc``).
     out_path : path
         Target ``.fmu``, written atomically (built next to it, moved into place on success).
     settings : DemoSettings, optional
-        Operating point, start opening and PI limits (default: the demo's).
+        Operating point, start opening, limits, horizon and weights (default: derived from
+        the model, :func:`gatetwin.fmu.controller_settings.derived_settings`).
     model_name : str, optional
         modelIdentifier (default ``<model name>_pi``).
     fmi_version : {"2.0", "3.0"}
@@ -400,8 +405,8 @@ def export_controller(
     Raises
     ------
     ExportError
-        Unknown kind or FMI version, a model that is not an FOPDT, no C compiler,
-        build failure.
+        Unknown kind or FMI version, a model that is neither an FOPDT nor a physical model,
+        no C compiler, build failure.
     OutputError
         The FMU cannot be written where asked.
     """
@@ -413,7 +418,11 @@ def export_controller(
     if target.suffix.lower() != ".fmu":
         raise ExportError(f"output {target} must end in .fmu")
     provenance = {"model": model.name, "model_sha256": model.sha256}
-    desc = describe_pi_controller(model.plant, model_name or f"{model.name}_{kind}",
+    plant = controller_plant(model)
+    if settings is None:
+        settings = derived_settings(model, plant)
+        provenance["settings_from"] = "the model file (gatetwin.fmu.controller_settings)"
+    desc = describe_pi_controller(plant, model_name or f"{model.name}_{kind}",
                                   settings=settings, provenance=provenance)  # fmt: skip
     try:
         target.parent.mkdir(parents=True, exist_ok=True)

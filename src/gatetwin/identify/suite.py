@@ -23,6 +23,7 @@ from gatetwin.identify.arx_envelope import envelope_arx, fit_condition
 from gatetwin.identify.discrete_select import select_discrete
 from gatetwin.identify.fopdt_driven import fit_fopdt_driven
 from gatetwin.identify.physical import data_ranges, fit_physical
+from gatetwin.identify.physical_start import gate_width_m
 from gatetwin.identify.prbs import PrbsIdentification, identify_prbs
 from gatetwin.identify.preprocess import reconstructed_opening
 from gatetwin.identify.rating import RatingFit, fit_static_table
@@ -101,7 +102,6 @@ def load_records(paths: list[Path], where: str, progress: Any = None) -> Identif
     for path in paths:
         if detect_table_kind(path) == "static":
             table = read_static_table(path)
-            out.ratings = fit_static_table(table)
             out.static_sha256 = table.sha256
             out.static = table
             continue
@@ -118,6 +118,11 @@ def load_records(paths: list[Path], where: str, progress: Any = None) -> Identif
         elif rec.test == "prbs":
             prbs[path.stem] = rec
     _identify_prbs(out, prbs)
+    if out.static is not None:
+        fitted = {n: r for n, r in out.records.items() if role_of(r) != VALIDATION_ROLE}
+        gauge = next(iter(out.static.gauges))
+        width, _ = gate_width_m(out.static, fitted, gauge)
+        out.ratings = fit_static_table(out.static, width)
     if not out.ratings:
         raise IdentificationError(f"{where}: no static rating table (static.csv) found")
     return out

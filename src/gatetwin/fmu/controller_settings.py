@@ -1,0 +1,196 @@
+"""Controller settings derived from a model file: nothing of the lab flume, all from the model.
+
+A controller FMU is built for the gate its model describes, so its operating point, limits,
+sample period, horizon and weights come from that model (rules below); an explicit
+:class:`~gatetwin.mpc.demo.DemoSettings` still overrides them all.
+
+* **Plant**: an FOPDT model as it is; a physical model (which neither SIMC nor the MPC takes)
+  linearised along its discharge range at the reference opening
+  (:func:`~gatetwin.plant.model.local_fopdt` at :data:`LINEARISATION_KNOTS` discharges: K,
+  T and the steady level; no dead time: the pool answers at once, the actuator's travel is
+  the rate limit) at the opening that holds the middle of the validity's level range at its
+  middle discharge; knots where the gate does not control the level (gain below
+  :data:`GAIN_FLOOR` of the largest) are dropped. Its seiche is left out.
+* **Operating point**: the middle of the validity's discharge range and the FOPDT's
+  ``opening_ref_mm`` (for a physical model, the opening of its linearisation).
+* **Sample period** ``Ts``: the records' (``validity.sample_period_s``, or the ARX's); a file
+  written before it was recorded keeps the controllers' historical 1.2 s.
+* **Limits**: the validity's opening range; the gate's loaded speed at the operating depth
+  where the model knows its actuator (physical or envelope parameters), else no rate limit
+  (the whole range in one sample); the MPC's level band is the validity's level range, else
+  the levels the schedule reaches over the opening range.
+* **MPC horizon**: it covers the 2 % settling time ``4 T_max + L_max`` of the slowest
+  knot. At ``Ts`` that takes ``n = ceil((4 T_max + L_max) / Ts)`` samples; when ``n``
+  exceeds :data:`HORIZON_MAX` the MPC samples every ``k Ts`` with ``k = ceil(n /
+  HORIZON_MAX)`` (a coarser prediction step, which the controller FMU also steps at) and
+  ``N = ceil((4 T_max + L_max) / (k Ts))``. A pool with a one-hour time constant at 10 s
+  sampling: n = 1440, k = 15, a 150 s step and N = 96.
+* **MPC weights**: the level error's 1/mm²; a gate move's ``(K/4)²``, so that a move of one
+  mm costs what a level error of a quarter of its steady effect costs (the ratio the
+  controllers were first tuned with: 10 at 12.5 mm/mm); the envelope's move-weight
+  reference gain is the operating point's ``|K|``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from gatetwin.errors import ExportError
+from gatetwin.modelfile import ModelFile, validity_envelope
+from gatetwin.plant import physical_kernel as kernel
+from gatetwin.plant.model import (
+    ArxPlant,
+    FopdtPlant,
+    PhysicalPlant,
+    Schedule,
+    local_fopdt,
+    steady_depth_m,
+)
+
+#: Longest MPC horizon, samples (the step's cost grows about as N³; 100 is what the C MPC
+#: solves within a sample on the flume's 1.2 s).
+HORIZON_MAX = 100
+#: Shortest MPC horizon, samples.
+HORIZON_MIN = 10
+#: Settling time in time constants (2 %: e^-4 = 1.8 %).
+SETTLING_TIME_CONSTANTS = 4.0
+#: Discharge knots of a physical model's linearisation.
+LINEARISATION_KNOTS = 5
+#: Knots whose gain is below this fraction of the largest are dropped (the gate not in control).
+GAIN_FLOOR = 0.01
+#: Bisection steps of the operating opening (a range of 50 m to 0.1 micrometre).
+BISECTION_STEPS = 40
+#: Sample period of model files written before they recorded one, s.
+LEGACY_SAMPLE_PERIOD_S = 1.2
+
+
+def controller_plant(model: ModelFile) -> FopdtPlant:
+    """The FOPDT a controller is tuned on: the model's, or a physical model's linearisation."""
+    plant = model.plant
+    if isinstance(plant, FopdtPlant):
+        return plant
+    if not isinstance(plant, PhysicalPlant):
+        raise ExportError(f"controllers are tuned on an FOPDT or a physical model; got a "
+                          f"{plant.kind} model")  # fmt: skip
+    box = validity_envelope(model.content)
+    q_lo, q_hi = box.get("flow_m3h", plant.schedule.flow_range_m3h)
+    e_lo, e_hi = box.get("opening_mm") or _no_range(model, "opening_range_mm")
+    h_lo, h_hi = box.get("level_mm") or _no_range(model, "level_range_mm")
+    opening = _opening_for(plant, 0.5 * (q_lo + q_hi), 0.5 * (h_lo + h_hi), (e_lo, e_hi))
+    flows = np.linspace(q_lo, q_hi, LINEARISATION_KNOTS) if q_hi > q_lo else np.array([q_lo])
+    rows = [local_fopdt(plant, float(q), opening) for q in flows]
+    # where the gate passes the flow at the critical-flow cap (lifted clear of the water) the
+    # level does not answer the opening: no knot there
+    biggest = max(abs(r["gain_mm_per_mm"]) for r in rows)
+    keep = [i for i, r in enumerate(rows) if abs(r["gain_mm_per_mm"]) > GAIN_FLOOR * biggest]
+    if not keep:
+        raise ExportError(f"{model.name}: the level does not answer the opening anywhere in the "
+                          "validity range; no controller can be tuned")  # fmt: skip
+    flows, rows = flows[keep], [rows[i] for i in keep]
+    values = {
+        "gain_mm_per_mm": tuple(r["gain_mm_per_mm"] for r in rows),
+        "time_constant_s": tuple(r["time_constant_s"] for r in rows),
+        "dead_time_s": tuple(0.0 for _ in rows),
+        "level_ref_mm": tuple(r["level_mm"] for r in rows),
+    }
+    return FopdtPlant(plant.gauge, opening, Schedule(tuple(float(q) for q in flows), values))
+
+
+def _opening_for(plant: PhysicalPlant, flow_m3h: float, level_mm: float,
+                 opening_range_mm: tuple[float, float]) -> float:  # fmt: skip
+    """The opening holding ``level_mm`` at ``flow_m3h`` (the steady level falls as the gate
+    opens: bisection), clamped to the range, mm."""
+    lo, hi = opening_range_mm
+    for _ in range(BISECTION_STEPS):
+        mid = 0.5 * (lo + hi)
+        if plant.steady_level_mm(mid, flow_m3h) > level_mm:
+            lo = mid
+        else:
+            hi = mid
+    return round(0.5 * (lo + hi), 3)
+
+
+def _no_range(model: ModelFile, key: str) -> Any:
+    raise ExportError(f"{model.name}: the model file states no validity {key}; a controller "
+                      "needs the opening range it may use")  # fmt: skip
+
+
+def sample_period_s(model: ModelFile) -> float:
+    """The records' sample period the model file states (see the module docstring), s."""
+    if isinstance(model.plant, ArxPlant):
+        return float(model.plant.sample_period_s)
+    value = model.content.get("validity", {}).get("sample_period_s")
+    return float(value) if value is not None else LEGACY_SAMPLE_PERIOD_S
+
+
+def _kernel_parameters(model: ModelFile) -> list[float] | None:
+    plant = model.plant
+    if isinstance(plant, PhysicalPlant):
+        return plant.vector
+    envelope = getattr(plant, "envelope", None)
+    return list(envelope.values()) if envelope else None
+
+
+def opening_rate_mm_s(model: ModelFile, opening_mm: float, flow_m3h: float,
+                      opening_range_mm: tuple[float, float], ts: float) -> float:  # fmt: skip
+    """The gate's loaded speed at the operating point, else the whole range per sample."""
+    p = _kernel_parameters(model)
+    if p is None:
+        return (opening_range_mm[1] - opening_range_mm[0]) / ts
+    depth = steady_depth_m(opening_mm, flow_m3h, p)
+    return float(kernel.actuator_speed_mm_s(depth, p))
+
+
+def horizon(plant: FopdtPlant, ts: float) -> tuple[int, float]:
+    """MPC horizon (samples) and prediction step (s) covering the settling time."""
+    settling = (SETTLING_TIME_CONSTANTS * max(plant.schedule.values["time_constant_s"])
+                + plant.max_dead_time_s)  # fmt: skip
+    n = math.ceil(settling / ts)
+    k = max(1, math.ceil(n / HORIZON_MAX))
+    return max(HORIZON_MIN, math.ceil(settling / (k * ts))), k * ts
+
+
+def level_band_mm(model: ModelFile, plant: FopdtPlant, opening_range_mm: tuple[float, float]
+                  ) -> tuple[float, float]:  # fmt: skip
+    """The validity's level range, else the schedule's levels over the opening range."""
+    box = validity_envelope(model.content)
+    if "level_mm" in box and box["level_mm"][1] > box["level_mm"][0]:
+        return float(box["level_mm"][0]), float(box["level_mm"][1])
+    s = plant.schedule
+    levels = [
+        ref + k * (e - plant.opening_ref_mm)
+        for ref, k in zip(s.values["level_ref_mm"], s.values["gain_mm_per_mm"], strict=True)
+        for e in opening_range_mm
+    ]
+    return min(levels), max(levels)
+
+
+def derived_settings(model: ModelFile, plant: FopdtPlant) -> Any:
+    """:class:`~gatetwin.mpc.demo.DemoSettings` of ``model``'s gate (module docstring)."""
+    from gatetwin.mpc.demo import DemoSettings
+    from gatetwin.mpc.pi import PiSettings
+
+    box = validity_envelope(model.content)
+    q_lo, q_hi = box.get("flow_m3h", plant.schedule.flow_range_m3h)
+    flow = 0.5 * (q_lo + q_hi)
+    lo, hi = box.get("opening_mm") or _no_range(model, "opening_range_mm")
+    if not lo < hi:
+        raise ExportError(f"{model.name}: validity opening range [{lo}, {hi}] mm is empty")
+    opening = min(max(plant.opening_ref_mm, lo), hi)
+    ts = sample_period_s(model)
+    rate = opening_rate_mm_s(model, opening, flow, (lo, hi), ts)
+    n, step = horizon(plant, ts)
+    gain = abs(plant.schedule.at("gain_mm_per_mm", flow))
+    demo = DemoSettings()
+    mpc = replace(
+        demo.mpc, horizon=n, sample_period_s=step, opening_range_mm=(lo, hi),
+        opening_rate_mm_s=rate, level_band_mm=level_band_mm(model, plant, (lo, hi)),
+        level_weight=1.0, move_weight=max((gain / 4.0) ** 2, 1e-9),
+        move_weight_gain_mm_per_mm=max(gain, 1e-9),
+    )  # fmt: skip
+    pi = PiSettings(opening_range_mm=(lo, hi), opening_rate_mm_s=rate, sample_period_s=ts)
+    return replace(demo, flow_m3h=flow, opening_mm=opening, mpc=mpc, pi=pi)
