@@ -8,7 +8,10 @@ module of this package:
   and line-length limits);
 * :mod:`~gatetwin.records.csv`, :mod:`~gatetwin.records.csvtext`,
   :mod:`~gatetwin.records.parquet`, :mod:`~gatetwin.records.table` — files to columns;
-* :mod:`~gatetwin.records.sidecar` — the JSON sidecar;
+* :mod:`~gatetwin.records.units` — units named in column suffixes, converted to mm and
+  m³/h (:data:`UNIT_FACTORS`);
+* :mod:`~gatetwin.records.sidecar`, :mod:`~gatetwin.records.bounds` — the JSON sidecar and
+  the value ranges it may set;
 * :mod:`~gatetwin.records.checks` — value checks and physical bounds;
 * :mod:`~gatetwin.records.segments` — hold segments, steps, test type;
 * :mod:`~gatetwin.records.record`, :mod:`~gatetwin.records.static` — the frozen results;
@@ -19,11 +22,13 @@ Nothing here identifies a model.
 
 from __future__ import annotations
 
+from gatetwin.records.bounds import Bounds
 from gatetwin.records.checks import (
     FLOW_MAX_M3H,
     GAP_MAX_S,
     LEVEL_RANGE_MM,
     OPENING_MAX_MM,
+    SAMPLE_PERIOD_RANGE_S,
     TIME_ABS_MAX_S,
 )
 from gatetwin.records.columns import gauge_of_column
@@ -44,6 +49,7 @@ from gatetwin.records.segments import (
 )
 from gatetwin.records.sidecar import TEST_TYPES, VALIDATION_ROLE
 from gatetwin.records.static import StaticTable, detect_table_kind, read_static_table
+from gatetwin.records.units import FACTORS as UNIT_FACTORS
 
 __all__ = [
     "FLOW_MAX_M3H",
@@ -54,10 +60,13 @@ __all__ = [
     "PRBS_MIN_STEPS",
     "PRBS_MIN_USABLE_SAMPLES",
     "RESOLUTION_MM",
+    "SAMPLE_PERIOD_RANGE_S",
     "STEP_WINDOW_SAMPLES",
     "TEST_TYPES",
     "TIME_ABS_MAX_S",
+    "UNIT_FACTORS",
     "VALIDATION_ROLE",
+    "Bounds",
     "HoldSegment",
     "ReadLimits",
     "Record",

@@ -7,7 +7,8 @@ expected. This module knows nothing about files or segmentation.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -49,10 +50,18 @@ class Origin:
     first_line : int
         File line number of sample 0 (2 for a CSV with one header row); 0 for in-memory
         data, whose samples are then named by index (``sample 7``).
+    columns : Mapping[str, str]
+        The file's name of each column known by its internal name (``level_3F_mm`` →
+        ``level_3F_m``); messages name the file's column. Empty: names as they are.
     """
 
     name: str
     first_line: int = 0
+    columns: Mapping[str, str] = field(default_factory=dict)
+
+    def column(self, name: str) -> str:
+        """Quote column ``name`` (internal) by the name the file gave it."""
+        return column(self.columns.get(name, name))
 
     def row(self, index: int) -> str:
         """Name sample ``index`` as a file row (1-based line) or an array sample."""
@@ -85,7 +94,7 @@ def check_finite_or_missing(origin: Origin, name: str, values: np.ndarray) -> No
         i = bad[0]
         raise origin.error(
             origin.row(i),
-            column(name),
+            origin.column(name),
             f"{values[i]} is not a finite number; expected mm, s "
             "or m³/h as a plain number (empty cells are the only missing values)",
         )
@@ -95,7 +104,7 @@ def check_no_missing(origin: Origin, name: str, values: np.ndarray) -> None:
     """Refuse missing (NaN) values in a column that must be complete."""
     bad = np.flatnonzero(np.isnan(values))
     if bad.size:
-        raise origin.error(origin.row(bad[0]), column(name), "empty cell; expected a number")
+        raise origin.error(origin.row(bad[0]), origin.column(name), "empty cell; expected a number")
 
 
 def check_time(origin: Origin, time_s: np.ndarray) -> None:
@@ -108,7 +117,7 @@ def check_time(origin: Origin, time_s: np.ndarray) -> None:
     word = "duplicated time" if dt[i - 1] == 0 else "time goes backwards"
     raise origin.error(
         origin.row(i),
-        column("time_s"),
+        origin.column("time_s"),
         f"{word} ({time_s[i]:g} s after {time_s[i - 1]:g} s); expected strictly increasing times",
     )
 
@@ -119,28 +128,39 @@ def check_non_negative(origin: Origin, name: str, values: np.ndarray, unit: str)
     if bad.size:
         i = bad[0]
         raise origin.error(
-            origin.row(i), column(name), f"negative value {values[i]:g} {unit}; expected ≥ 0"
+            origin.row(i), origin.column(name), f"negative value {values[i]:g} {unit}; expected ≥ 0"
         )
 
 
-def check_level(origin: Origin, name: str, values: np.ndarray) -> None:
-    """Refuse a level column that is empty, out of range or apparently in metres."""
+def check_level(
+    origin: Origin,
+    name: str,
+    values: np.ndarray,
+    limits: tuple[float, float] = LEVEL_RANGE_MM,
+    *,
+    logged_in_mm: bool = True,
+) -> None:
+    """Refuse a level column that is empty, outside ``limits`` (mm) or apparently in metres.
+
+    ``values`` are in mm; the metres test applies only to a column the file says is in
+    mm (``logged_in_mm``).
+    """
     finite = values[np.isfinite(values)]
     if not finite.size:
-        raise origin.error(column(name), "no values; expected upstream levels in mm")
-    low, high = LEVEL_RANGE_MM
+        raise origin.error(origin.column(name), "no values; expected upstream levels in mm")
+    low, high = limits
     bad = np.flatnonzero((values < low) | (values > high))
     if bad.size:
         i = bad[0]
         raise origin.error(
             origin.row(i),
-            column(name),
+            origin.column(name),
             f"level {values[i]:g} mm outside the physical range {low:g}..{high:g} mm",
         )
     top = float(finite.max())
-    if top < METRES_SUSPECT_BELOW and top > float(finite.min()):
+    if logged_in_mm and top < METRES_SUSPECT_BELOW and top > float(finite.min()):
         raise origin.error(
-            column(name),
+            origin.column(name),
             f"every value is below {METRES_SUSPECT_BELOW:g} (largest {top:g}): looks like "
             "metres; expected mm",
         )
@@ -150,7 +170,7 @@ def check_hold_words(origin: Origin, hold: np.ndarray) -> None:
     """Refuse a record without a single ``hold`` sample."""
     if not np.any(hold):
         raise origin.error(
-            column("state"),
+            origin.column("state"),
             "no 'hold' samples (the actuator never stands still); expected hold segments "
             "at a constant opening",
         )
@@ -181,7 +201,7 @@ def hold_from_codes(origin: Origin, vocabulary: tuple[str, ...], codes: np.ndarr
             word = vocabulary[int(codes[i])].strip()
             found = f"unknown state {quote(word)}" if word else "empty cell"
             raise origin.error(
-                origin.row(i), column("state"), f"{found}; expected 'hold' or 'open'"
+                origin.row(i), origin.column("state"), f"{found}; expected 'hold' or 'open'"
             )
     return is_hold[codes]
 
@@ -190,11 +210,35 @@ def check_bounds(origin: Origin, name: str, values: np.ndarray, limit: float, un
     """Refuse magnitudes above ``limit`` (missing values pass)."""
     bad = np.flatnonzero(np.abs(values) > limit)
     if bad.size:
+        raise _beyond(origin, name, values, int(bad[0]), limit, unit)
+
+
+def _beyond(
+    origin: Origin, name: str, values: np.ndarray, i: int, limit: float, unit: str
+) -> RecordError:
+    return origin.error(
+        origin.row(i), origin.column(name),
+        f"{values[i]:g} {unit} is beyond the physical bound of {limit:g} {unit}; "
+        "expected a value in the record's units",
+    )  # fmt: skip
+
+
+def check_range(
+    origin: Origin, name: str, values: np.ndarray, limits: tuple[float, float], unit: str
+) -> None:
+    """Refuse values outside ``limits`` (missing values pass); the message for a value
+    above is that of :func:`check_bounds`."""
+    low, high = limits
+    above = np.flatnonzero(values > high)
+    if above.size:
+        raise _beyond(origin, name, values, int(above[0]), high, unit)
+    bad = np.flatnonzero(values < low)
+    if bad.size:
         i = bad[0]
         raise origin.error(
-            origin.row(i), column(name),
-            f"{values[i]:g} {unit} is beyond the physical bound of {limit:g} {unit}; "
-            "expected a value in the record's units",
+            origin.row(i), origin.column(name),
+            f"{values[i]:g} {unit} is below the bound of {low:g} {unit}; expected a value in "
+            "the record's units (or 'bounds' in the sidecar)",
         )  # fmt: skip
 
 
@@ -204,7 +248,7 @@ def check_gaps(origin: Origin, time_s: np.ndarray, max_gap_s: float = GAP_MAX_S)
     if bad.size:
         i = int(bad[0]) + 1
         raise origin.error(
-            origin.row(i), column("time_s"),
+            origin.row(i), origin.column("time_s"),
             f"gap of {time_s[i] - time_s[i - 1]:g} s after {time_s[i - 1]:g} s, longer than "
             f"{max_gap_s:g} s; expected a continuous log (split it into records at the gap)",
         )  # fmt: skip

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +27,7 @@ from gatetwin.records.columns import (
     arrow_columns,
     gauge_names,
     is_record_column,
-    require_record_columns,
+    record_table,
 )
 from gatetwin.records.limits import ReadLimits
 from gatetwin.records.parquet import PARQUET_SUFFIXES
@@ -43,7 +43,8 @@ class Chunk:
     """Consecutive rows of a history: raw columns, ``hold`` from ``state``.
 
     ``opening_mm`` is as logged (empty hold openings are still NaN); ``first_row`` is the
-    global row number (from 0) of the chunk's first row.
+    global row number (from 0) of the chunk's first row. Columns are converted to mm and
+    m³/h from the units their names carry, file by file.
     """
 
     first_row: int
@@ -118,12 +119,13 @@ def _parquet_chunks(path: Path, rows: int, first_row: int) -> Iterator[Chunk]:
     try:
         parquet = pq.ParquetFile(path)
         header = tuple(parquet.schema_arrow.names)
+        full = tuple(c.strip() for c in header)
         kept = [c for c in header if is_record_column(c.strip())]
         batches = parquet.iter_batches(batch_size=rows, columns=kept)
         for batch in batches:
             table = arrow_columns(name, pa.Table.from_batches([batch]), keep=is_record_column,
                                   text_columns=("state",), first_row=first_row + 1)  # fmt: skip
-            require_record_columns(name, table.header, tuple(table.columns))
+            table = record_table(replace(table, header=full))  # units named by every column
             yield _chunk(Origin(name, first_line=first_row + 1), table, first_row)
             first_row += table.n_rows
     except RecordError:
@@ -148,7 +150,7 @@ def iter_chunks(history: History, rows: int,
                 yield chunk
             continue
         table = read_table(path, keep=is_record_column, text_columns=("state",), limits=limits)
-        require_record_columns(table.path, table.header, tuple(table.columns))
+        table = record_table(table)
         chunk = _chunk(Origin(table.path, first_line=table.first_line), table, first_row)
         first_row += chunk.n_rows
         yield chunk
@@ -178,10 +180,11 @@ def history_sample_period(history: History, rows: int) -> float:
     low, high = _ranked(ordered, (total - 1) // 2), _ranked(ordered, total // 2)
     median_s = float(np.mean([low, high]))
     given = history.sidecar.sample_period_s
+    limits = history.sidecar.bounds.sample_period_s
     if given is None:
-        checks.check_sample_period(history.path, median_s, "the median time step")
+        checks.check_sample_period(history.path, median_s, "the median time step", limits)
         return median_s
-    checks.check_sample_period(history.path, given, "sidecar field 'sample_period_s'")
+    checks.check_sample_period(history.path, given, "sidecar field 'sample_period_s'", limits)
     if median_s > segments.GAP_FACTOR * given:
         raise RecordError(
             f"{history.path}: sample period {given:g} s (sidecar field 'sample_period_s') but "

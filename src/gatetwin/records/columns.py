@@ -10,19 +10,23 @@ module does not open files and does not check values.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from gatetwin.errors import RecordError
-from gatetwin.records.checks import QUOTE_CHARS, column
+from gatetwin.records.checks import QUOTE_CHARS, Origin, column
+from gatetwin.records.units import HeaderUnits, parse_column, to_internal
 
 if TYPE_CHECKING:
     import pyarrow as pa
 
-#: The columns every time-series record has besides its level columns.
+#: The columns every time-series record has besides its level columns (internal names:
+#: ``opening_<unit>`` and ``flow_<unit>`` in any unit of :mod:`gatetwin.records.units`).
 REQUIRED = ("time_s", "opening_mm", "state", "flow_m3h")
+#: What a missing-column message says the units may be.
+_UNIT_HINT = "(openings and levels in mm, cm or m; flow in m3h, m3s or ls)"
 
 
 @dataclass(frozen=True)
@@ -79,6 +83,8 @@ class TableColumns:
     first_line : int
         File line of the first data row (2 for CSV); Parquet and DataFrame rows are
         counted from 1.
+    units : HeaderUnits
+        The unit columns as the file named them (empty until :meth:`in_internal_units`).
     """
 
     path: str
@@ -86,6 +92,22 @@ class TableColumns:
     columns: dict[str, np.ndarray | Words]
     sha256: str
     first_line: int = 2
+    units: HeaderUnits = field(default_factory=HeaderUnits)
+
+    def in_internal_units(self) -> TableColumns:
+        """The table with its unit columns renamed and scaled to mm and m³/h.
+
+        Raises
+        ------
+        RecordError
+            For two columns of one quantity or a level column in an unknown unit.
+        """
+        header, columns, units = to_internal(self.path, self.header, self.columns)
+        return replace(self, header=header, columns=columns, units=units)
+
+    def origin(self) -> Origin:
+        """Where the columns came from, naming them as the file does."""
+        return Origin(self.path, first_line=self.first_line, columns=self.units.names())
 
     @property
     def n_rows(self) -> int:
@@ -125,45 +147,72 @@ def gauge_names(header: Sequence[str]) -> list[str]:
 
 
 def is_record_column(name: str) -> bool:
-    """Whether a time-series record reader keeps column ``name``."""
-    return name in REQUIRED or gauge_of_column(name) is not None
+    """Whether a time-series record reader keeps column ``name`` (in any unit)."""
+    if name in ("time_s", "state"):
+        return True
+    parsed = parse_column(name)
+    return parsed is not None and parsed.known and parsed.quantity != "level_sd"
 
 
 def is_static_column(name: str) -> bool:
-    """Whether a rating-table reader keeps column ``name``."""
-    if name in ("flow_m3h", "opening_mm") or gauge_of_column(name) is not None:
-        return True
-    return name.startswith("level_") and name.endswith("_sd_mm")
+    """Whether a rating-table reader keeps column ``name`` (in any unit)."""
+    parsed = parse_column(name)
+    return parsed is not None and parsed.known
 
 
-def require_record_columns(path: str, header: Sequence[str], present: Sequence[str]) -> None:
-    """Refuse a record header without the required and at least one level column."""
+def require_record_columns(
+    path: str, header: Sequence[str], present: Sequence[str], listed: Sequence[str] = ()
+) -> None:
+    """Refuse a record header without the required and at least one level column.
+
+    ``header`` and ``present`` are internal names; ``listed``, if given, is the header as
+    the file has it, for the message.
+    """
     for name in REQUIRED:
         if name not in present:
             raise RecordError(
                 f"{path}: column '{name}': missing; expected columns time_s, "
-                f"opening_mm, state, flow_m3h and level_<G>_mm (found {_listing(header)})"
+                f"opening_mm, state, flow_m3h and level_<G>_mm {_UNIT_HINT} "
+                f"(found {_listing(listed or header)})"
             )
     if not gauge_names(header):
         raise RecordError(
             f"{path}: column 'level_<G>_mm': missing; expected at least one level "
-            f"column such as level_3F_mm (found {_listing(header)})"
+            f"column such as level_3F_mm or level_3F_m (found {_listing(listed or header)})"
         )
 
 
-def require_static_columns(path: str, header: Sequence[str], present: Sequence[str]) -> None:
-    """Refuse a rating-table header without flow, opening and a level column."""
+def require_static_columns(
+    path: str, header: Sequence[str], present: Sequence[str], listed: Sequence[str] = ()
+) -> None:
+    """Refuse a rating-table header without flow, opening and a level column (arguments
+    as :func:`require_record_columns`)."""
     for name in ("flow_m3h", "opening_mm"):
         if name not in present:
             raise RecordError(
                 f"{path}: column '{name}': missing; expected a rating table with "
-                f"columns flow_m3h, opening_mm and level_<G>_mm (found {_listing(header)})"
+                f"columns flow_m3h, opening_mm and level_<G>_mm {_UNIT_HINT} "
+                f"(found {_listing(listed or header)})"
             )
     if not gauge_names(header):
         raise RecordError(
             f"{path}: column 'level_<G>_mm': missing; expected at least one level "
-            f"column such as level_3F_mm (found {_listing(header)})"
+            f"column such as level_3F_mm or level_3F_m (found {_listing(listed or header)})"
         )
+
+
+def record_table(table: TableColumns) -> TableColumns:
+    """``table`` in internal names and units, refused without a record's columns."""
+    internal = table.in_internal_units()
+    require_record_columns(table.path, internal.header, tuple(internal.columns), table.header)
+    return internal
+
+
+def static_table(table: TableColumns) -> TableColumns:
+    """``table`` in internal names and units, refused without a rating table's columns."""
+    internal = table.in_internal_units()
+    require_static_columns(table.path, internal.header, tuple(internal.columns), table.header)
+    return internal
 
 
 def _listing(header: Sequence[str]) -> str:

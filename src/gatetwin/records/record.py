@@ -20,13 +20,14 @@ import numpy as np
 
 from gatetwin.errors import RecordError
 from gatetwin.records import checks, segments
-from gatetwin.records.checks import FLOW_MAX_M3H, OPENING_MAX_MM, TIME_ABS_MAX_S, Origin
+from gatetwin.records.bounds import Bounds
+from gatetwin.records.checks import TIME_ABS_MAX_S, Origin
 from gatetwin.records.columns import (
     TableColumns,
     frozen,
     gauge_names,
     is_record_column,
-    require_record_columns,
+    record_table,
     value_range,
 )
 from gatetwin.records.frame import frame_columns, import_pandas, is_frame
@@ -34,6 +35,7 @@ from gatetwin.records.limits import ReadLimits
 from gatetwin.records.segments import HoldSegment, StepOnset
 from gatetwin.records.sidecar import Sidecar, read_sidecar, sidecar_from_dict
 from gatetwin.records.table import read_table
+from gatetwin.records.units import INTERNAL_UNITS, HeaderUnits
 
 
 @dataclass(frozen=True)
@@ -80,6 +82,12 @@ class Record:
     unobserved_steps : int
         Opening changes between hold segments that fall inside a logging gap (onset
         unknown, so not in ``steps``).
+    units : dict
+        The units the record came in, e.g. ``{"opening": "m", "flow": "m3s", "level":
+        "m", "levels": {"3F": "m"}}`` (``"level"`` is ``"mixed"`` if the gauges differ);
+        the arrays are in mm and m³/h whatever these say.
+    gate_width_m : float or None
+        Width of the gate, m (sidecar ``gate_width_m``), where known.
     """
 
     path: str
@@ -98,6 +106,8 @@ class Record:
     sha256: str = ""
     opening_filled: np.ndarray | None = None
     unobserved_steps: int = 0
+    units: dict[str, Any] = field(default_factory=lambda: dict(INTERNAL_UNITS))
+    gate_width_m: float | None = None
 
     @property
     def n_samples(self) -> int:
@@ -153,7 +163,9 @@ class Record:
         ----------
         frame : pandas.DataFrame
             Columns ``time_s``, ``opening_mm``, ``state``, ``flow_m3h`` and one or more
-            ``level_<G>_mm`` (numbers; NaN or None for missing values); others ignored.
+            ``level_<G>_mm`` (numbers; NaN or None for missing values), or the same in other
+            units (``opening_m``, ``flow_m3s``, ``level_<G>_cm``, ...; see
+            :mod:`gatetwin.records.units`); others ignored.
         sample_period_s : float, optional
             Nominal sample period, s; else ``metadata["sample_period_s"]``, else the
             median time step.
@@ -189,6 +201,16 @@ class _Columns:
     hold: np.ndarray
     flow_m3h: np.ndarray
     levels_mm: dict[str, np.ndarray]
+    sources: HeaderUnits = field(default_factory=HeaderUnits)
+
+    def in_mm(self, gauge: str) -> bool:
+        """Whether the file logged ``gauge``'s level in mm."""
+        found = self.sources.columns.get(f"level_{gauge}_mm")
+        return found is None or found.unit == "mm"
+
+    def units(self) -> dict[str, Any]:
+        """The units the columns came in (internal units for arrays)."""
+        return self.sources.filled(list(self.levels_mm))
 
 
 # --------------------------------------------------------------------------- public API
@@ -206,8 +228,10 @@ def read_record(
     ----------
     path : str, os.PathLike or pandas.DataFrame
         The record's CSV file (Parquet if it ends in ``.parquet`` or ``.pq``); a sidecar
-        ``NAME.json`` next to it is read if present. A DataFrame is taken as
-        :meth:`Record.from_pandas` takes it.
+        ``NAME.json`` next to it is read if present. Columns may carry any unit of
+        :mod:`gatetwin.records.units` (``opening_m``, ``flow_m3s``, ``level_3F_cm``);
+        the record holds mm and m³/h and says in ``units`` what the file had. A
+        DataFrame is taken as :meth:`Record.from_pandas` takes it.
     test : {"step", "prbs", "free", "routine"}, optional
         Test type from the command line; overrides the sidecar and detection.
     limits : ReadLimits, optional
@@ -237,9 +261,10 @@ def read_record(
       segment.
     * Test type: ``test`` argument, else sidecar, else detected (no step: ``free``; 1–3
       steps between holds of ≥ 40 samples: ``step``; ≥ 4 steps: ``prbs``; else ``free``).
-    * Values beyond physics are refused: ``|time_s|`` above 1e10 s, a time step above
-      one day (``GAP_MAX_S``), a sample period outside 1e-3..3600 s, an opening above
-      1e5 mm, a flow above 3.6e8 m³/h (1e5 m³/s), a level outside -1000..1e5 mm.
+    * Values beyond physics are refused unless the sidecar's ``bounds`` allow them:
+      ``|time_s|`` above 1e10 s, a time step above one day (``GAP_MAX_S``), a sample
+      period outside 1e-3..3600 s, an opening above 1e5 mm, a flow above 3.6e8 m³/h
+      (1e5 m³/s), a level outside -1000..1e5 mm.
     * A ``step`` record needs ≥ 40 valid (finite-level) hold samples at every gauge
       before and after its first step; a ``prbs`` record ≥ 2 steps and ≥ 30 usable hold
       samples at every gauge (the first 2 of each hold segment are not usable).
@@ -312,8 +337,8 @@ def record_from_arrays(
 
 
 def _record_from_table(table: TableColumns, sidecar: Sidecar, test: str | None) -> Record:
-    require_record_columns(table.path, table.header, tuple(table.columns))
-    origin = Origin(table.path, first_line=table.first_line)
+    table = record_table(table)
+    origin = table.origin()
     columns = _record_columns(origin, table)
     return _build_record(origin, columns, sidecar, test, table.sha256, table.path)
 
@@ -326,6 +351,7 @@ def _record_columns(origin: Origin, table: TableColumns) -> _Columns:
         hold=checks.hold_from_codes(origin, state.vocabulary, state.codes),
         flow_m3h=table.floats("flow_m3h"),
         levels_mm={g: table.floats(f"level_{g}_mm") for g in gauge_names(table.header)},
+        sources=table.units,
     )
 
 
@@ -370,8 +396,8 @@ def _float_array(origin: Origin, name: str, values: Any) -> np.ndarray:
 def _build_record(
     origin: Origin, cols: _Columns, sidecar: Sidecar, test: str | None, sha256: str, path: str
 ) -> Record:
-    _check_values(origin, cols)
-    period = _sample_period(origin, cols.time_s, sidecar.sample_period_s)
+    _check_values(origin, cols, sidecar.bounds)
+    period = _sample_period(origin, cols.time_s, sidecar)
     seg = segments.segment_holds(origin, cols.time_s, cols.opening_mm, cols.hold, period)
     holds = tuple(
         HoldSegment(int(a), int(b), float(e))
@@ -400,6 +426,8 @@ def _build_record(
         sha256=sha256,
         opening_filled=frozen(seg.filled),
         unobserved_steps=unobserved,
+        units=cols.units(),
+        gate_width_m=sidecar.gate_width_m,
     )
     segments.check_method(origin, segments.Segmented(
         record.test, record.test_source, record.holds, record.steps, record.unobserved_steps,
@@ -408,13 +436,14 @@ def _build_record(
     return record
 
 
-def _sample_period(origin: Origin, time_s: np.ndarray, given_s: float | None) -> float:
-    """The nominal sample period: as given, else the median time step."""
+def _sample_period(origin: Origin, time_s: np.ndarray, sidecar: Sidecar) -> float:
+    """The nominal sample period: the sidecar's, else the median time step."""
     median_s = float(np.median(np.diff(time_s)))
+    given_s, limits = sidecar.sample_period_s, sidecar.bounds.sample_period_s
     if given_s is None:
-        checks.check_sample_period(origin.name, median_s, "the median time step")
+        checks.check_sample_period(origin.name, median_s, "the median time step", limits)
         return median_s
-    checks.check_sample_period(origin.name, given_s, "sidecar field 'sample_period_s'")
+    checks.check_sample_period(origin.name, given_s, "sidecar field 'sample_period_s'", limits)
     if median_s > segments.GAP_FACTOR * given_s:
         raise origin.error(
             f"sample period {given_s:g} s (sidecar field 'sample_period_s') but the median "
@@ -423,21 +452,24 @@ def _sample_period(origin: Origin, time_s: np.ndarray, given_s: float | None) ->
     return given_s
 
 
-def _check_values(origin: Origin, cols: _Columns) -> None:
+def _check_values(origin: Origin, cols: _Columns, bounds: Bounds) -> None:
+    """Check the values (in mm and m³/h) against ``bounds``; ``origin`` names the columns
+    as the file does."""
     n = cols.time_s.size
     if n < 2:
         raise origin.error(f"{n} sample(s); expected at least 2")
     checks.check_no_missing(origin, "time_s", cols.time_s)
     checks.check_bounds(origin, "time_s", cols.time_s, TIME_ABS_MAX_S, "s")
     checks.check_time(origin, cols.time_s)
-    checks.check_gaps(origin, cols.time_s)
+    checks.check_gaps(origin, cols.time_s, bounds.gap_max_s)
     checks.check_no_missing(origin, "flow_m3h", cols.flow_m3h)
     checks.check_non_negative(origin, "flow_m3h", cols.flow_m3h, "m³/h")
-    checks.check_bounds(origin, "flow_m3h", cols.flow_m3h, FLOW_MAX_M3H, "m³/h")
+    checks.check_range(origin, "flow_m3h", cols.flow_m3h, bounds.flow_m3h, "m³/h")
     checks.check_non_negative(origin, "opening_mm", cols.opening_mm, "mm")
-    checks.check_bounds(origin, "opening_mm", cols.opening_mm, OPENING_MAX_MM, "mm")
+    checks.check_range(origin, "opening_mm", cols.opening_mm, bounds.opening_mm, "mm")
     for gauge, values in cols.levels_mm.items():
-        checks.check_level(origin, f"level_{gauge}_mm", values)
+        checks.check_level(origin, f"level_{gauge}_mm", values, bounds.level_mm,
+                           logged_in_mm=cols.in_mm(gauge))  # fmt: skip
     checks.check_hold_words(origin, cols.hold)
 
 
@@ -478,6 +510,8 @@ def _record_summary(record: Record) -> dict[str, Any]:
             for s in record.steps
         ],
         "unobserved_steps": record.unobserved_steps,
+        "units": record.units,
+        "gate_width_m": record.gate_width_m,
         "metadata": record.metadata,
     }
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gatetwin.records.checks import Origin, column
+from gatetwin.records.checks import Origin
 from gatetwin.records.sidecar import TEST_TYPES
 
 #: Actuator position resolution, mm: smaller opening differences are not steps.
@@ -178,7 +178,7 @@ def segment_holds(
         k = empty[0]
         raise origin.error(
             f"{origin.row(starts[k])} to {origin.row(stops[k] - 1)}",
-            column("opening_mm"),
+            origin.column("opening_mm"),
             "hold samples without any opening value; expected the opening of the held gate",
         )
     opening = np.array(opening_mm, dtype=np.float64, copy=True)
@@ -316,7 +316,7 @@ def _check_step_test(origin: Origin, record: Segmented) -> None:
             else ""
         )
         raise origin.error(
-            column("opening_mm"),
+            origin.column("opening_mm"),
             f"{_test_words(record)} but no step: hold openings {shown} mm{hidden}; expected "
             f"an opening change of ≥ {RESOLUTION_MM:g} mm between two hold segments",
         )
@@ -338,7 +338,7 @@ def _check_prbs_test(origin: Origin, record: Segmented) -> None:
     if n_steps >= PRBS_MIN_STEPS and usable >= PRBS_MIN_USABLE_SAMPLES:
         return
     raise origin.error(
-        column("opening_mm"),
+        origin.column("opening_mm"),
         f"{_test_words(record)} needs ≥ {PRBS_MIN_STEPS} steps and ≥ "
         f"{PRBS_MIN_USABLE_SAMPLES} usable hold samples; found {n_steps} step(s) and "
         f"{usable} usable samples at gauge {gauge} (the first {PRBS_DROPPED_PER_SEGMENT} "

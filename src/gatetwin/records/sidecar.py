@@ -1,7 +1,8 @@
 """The optional JSON sidecar of a record (``NAME.json`` next to ``NAME.csv``).
 
 Reads and checks the sidecar fields of ``docs/record_format.md`` (``test``, ``sample_period_s``,
-``gauges``; ``condition`` and anything else are kept as metadata). A bad sidecar is
+``gauges``, ``gate_width_m``, ``bounds``; ``condition`` and anything else are kept as
+metadata). A bad sidecar is
 refused with a one-line :class:`~gatetwin.errors.RecordError` naming the sidecar file and
 field. This module does not read the CSV.
 """
@@ -16,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from gatetwin.errors import RecordError
+from gatetwin.records.bounds import Bounds, bounds_from_sidecar
 from gatetwin.records.limits import MAX_SIDECAR_BYTES, open_regular
 
 #: The test types of the data format.
@@ -40,12 +42,18 @@ class Sidecar:
         Gauge distance upstream of the gate, m.
     metadata : dict
         The whole sidecar object as read.
+    gate_width_m : float or None
+        Width of the gate opening (the sluice's clear span), m.
+    bounds : Bounds
+        Accepted value ranges (``bounds`` field, else the physical defaults).
     """
 
     test: str | None = None
     sample_period_s: float | None = None
     gauges_m: dict[str, float] = field(default_factory=dict)
     metadata: dict[str, Any] = field(default_factory=dict)
+    gate_width_m: float | None = None
+    bounds: Bounds = field(default_factory=Bounds)
 
 
 def sidecar_path(csv_path: str | Path) -> Path:
@@ -99,6 +107,8 @@ def sidecar_from_dict(name: str, data: Any) -> Sidecar:
         sample_period_s=_period(name, data.get("sample_period_s")),
         gauges_m=_gauges(name, data.get("gauges")),
         metadata=dict(data),
+        gate_width_m=_width(name, data.get("gate_width_m")),
+        bounds=bounds_from_sidecar(name, data.get("bounds")),
     )
 
 
@@ -122,6 +132,17 @@ def _period(name: str, value: Any) -> float | None:
         return float(value)
     raise RecordError(
         f"{name}: sidecar field 'sample_period_s': {value!r}; expected a positive number of seconds"
+    )
+
+
+def _width(name: str, value: Any) -> float | None:
+    if value is None:
+        return None
+    if _is_number(value) and math.isfinite(value) and value > 0:
+        return float(value)
+    raise RecordError(
+        f"{name}: sidecar field 'gate_width_m': {value!r}; expected a positive, finite width "
+        "of the gate in metres"
     )
 
 

@@ -7,23 +7,24 @@ This module does not fit the rating; :mod:`gatetwin.identify.rating` does.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from gatetwin.records import checks
-from gatetwin.records.checks import FLOW_MAX_M3H, OPENING_MAX_MM, Origin
+from gatetwin.records.checks import FLOW_MAX_M3H, OPENING_MAX_MM
 from gatetwin.records.columns import (
     frozen,
     gauge_names,
     is_static_column,
-    require_static_columns,
+    static_table,
     value_range,
 )
 from gatetwin.records.limits import ReadLimits
 from gatetwin.records.table import read_header, read_table
+from gatetwin.records.units import INTERNAL_UNITS, parse_column
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,8 @@ class StaticTable:
         File the table was read from.
     sha256 : str
         Hash of the file's bytes.
+    units : dict
+        The units the file came in (as :attr:`Record.units`); arrays are in mm and m³/h.
     """
 
     flow_m3h: np.ndarray
@@ -53,6 +56,7 @@ class StaticTable:
     level_sd_mm: dict[str, np.ndarray]
     path: str = ""
     sha256: str = ""
+    units: dict[str, Any] = field(default_factory=lambda: dict(INTERNAL_UNITS))
 
     @property
     def n_points(self) -> int:
@@ -74,7 +78,9 @@ def read_static_table(path: str | Path, *, limits: ReadLimits | None = None) -> 
     ----------
     path : str or Path
         CSV (or Parquet) with ``flow_m3h``, ``opening_mm``, one or more ``level_<G>_mm``
-        and optional ``level_<G>_sd_mm`` columns, one row per steady operating point.
+        and optional ``level_<G>_sd_mm`` columns, one row per steady operating point, in
+        these or any other units of :mod:`gatetwin.records.units` (``flow_m3s``,
+        ``opening_m``, ``level_<G>_cm``, ...).
     limits : ReadLimits, optional
         File size and line length limits; default from the environment.
 
@@ -84,9 +90,8 @@ def read_static_table(path: str | Path, *, limits: ReadLimits | None = None) -> 
         With a one-line message naming the file, row or column, as
         :func:`~gatetwin.records.read_record`.
     """
-    table = read_table(path, keep=is_static_column, text_columns=(), limits=limits)
-    origin = Origin(table.path, first_line=table.first_line)
-    require_static_columns(table.path, table.header, tuple(table.columns))
+    table = static_table(read_table(path, keep=is_static_column, text_columns=(), limits=limits))
+    origin = table.origin()
     flow = table.floats("flow_m3h")
     opening = table.floats("opening_mm")
     for name, values, unit, top in (("flow_m3h", flow, "m³/h", FLOW_MAX_M3H),
@@ -96,7 +101,8 @@ def read_static_table(path: str | Path, *, limits: ReadLimits | None = None) -> 
         checks.check_bounds(origin, name, values, top, unit)
     levels = {g: table.floats(f"level_{g}_mm") for g in gauge_names(table.header)}
     for gauge, values in levels.items():
-        checks.check_level(origin, f"level_{gauge}_mm", values)
+        in_mm = origin.columns.get(f"level_{gauge}_mm", "").endswith("_mm")
+        checks.check_level(origin, f"level_{gauge}_mm", values, logged_in_mm=in_mm)
     sds = {
         g: table.floats(f"level_{g}_sd_mm") for g in levels if f"level_{g}_sd_mm" in table.columns
     }
@@ -110,6 +116,7 @@ def read_static_table(path: str | Path, *, limits: ReadLimits | None = None) -> 
         level_sd_mm={g: frozen(v) for g, v in sds.items()},
         path=table.path,
         sha256=table.sha256,
+        units=table.units.filled(list(levels)),
     )
 
 
@@ -121,10 +128,10 @@ def detect_table_kind(path: str | Path, *, limits: ReadLimits | None = None) -> 
     :func:`~gatetwin.records.read_record` reports what is wrong with it.
     """
     header = read_header(path, limits)
-    names = set(header)
-    if "time_s" in names or not {"flow_m3h", "opening_mm"} <= names:
+    found = {p.quantity for p in map(parse_column, header) if p is not None and p.known}
+    if "time_s" in header or not {"flow", "opening", "level"} <= found:
         return "record"
-    return "static" if gauge_names(header) else "record"
+    return "static"
 
 
 def _static_summary(table: StaticTable) -> dict[str, Any]:
@@ -134,6 +141,7 @@ def _static_summary(table: StaticTable) -> dict[str, Any]:
         "path": table.path,
         "sha256": table.sha256,
         "n_points": table.n_points,
+        "units": table.units,
         "flow_m3h": value_range(table.flow_m3h),
         "opening_mm": value_range(table.opening_mm),
         "gauges": [

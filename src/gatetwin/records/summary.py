@@ -24,6 +24,19 @@ def _fmt_gauges(gauges: list[dict[str, Any]]) -> str:
     return ", ".join(parts)
 
 
+def _units_line(units: dict[str, Any] | None) -> list[str]:
+    """A ``units`` line when the file was not in mm and m³/h throughout (else none)."""
+    if not units:
+        return []
+    levels = units.get("levels") or {}
+    shown = {"opening": units.get("opening"), "flow": units.get("flow")}
+    shown.update({f"level {g}": u for g, u in levels.items()})
+    if all(u in ("mm", "m3h", None) for u in shown.values()):
+        return []
+    text = ", ".join(f"{k} {u}" for k, u in shown.items() if u is not None)
+    return [f"units    {text} (read as mm and m³/h)"]
+
+
 _SOURCE_TEXT = {
     "option": "from --test",
     "sidecar": "from the sidecar",
@@ -41,6 +54,7 @@ def format_record_summary(summary: dict[str, Any]) -> str:
         f"test     {summary['test']} ({_SOURCE_TEXT[summary['test_source']]})",
         f"samples  {summary['n_samples']} at {summary['sample_period_s']:.4g} s "
         f"(time {span['start']:g} … {span['stop']:g} s, {summary['duration_s']:.1f} s)",
+        *_units_line(summary.get("units")),
         f"gauges   {_fmt_gauges(summary['gauges'])}",
         f"flow     {_fmt_range(summary['flow_m3h'], 'm³/h')}",
         f"opening  {opening['min']:.4g} … {opening['max']:.4g} mm"
@@ -72,6 +86,7 @@ def format_static_summary(summary: dict[str, Any]) -> str:
         [
             f"static   {summary['path']}",
             f"points   {summary['n_points']}",
+            *_units_line(summary.get("units")),
             f"flow     {flow['min']:.4g} … {flow['max']:.4g} m³/h",
             f"opening  {opening['min']:.4g} … {opening['max']:.4g} mm",
             f"gauges   {gauges}",
