@@ -18,7 +18,10 @@ Stages, each timed (``demo.json`` ``times_s``):
    ``|bias|`` ≤ :data:`BIAS_SHARE` of the record's level range;
 5. **closed loop** — the MPC and the SIMC PI designed on ``fopdt_<G>`` of the gauge next to
    the gate, on the SWMM model, in the scenarios of :mod:`gatetwin.plants.swmm_loop`;
-   their canal-control indicators and one PNG per scenario in ``loops/``.
+   their canal-control indicators and one PNG per scenario in ``loops/``;
+6. **controller FMUs** — the PI and MPC FMUs of ``gatetwin export-controller`` (settings
+   derived from the model file) through fmpy with SWMM as the plant, same scenarios
+   (``fmus/controllers/``); one that cannot be built or run is reported, not fatal.
 
 The output is built in a hidden sibling of ``--out`` and renamed at the end
 (:mod:`gatetwin.run.outdir`): bad input leaves no partial folder.
@@ -142,6 +145,7 @@ def _stages(req: DemoRequest, work: Path, say: Callable[[str], None]) -> dict[st
     point_doc = {"flow_m3h": flow_m3h, "opening_mm": opening}
     write_json_atomic(work / "plant.json", {**spec_to_dict(req.spec), "noise_sd_mm": req.noise_mm})
     loops = timed("closed_loop", lambda: closed_loops(req, core, point_doc, work, say))
+    fmu_loops = timed("controller_fmus", lambda: controller_fmu_loops(req, loops, work, say))
     return {
         "swmm": swmm_versions(),
         "plant": spec_to_dict(req.spec),
@@ -156,6 +160,7 @@ def _stages(req: DemoRequest, work: Path, say: Callable[[str], None]) -> dict[st
             "passed": all(r["passed"] for r in rows),
         },  # fmt: skip
         "closed_loop": loops,
+        "controller_fmus": fmu_loops,
         "times_s": times,
     }
 
@@ -308,6 +313,61 @@ def closed_loops(req: DemoRequest, core: SwmmCore, point_doc: dict[str, float], 
     return out
 
 
+def controller_fmu_loops(req: DemoRequest, loops: dict[str, Any], work: Path,
+                         say: Callable[[str], None]) -> dict[str, Any]:  # fmt: skip
+    """The PI and MPC controller FMUs of ``gatetwin export-controller`` (settings derived
+    from the model file) through fmpy, SWMM as the plant, in the closed loop's scenarios.
+    A controller FMU that cannot be built or run is reported with its one-line cause."""
+    from gatetwin.fmu.controller import export_controller
+    from gatetwin.modelfile import read_model_file
+
+    gauge = loops["gauge"]
+    model = read_model_file(work / "models" / f"fopdt_{gauge}.json")
+    point = TwinPoint(**loops["twin"])
+    out: dict[str, Any] = {}
+    for kind in ("pi", "mpc"):
+        path = work / "fmus" / "controllers" / f"fopdt_{gauge}_{kind}.fmu"
+        try:
+            export_controller(model, kind, path, without_effects=kind == "mpc")
+            out[kind] = _fmu_scenarios(req, path, point, loops, say)
+        except GatetwinError as exc:
+            out[kind] = {"failed": " ".join(str(exc).split())}
+    return out
+
+
+def _fmu_scenarios(req: DemoRequest, path: Path, point: TwinPoint, loops: dict[str, Any],
+                   say: Callable[[str], None]) -> dict[str, Any]:  # fmt: skip
+    from dataclasses import replace
+
+    from gatetwin.mpc.fmu_controller import FmuController
+    from gatetwin.mpc.loop import LoopSettings, run_closed_loop
+    from gatetwin.mpc.plants import LoopPlant, MeasurementNoise
+
+    controller = FmuController(path)
+    ts = controller.sample_period_s
+    spec = replace(req.spec, sample_period_s=ts)  # the plant steps at the FMU's own period
+    noise = MeasurementNoise(**loops["settings"]["noise"])
+    resolution = loops["settings"]["actuator_resolution_mm"]
+    out: dict[str, Any] = {"sample_period_s": ts}
+    try:
+        for scenario in canal_scenarios(point, loops["settings"]["setpoint_step_mm"]):
+            plant = LoopPlant(SwmmCore(spec), noise=noise, sample_period_s=ts,
+                              actuator_resolution_mm=resolution)  # fmt: skip
+            try:
+                run = run_closed_loop(plant, controller, scenario, level_band_mm=None,
+                                      max_move_mm=req.spec.gate_speed_mm_s * ts,
+                                      opening_range_mm=(0.0, plant.core.height_mm),
+                                      sample_period_s=ts)  # fmt: skip
+            finally:
+                plant.close()
+            out[scenario.name] = canal_indicators(run, point, LoopSettings(sample_period_s=ts))
+            say(f"swmm demo: {path.stem} {scenario.name}: mean |error| "
+                f"{out[scenario.name]['iae_mean_mm']:.1f} mm")  # fmt: skip
+    finally:
+        controller.cleanup()
+    return out
+
+
 def summary_markdown(doc: dict[str, Any]) -> str:
     """``summary.md``: the stage times, the validation and the indicators as tables."""
     lines = [f"# SWMM demo: gate {doc['plant']['gate']} of {Path(doc['plant']['inp']).name}",
@@ -331,6 +391,13 @@ def summary_markdown(doc: dict[str, Any]) -> str:
         lines += [f"| {name} | {c} | {m['mae_mm']:.1f} | {m['iae_mean_mm']:.2f} | "
                   f"{m['ste_mm']:.2f} | {m['iaw_mm']:.0f} | {m['violations']} | "
                   f"{m['gate_reversals_per_hour']:.0f} |" for c, m in by.items()]  # fmt: skip
+    lines += ["", "## Controller FMUs through fmpy, SWMM as the plant (mean |error|, mm)", "",
+              "| controller FMU | " + " | ".join(loops["scenarios"]) + " |",
+              "|---|" + "---|" * len(loops["scenarios"])]  # fmt: skip
+    for kind, res in doc["controller_fmus"].items():
+        cells = [res["failed"]] if "failed" in res else [
+            f"{res[n]['iae_mean_mm']:.2f}" for n in loops["scenarios"]]  # fmt: skip
+        lines.append(f"| {kind} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
