@@ -1,7 +1,8 @@
 """A field-scale two-pool canal as an EPA SWMM model, written by the tests (not the shipped
 ASCE canal): a 3 m wide, 2 m high check gate passing about 10 m³/s with some 2–2.5 m of
 water above its sill, a 120 m upstream pool (bed 6 m, side slopes 1.5:1) and a downstream
-pool drained by a second gate, so the check runs submerged as in a real canal."""
+pool drained by a second gate, so the check runs submerged as in a real canal. The initial
+depths are near the steady state at the base point (1 m opening), which shortens spin-up."""
 
 from __future__ import annotations
 
@@ -36,11 +37,11 @@ NORMAL_FLOW_LIMITED  BOTH
 MIN_SURFAREA         1.0
 
 [JUNCTIONS]
-U0 100.06 4.0 2.5 0 0
-U1 100.03 4.0 2.5 0 0
-U2 100.00 4.0 2.5 0 0
-D0 99.90 4.0 1.5 0 0
-D1 99.80 4.0 1.5 0 0
+U0 100.06 4.0 2.7 0 0
+U1 100.03 4.0 2.73 0 0
+U2 100.00 4.0 2.76 0 0
+D0 99.90 4.0 1.39 0 0
+D1 99.80 4.0 1.49 0 0
 
 [OUTFALLS]
 OUT 97.0 FREE NO

@@ -42,8 +42,8 @@ def _measured_twin(spec: SwmmPlantSpec) -> tuple[FopdtPlant, swmm_loop.TwinPoint
     measured, the level at the base point from the spin-up)."""
     core = SwmmCore(spec)
     try:
-        level = core.start(OPENING_MM, FLOW_M3H)
         r = measure_step(core, OPENING_MM, FLOW_M3H)
+        level = core.level_mm() - r.gain_mm_per_mm * r.step_mm  # back to the base opening
     finally:
         core.close()
     flows = (0.5 * FLOW_M3H, 1.5 * FLOW_M3H)

@@ -106,11 +106,18 @@ def run_swmm_demo(req: DemoRequest, progress: Callable[[str], None] | None = Non
     GatetwinError
         Bad input or a stage that cannot run; nothing is left at ``req.out``.
     """
-    from gatetwin.run.outdir import MARKER, check_replaceable, make_work_dir, replace_output
+    from gatetwin.run.outdir import (
+        MARKER,
+        check_replaceable,
+        clean_stale_work,
+        make_work_dir,
+        replace_output,
+    )
 
     say = progress or (lambda _m: None)
     target = Path(req.out)
     owner = check_replaceable(target)
+    clean_stale_work(target, say)  # a killed run's hidden folder
     work = make_work_dir(target)
     try:
         doc = _stages(req, work, say)
