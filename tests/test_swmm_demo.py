@@ -1,4 +1,4 @@
-"""The SWMM canal demo (:mod:`gatetwin.plants.swmm_demo`) and the SWMM plant in the closed
+"""The SWMM canal demo (:mod:`gatetwin.run.swmm_demo`) and the SWMM plant in the closed
 loop (:mod:`gatetwin.plants.swmm_loop`), on the field-scale canal of ``swmm_canal.py``
 (not the shipped ASCE model)."""
 

@@ -101,7 +101,7 @@ def run_swmm(args: argparse.Namespace) -> int:
 
 def run_swmm_demo(args: argparse.Namespace) -> int:
     from gatetwin.plants.swmm import SwmmPlantSpec
-    from gatetwin.plants.swmm_demo import DemoRequest, run_swmm_demo
+    from gatetwin.run.swmm_demo import DemoRequest, run_swmm_demo
 
     if args.inp is None:
         given = [k for k in DEMO_DEFAULT if getattr(args, k) is not None]
