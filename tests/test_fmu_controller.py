@@ -44,9 +44,12 @@ SAME_ARITHMETIC_MM = 1e-9
 def fmus(tmp_path_factory):
     folder = tmp_path_factory.mktemp("controller")
     model = read_model_file(MODEL)
-    controller = export_controller(model, "pi", folder / "fopdt_3F_pi.fmu")
+    # the demo's settings, which the Python loop it is compared with runs (without them the
+    # controller takes its settings from the model file)
+    demo = DemoSettings()
+    controller = export_controller(model, "pi", folder / "fopdt_3F_pi.fmu", settings=demo)
     controller3 = export_controller(model, "pi", folder / "fmi3" / "fopdt_3F_pi.fmu",
-                                    fmi_version="3.0")  # fmt: skip
+                                    settings=demo, fmi_version="3.0")  # fmt: skip
     # the plant FMU as run_mpc_demo(plant_kind="fmu") exports it
     plant = export_fmu(model.plant, folder / "gatetwin_mpc_plant.fmu", backend="c",
                        model_name="gatetwin_mpc_plant",

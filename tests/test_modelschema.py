@@ -72,7 +72,7 @@ CASES = [
     ("arx_3F", "plant.nb", True, ["plant.nb: true is not a JSON integer"]),
     ("fopdt_3F", "plant.schedule.gain_mm_per_mm", [1e308] * 6,
      ["plant.schedule.gain_mm_per_mm[0]", "above the limit 1000"]),
-    ("fopdt_3F", "plant.opening_ref_mm", 1e308, ["plant.opening_ref_mm", "above the limit 2000"]),
+    ("fopdt_3F", "plant.opening_ref_mm", 1e308, ["plant.opening_ref_mm", "above the limit 50000"]),
     ("arx_3F", "plant.opening_ref_mm", -1e308, ["plant.opening_ref_mm", "below the limit 0"]),
     ("physical_3F", "plant.parameters.area_m2", 1e308,
      ["plant.parameters.area_m2", "above the limit"]),
