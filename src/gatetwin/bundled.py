@@ -36,3 +36,8 @@ def bundled_records_dir() -> Path:
     if not isinstance(root, Path):
         raise GatetwinError(f"bundled records at {root} are not on the file system")
     return root
+
+
+def bundled_swmm_model() -> Path:
+    """The shipped EPA SWMM model of ASCE test canal 1 (``data/swmm/asce_canal1.inp``)."""
+    return Path(__file__).resolve().parent / "data" / "swmm" / "asce_canal1.inp"

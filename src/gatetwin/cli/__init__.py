@@ -342,9 +342,14 @@ def _run_validate(args: argparse.Namespace) -> int:
 
 def _add_mpc_demo_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--plant", choices=("fmu", "flume"), default="fmu",
-        help="plant in the loop: the exported C FMU through fmpy, or the virtual flume "
-        "(default: fmu)",
+        "--plant", choices=("fmu", "flume", "swmm"), default="fmu",
+        help="plant in the loop: the exported C FMU through fmpy, the virtual flume, or an "
+        "EPA SWMM model (--swmm-plant; the controllers' settings from --model) (default: fmu)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--swmm-plant", metavar="PLANT.json",
+        help="--plant swmm: the SWMM plant spec (inp, gate, gauges, inflow, gate_speed_mm_s, "
+        "sample_period_s, noise_sd_mm), as 'gatetwin swmm demo' writes it",
     )  # fmt: skip
     parser.add_argument("--json", metavar="OUT.json", required=True, help="metrics (JSON)")
     parser.add_argument("--plots", metavar="DIR", required=True, help="one PNG per scenario")
@@ -361,9 +366,18 @@ def _add_mpc_demo_arguments(parser: argparse.ArgumentParser) -> None:
 def _run_mpc_demo(args: argparse.Namespace) -> int:
     from gatetwin.mpc.demo import load_demo_plant, run_mpc_demo
 
+    if (args.plant == "swmm") != (args.swmm_plant is not None):
+        raise GatetwinError("--swmm-plant goes with --plant swmm, and --plant swmm needs it")
+    if args.plant == "swmm" and args.model is None:
+        raise GatetwinError("--plant swmm: give --model, an FOPDT identified on that model")
+    plant, extra = load_demo_plant(args.model), {}
+    if args.plant == "swmm":
+        from gatetwin.plants.swmm_loop import mpc_demo_inputs
+
+        extra["settings"], extra["core_factory"] = mpc_demo_inputs(plant, args.swmm_plant)
     result = run_mpc_demo(
-        load_demo_plant(args.model), plant_kind=args.plant, minutes=args.minutes,
-        out_plots_dir=args.plots, progress=print_to_stderr,
+        plant, plant_kind=args.plant, minutes=args.minutes,
+        out_plots_dir=args.plots, progress=print_to_stderr, **extra,
     )  # fmt: skip
     _write_json(args.json, result)
     print(f"wrote {args.json} and the plots in {args.plots}")

@@ -67,7 +67,7 @@ from gatetwin.mpc.plants import FlumeCore, FmuCore, LoopPlant, MeasurementNoise,
 from gatetwin.mpc.settings import MpcSettings
 from gatetwin.plant.model import FopdtPlant, Plant, Schedule, plant_from_dict
 
-PLANT_KINDS = ("fmu", "flume", "model")
+PLANT_KINDS = ("fmu", "flume", "model", "swmm")
 #: Controllers the demo compares (see :func:`compare_controllers`).
 CONTROLLERS = ("mpc", "mpc_envelope", "pi")
 #: Name of the scenario across the gate's range (run when the model has an envelope).
@@ -228,10 +228,15 @@ def wide_scenario(
 class _PlantFactory:
     """Fresh loop plants of one kind (the FMU is exported once, to a temporary folder)."""
 
-    def __init__(self, plant: Plant, kind: str, settings: DemoSettings) -> None:
+    def __init__(
+        self, plant: Plant, kind: str, settings: DemoSettings, core_factory: Any = None
+    ) -> None:
         if kind not in PLANT_KINDS:
             raise ControlError(f"plant kind must be one of {', '.join(PLANT_KINDS)} (got {kind!r})")
+        if (kind == "swmm") != (core_factory is not None):
+            raise ControlError("plant kind swmm goes with a SWMM core factory, and only it")
         self.plant, self.kind, self.settings = plant, kind, settings
+        self.core_factory = core_factory  # the SWMM plant: gatetwin.plants.swmm_loop
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
         self._fmu: FmuCore | None = None
 
@@ -263,6 +268,8 @@ class _PlantFactory:
             core = self._fmu
         elif self.kind == "flume":
             core = FlumeCore()
+        elif self.kind == "swmm":
+            core = self.core_factory()
         else:
             core = ModelCore(self.plant, s.mpc.sample_period_s)
         return LoopPlant(
@@ -280,13 +287,15 @@ def compare_controllers(
     plant_kind: str = "fmu",
     settings: DemoSettings | None = None,
     controllers: tuple[str, ...] = ("mpc", "pi"),
+    core_factory: Any = None,
 ) -> dict[str, ClosedLoopRun]:
     """Run ``scenario`` with each controller, each on a fresh plant of one kind.
 
     All runs see the same noise sequence. ``controllers`` among ``"mpc"`` (the single-point
     MPC: the schedule's model at the measured discharge), ``"mpc_envelope"`` (re-linearised
     on the envelope at every sample; the model needs an envelope) and ``"pi"`` (SIMC,
-    tuned at ``settings.flow_m3h``). Returns ``{name: run}``.
+    tuned at ``settings.flow_m3h``). ``core_factory`` makes the cores of plant kind
+    ``"swmm"`` (:func:`gatetwin.plants.swmm_loop.core_factory`). Returns ``{name: run}``.
     """
     s = settings or DemoSettings()
     unknown = [c for c in controllers if c not in CONTROLLERS]
@@ -294,7 +303,7 @@ def compare_controllers(
         raise ControlError(f"demo: unknown controller(s) {', '.join(unknown)}; known: "
                            f"{', '.join(CONTROLLERS)}")  # fmt: skip
     runs = {}
-    with _PlantFactory(plant_model, plant_kind, s) as factory:
+    with _PlantFactory(plant_model, plant_kind, s, core_factory) as factory:
         for name in controllers:
             runs[name] = _run_one(factory.make(), _controller(name, plant_model, s), scenario, s)
     return runs
@@ -332,6 +341,7 @@ def run_mpc_demo(
     out_plots_dir: str | Path | None = None,
     settings: DemoSettings | None = None,
     progress: Callable[[str], None] | None = None,
+    core_factory: Any = None,
 ) -> dict[str, Any]:
     """Run the scenarios with the MPCs and the PI on one kind of plant.
 
@@ -339,9 +349,9 @@ def run_mpc_demo(
     ----------
     plant_model : FopdtPlant
         The scheduled FOPDT the controllers are built from (and the FMU exported from).
-    plant_kind : {"fmu", "flume", "model"}
-        The plant in the loop: the exported C FMU through fmpy, the virtual flume, or the
-        Python reference simulation.
+    plant_kind : {"fmu", "flume", "model", "swmm"}
+        The plant in the loop: the exported C FMU through fmpy, the virtual flume, the
+        Python reference simulation, or an EPA SWMM model (made by ``core_factory``).
     minutes : float
         Simulated minutes per scenario (control period 1.2 s), at least 2.
     out_plots_dir : path, optional
@@ -349,6 +359,8 @@ def run_mpc_demo(
     settings : DemoSettings, optional
     progress : callable, optional
         Receives one line per finished scenario.
+    core_factory : callable, optional
+        Plant kind ``"swmm"``: makes a fresh SWMM core per run.
 
     Returns
     -------
@@ -381,7 +393,12 @@ def run_mpc_demo(
         plan.append((wide_scenario(plant_model, minutes, s), ("mpc", "mpc_envelope")))
     for scenario, controllers in plan:
         runs = compare_controllers(
-            plant_model, scenario, plant_kind=plant_kind, settings=s, controllers=controllers
+            plant_model,
+            scenario,
+            plant_kind=plant_kind,
+            settings=s,
+            controllers=controllers,
+            core_factory=core_factory,
         )
         metrics = {name: {**loop_metrics(run, s.loop), **run.extra} for name, run in runs.items()}
         out["scenarios"][scenario.name] = metrics

@@ -3,8 +3,9 @@
 :mod:`~gatetwin.run.pipeline` (the stages' order, the output folder's life cycle),
 :mod:`~gatetwin.run.stages` (validation matrix, family comparison, MPC demo, diagnosis,
 report), :mod:`~gatetwin.run.outdir` (who owns ``--out``), :mod:`~gatetwin.run.tables` and
-:mod:`~gatetwin.run.figures` (the paper's tables and figures). Nothing in the libraries
-imports this package.
+:mod:`~gatetwin.run.figures` (the paper's tables and figures); :mod:`~gatetwin.run.swmm_demo`
+(``gatetwin swmm demo``: the same chain on a gate of an EPA SWMM canal). Nothing in the
+libraries imports this package.
 """
 
 from gatetwin.run.pipeline import STAGES, PipelineContext, PipelineStage, run_pipeline
