@@ -88,20 +88,14 @@ SEICHE_BOUNDS = ((2.0, 1.0, -5.0), (60.0, 600.0, 5.0))
 #: is strict).
 SEICHE_SIGNIFICANCE = 1e-3
 ACTUATOR = ["speed_mm_s", "stall_depth_m"]
-START = {
-    "cd_small": 0.86,
-    "cd_small_per_q": 0.0,
-    "cd_large": 0.45,
-    "cd_large_per_q": 0.0,
-    "cd_mid_log_ratio": -1.9,
-    "cd_mid_per_q": 0.0,
-    "cd_log_width": -0.7,
-    "cd_log_width_per_q": 0.0,
-    "cd_log_shape": 0.0,
-    "offset_mm": 0.0,
-    "offset_per_flow2_mm": 0.0,
-    "area_per_depth_m": 0.0,
-}
+#: The gate law's parameters that every gate has: a discharge coefficient that may differ
+#: between small and large openings, and the gauge's offset. The rest of ``LAW`` (the
+#: transition's place, width and shape, and every parameter's drift with discharge) is kept
+#: only when the data show it (an F-test at ``SEICHE_SIGNIFICANCE``).
+LAW_CORE = ["cd_small", "cd_large", "offset_mm"]
+#: Law parameters that start at zero (no drift with discharge, no offset, no shape).
+ZERO_START = ("cd_small_per_q", "cd_large_per_q", "cd_mid_per_q", "cd_log_width_per_q",
+              "cd_log_shape", "offset_mm", "offset_per_flow2_mm", "area_per_depth_m")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -349,7 +343,7 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
     if not drives:
         raise IdentificationError(f"physical {gauge}: no dynamic record has this gauge")
     fixed, sources = fixed_parameters(static, records, gauge, points)
-    values, _ = _fit(LAW, {**START, **fixed}, lambda p: _steady_residuals(points, p))
+    values, law = _fit_law(points, fixed, sources)
     speeds, depths = actuator_moves(records, gauge, values)
     values = _fit_actuator(speeds, depths, values)
     values = _storage_start(values, points, drives, sources)
@@ -367,7 +361,7 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
             ]
         )
 
-    values, result = _fit(LAW + STORAGE, values, joint)
+    values, result = _fit(law + STORAGE, values, joint)
     p = _vector(values)
     seiche, seiche_report = _fit_seiche(drives, p, rms_dyn)
     effects = (effect_dict("seiche", **dict(zip(SEICHE, seiche, strict=True))),) \
@@ -378,7 +372,7 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
     s = seiche if seiche_report["kept"] else NO_SEICHE
     return PhysicalFit(
         plant=plant,
-        standard_errors=_standard_errors(result, LAW + STORAGE),
+        standard_errors=_standard_errors(result, law + STORAGE),
         steady_rmse_mm=_rms(_steady_residuals(points, p)),
         n_steady=int(points.flow_m3h.size),
         dynamic_rmse_mm={
@@ -388,6 +382,48 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
         seiche=seiche_report,
         fixed_sources=sources,
     )
+
+
+def law_start(points: SteadyPoints, width_m: float) -> dict[str, float]:
+    """The gate law's start from the steady points: every point's discharge coefficient
+    Q / (b e sqrt(2 g h)) (level as head), their median for small and large openings alike,
+    the transition at the points' median opening ratio e/h and as wide as their spread."""
+    head_m = np.maximum(points.level_mm / 1000.0, kernel.DEPTH_MIN_M)
+    opening_m = np.maximum(points.opening_mm / 1000.0, 1e-9)
+    cd = points.flow_m3h / 3600.0 / (width_m * opening_m * np.sqrt(2.0 * kernel.G * head_m))
+    log_ratio = np.log(opening_m / head_m)
+    cd0 = float(np.median(cd[np.isfinite(cd)]))
+    spread = float(np.std(log_ratio)) if log_ratio.size > 1 else 0.0
+    return {**dict.fromkeys(ZERO_START, 0.0), "cd_small": cd0, "cd_large": cd0,
+            "cd_mid_log_ratio": float(np.median(log_ratio)),
+            "cd_log_width": math.log(max(spread, 0.1))}  # fmt: skip
+
+
+def _fit_law(points: SteadyPoints, fixed: dict[str, float], sources: dict[str, str]
+             ) -> tuple[dict[str, float], list[str]]:  # fmt: skip
+    """The gate law on the steady points: ``LAW_CORE`` first, then the whole ``LAW`` from
+    there, kept when it converges and an F-test rejects the core law at
+    ``SEICHE_SIGNIFICANCE``; the names fitted (``sources`` says which law was kept)."""
+    values = {**law_start(points, fixed["width_m"]), **fixed}
+
+    def residual(p: np.ndarray) -> np.ndarray:
+        return _steady_residuals(points, p)
+
+    core, core_fit = _fit(LAW_CORE, values, residual)
+    sources["gate_law"] = "core (Cd for small and large openings, offset): the data show no more"
+    try:
+        whole, whole_fit = _fit(LAW, core, residual)
+    except IdentificationError:
+        return core, list(LAW_CORE)
+    n, extra = points.flow_m3h.size, len(LAW) - len(LAW_CORE)
+    rss0, rss1 = 2.0 * float(core_fit.cost), 2.0 * float(whole_fit.cost)
+    if n <= len(LAW) or rss1 <= 0.0:
+        return core, list(LAW_CORE)
+    f_stat = ((rss0 - rss1) / extra) / (rss1 / (n - len(LAW)))
+    if float(f_dist.sf(f_stat, extra, n - len(LAW))) >= SEICHE_SIGNIFICANCE:
+        return core, list(LAW_CORE)
+    sources["gate_law"] = "whole transition law: an F-test rejects the core law"
+    return whole, list(LAW)
 
 
 def fixed_parameters(static: Any, records: dict[str, Record], gauge: str, points: SteadyPoints
