@@ -43,7 +43,8 @@ class FmuController:
     fmu_path : path
         The controller FMU.
     sample_period_s : float, optional
-        Communication step; default the FMU's ``sample_period_s`` parameter, else the
+        Communication step; default the FMU's ``sample_period_s`` parameter, else its
+        default experiment's step size, else the
         controllers' sample period.
     name : str, optional
         Name in the loop's results (default ``"mpc_fmu"`` for an FMU with a solver status,
@@ -83,7 +84,10 @@ class FmuController:
         self._outputs = [n for n in OUTPUTS if n in self._vr]
         own = variables.get("sample_period_s")
         default = float(own.start) if own is not None and own.start is not None else None
-        self.sample_period_s = sample_period_s or default or SAMPLE_PERIOD_S
+        experiment = md.defaultExperiment
+        step = experiment.stepSize if experiment is not None else None
+        self.sample_period_s = sample_period_s or default or (step and float(step)) \
+            or SAMPLE_PERIOD_S  # fmt: skip
         self.name = name or ("mpc_fmu" if "solver_status" in self._vr else "pi_fmu")
         self._fmi3 = md.fmiVersion.startswith("3.")
         self._slave: Any = None
