@@ -276,6 +276,10 @@ def closed_loop_artefacts(ctx: Any) -> None:
 
 MPC_COLUMNS = ("iae", "max_dev_mm", "settling_s", "travel_mm", "violations",
                "gate_reversals_per_hour", "solve_ms_median", "solve_ms_p99")  # fmt: skip
+#: The MPC table's column titles: scenario, controller, then ``MPC_COLUMNS``.
+MPC_HEADER = ("scenario", "controller", "IAE (mm·s)", "max dev (mm)", "settling (s)",
+              "travel (mm)", "violations", "reversals per hour", "solve median (ms)",
+              "solve p99 (ms)")  # fmt: skip
 
 
 #: Controllers of the MPC demo, as the tables name them.
@@ -299,10 +303,7 @@ def _mpc_rows(doc: dict[str, Any]) -> list[list[str]]:
 def mpc_table(doc: dict[str, Any]) -> str:
     """The MPC demo's table (one row per scenario and controller) from ``mpc.json``; the
     README renders its MPC results with it too."""
-    header = ["scenario", "controller", "IAE (mm·s)", "max dev (mm)", "settling (s)",
-              "travel (mm)", "violations", "reversals per hour", "solve median (ms)",
-              "solve p99 (ms)"]  # fmt: skip
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines = ["| " + " | ".join(MPC_HEADER) + " |", "|" + "---|" * len(MPC_HEADER)]
     lines += ["| " + " | ".join(r) + " |" for r in _mpc_rows(doc)]
     return "\n".join(lines) + "\n"
 
@@ -475,17 +476,6 @@ def write_report(ctx: Any) -> None:
     _families_section(ctx, report)
     doc = ctx.results.get("mpc")
     if doc:
-        header = (
-            "scenario",
-            "controller",
-            "IAE (mm·s)",
-            "max dev (mm)",
-            "settling (s)",
-            "travel (mm)",
-            "violations",
-            "solve median (ms)",
-            "solve p99 (ms)",
-        )
         plots = sorted((ctx.out_dir / "figures").glob("mpc_*/*.png"))
         report.add_section(
             "MPC demo",
@@ -493,7 +483,7 @@ def write_report(ctx: Any) -> None:
             f"{doc['model']}; plants: the exported C FMU through fmpy, and the virtual flume. "
             f"On wide_range (120 → 300 mm at 50 m³/h, then Q ±30 m³/h) the MPC re-linearised "
             f"on the envelope at every sample runs against the single-point MPC.",
-            Table(header, tuple(tuple(r) for r in _mpc_rows(doc))),
+            Table(MPC_HEADER, tuple(tuple(r) for r in _mpc_rows(doc))),
             figures=[(p, f"{p.parent.name.replace('_', ' ')}: {p.stem.replace('_', ' ')}")
                      for p in plots],
         )  # fmt: skip
