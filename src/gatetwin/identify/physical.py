@@ -343,7 +343,7 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
     if not drives:
         raise IdentificationError(f"physical {gauge}: no dynamic record has this gauge")
     fixed, sources = fixed_parameters(static, records, gauge, points)
-    values, law = _fit_law(points, fixed, sources)
+    values, law, core = _fit_law(points, fixed, sources)
     speeds, depths = actuator_moves(records, gauge, values)
     values = _fit_actuator(speeds, depths, values)
     values = _storage_start(values, points, drives, sources)
@@ -361,7 +361,15 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
             ]
         )
 
-    values, result = _fit(law + STORAGE, values, joint)
+    try:
+        values, result = _fit(law + STORAGE, values, joint)
+    except IdentificationError:
+        if law == LAW_CORE:
+            raise
+        # the transition's extra parameters and the storage are not identifiable together
+        sources["gate_law"] = "core: the whole law did not converge jointly with the storage"
+        law = list(LAW_CORE)
+        values, result = _fit(law + STORAGE, {**values, **{n: core[n] for n in LAW}}, joint)
     p = _vector(values)
     seiche, seiche_report = _fit_seiche(drives, p, rms_dyn)
     effects = (effect_dict("seiche", **dict(zip(SEICHE, seiche, strict=True))),) \
@@ -400,10 +408,11 @@ def law_start(points: SteadyPoints, width_m: float) -> dict[str, float]:
 
 
 def _fit_law(points: SteadyPoints, fixed: dict[str, float], sources: dict[str, str]
-             ) -> tuple[dict[str, float], list[str]]:  # fmt: skip
+             ) -> tuple[dict[str, float], list[str], dict[str, float]]:  # fmt: skip
     """The gate law on the steady points: ``LAW_CORE`` first, then the whole ``LAW`` from
     there, kept when it converges and an F-test rejects the core law at
-    ``SEICHE_SIGNIFICANCE``; the names fitted (``sources`` says which law was kept)."""
+    ``SEICHE_SIGNIFICANCE``; the values, the names fitted (``sources`` says which law was
+    kept) and the core law's values."""
     values = {**law_start(points, fixed["width_m"]), **fixed}
 
     def residual(p: np.ndarray) -> np.ndarray:
@@ -414,16 +423,16 @@ def _fit_law(points: SteadyPoints, fixed: dict[str, float], sources: dict[str, s
     try:
         whole, whole_fit = _fit(LAW, core, residual)
     except IdentificationError:
-        return core, list(LAW_CORE)
+        return core, list(LAW_CORE), core
     n, extra = points.flow_m3h.size, len(LAW) - len(LAW_CORE)
     rss0, rss1 = 2.0 * float(core_fit.cost), 2.0 * float(whole_fit.cost)
     if n <= len(LAW) or rss1 <= 0.0:
-        return core, list(LAW_CORE)
+        return core, list(LAW_CORE), core
     f_stat = ((rss0 - rss1) / extra) / (rss1 / (n - len(LAW)))
     if float(f_dist.sf(f_stat, extra, n - len(LAW))) >= SEICHE_SIGNIFICANCE:
-        return core, list(LAW_CORE)
+        return core, list(LAW_CORE), core
     sources["gate_law"] = "whole transition law: an F-test rejects the core law"
-    return whole, list(LAW)
+    return whole, list(LAW), core
 
 
 def fixed_parameters(static: Any, records: dict[str, Record], gauge: str, points: SteadyPoints
