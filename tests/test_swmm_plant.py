@@ -178,6 +178,40 @@ def test_a_step_record_is_one_the_reader_accepts(core: SwmmCore, tmp_path: Path)
     assert np.nanmax(rec.opening_mm) == OPENING_MM + 15.0
 
 
+def test_a_hold_that_would_overtop_is_moved_in_bank_and_a_flooded_record_refused(
+    core: SwmmCore,
+) -> None:
+    from gatetwin.plants.swmm_designs import Base, InBank
+    from gatetwin.plants.swmm_experiments import (
+        Schedule,
+        check_in_bank,
+        measure_step,
+        run_schedule,
+    )
+
+    resp = measure_step(core, OPENING_MM, FLOW_M3H)
+    base = Base(OPENING_MM, FLOW_M3H, resp, 10.0, 5.0)
+    up = 1.4 * FLOW_M3H  # the free_flow record's +40 % step with the gate held
+    settled = 300.0 + 5 * (resp.time_constant_s + resp.dead_time_s)  # FOPDT within 1 %
+    flows = [(0.0, FLOW_M3H), (300.0, up)]
+    sch = Schedule("flood", "free", "validation", [(0.0, OPENING_MM)], flows, settled, "+40 %")
+    held = run_schedule(core, sch, noise_mm=0.0, seed=1)
+    with pytest.raises(PlantError, match="record flood: a gauge node floods"):
+        check_in_bank(held, sch.name)
+    bank = InBank(core, base)
+    fitted = bank.fit(sch)
+    assert "holds moved in bank" in fitted.description
+    opened = fitted.at(300.0)[0]
+    # opened by whole gate steps, as few as keep the hold in bank
+    assert opened > OPENING_MM and (opened - OPENING_MM) % resp.step_mm == 0
+    assert bank.side(opened - resp.step_mm, up) == 1
+    steady = core.start(opened, up)
+    assert not core.flooding() and steady <= core.top_mm() - bank.margin_mm
+    run = run_schedule(core, fitted, noise_mm=0.0, seed=1)
+    check_in_bank(run, fitted.name)
+    assert max(run["levels"]["A2"]) < core.top_mm()
+
+
 def _refused(capsys, argv: list[str]) -> str:
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()

@@ -243,6 +243,11 @@ class SwmmCore:
         """Every gauge's level, keyed by gauge name (not node), mm."""
         return {self.spec.gauge_names[n]: self.level_mm(n) for n in self.spec.gauges}
 
+    def top_mm(self, node: str | None = None) -> float:
+        """Top of a gauge node (SWMM's full depth, the bank) above the gate's sill, mm."""
+        node = node or self.spec.output_node
+        return 1000.0 * (float(self._nodes[node].full_depth) + self.datum_m[node])
+
     def flooding(self) -> bool:
         """Whether any gauge node overflows (SWMM's node flooding is positive)."""
         return any(float(self._nodes[n].flooding) > 0 for n in self.spec.gauges)

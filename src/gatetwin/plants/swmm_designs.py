@@ -21,6 +21,7 @@ from gatetwin.plants.swmm_experiments import (
     STATIC_OPENING_FACTORS,
     Schedule,
     StepResponse,
+    check_in_bank,
     check_regime,
     gate_step_mm,
     measure_step,
@@ -111,6 +112,66 @@ def free_schedules(b: Base, seed: int) -> list[Schedule]:
     ]  # fmt: skip
 
 
+class InBank:
+    """Where a free record's holds may sit (rule in :mod:`gatetwin.plants.swmm_experiments`):
+    each hold's steady level is measured on the plant, once per (opening, flow)."""
+
+    def __init__(self, core: SwmmCore, b: Base) -> None:
+        self.core = core
+        self.step_mm = b.response.step_mm
+        #: Room below the node's top: one gate step's level change, mm.
+        self.margin_mm = abs(b.response.gain_mm_per_mm) * b.response.step_mm
+        self._seen: dict[tuple[float, float], int] = {}
+
+    def side(self, opening_mm: float, flow_m3h: float) -> int:
+        """+1 when the steady level is too high (or none), -1 too low, 0 in bank."""
+        key = (opening_mm, flow_m3h)
+        if key not in self._seen:
+            core = self.core
+            try:
+                level = core.start(opening_mm, flow_m3h)
+            except PlantError:
+                self._seen[key] = 1  # no steady state: the pool overtops
+                return 1
+            too_high = core.flooding() or level > core.top_mm() - self.margin_mm
+            self._seen[key] = 1 if too_high else (-1 if level <= opening_mm else 0)
+        return self._seen[key]
+
+    def opening(self, opening_mm: float, flow_m3h: float) -> float:
+        """The opening nearest ``opening_mm``, in whole gate steps, whose hold is in bank."""
+        direction = self.side(opening_mm, flow_m3h)
+        e = opening_mm
+        while direction and self.side(e, flow_m3h) == direction:
+            e += direction * self.step_mm
+            if not self.step_mm <= e <= self.core.height_mm:
+                raise PlantError(f"free records: no opening keeps Q = {flow_m3h:g} m³/h in bank "
+                                 f"and in orifice regime near e = {opening_mm:g} mm")  # fmt: skip
+        if self.side(e, flow_m3h):
+            raise PlantError(
+                f"free records: Q = {flow_m3h:g} m³/h is out of bank or out of "
+                f"orifice regime at every opening near e = {opening_mm:g} mm"
+            )
+        return e
+
+    def fit(self, sch: Schedule) -> Schedule:
+        """``sch`` with every hold's opening moved in bank (its description says which)."""
+        times = sorted({t for t, _ in sch.opening_mm} | {t for t, _ in sch.flow_m3h})
+        gate: list[tuple[float, float]] = []
+        moved = []
+        for t in times:
+            e, q = sch.at(t)
+            new = self.opening(e, q)
+            if new != e:
+                moved.append(f"{e:g} -> {new:g} mm at Q = {q:g} m3/h")
+            if not gate or gate[-1][1] != new:
+                gate.append((t, new))
+        if not moved:
+            return sch
+        note = f" (holds moved in bank: {'; '.join(moved)})"
+        return Schedule(sch.name, sch.test, sch.role, gate, sch.flow_m3h, sch.duration_s,
+                        sch.description + note, sch.meta)  # fmt: skip
+
+
 def static_table(core: SwmmCore, b: Base, noise_mm: float, seed: int) -> str:
     """The rating grid's CSV text: steady means and SDs per feasible (Q, e) point."""
     rng = np.random.default_rng(seed)
@@ -162,11 +223,15 @@ def run_design(
     if design in ("prbs", "all"):
         schedules.append(prbs_schedule(base))
     if design in ("free", "all"):
-        schedules += free_schedules(base, seed)
+        bank = InBank(core, base)
+        say(f"swmm: placing the free records' holds in bank ({bank.margin_mm:.0f} mm below "
+            f"the top of {core.spec.output_node})")  # fmt: skip
+        schedules += [bank.fit(sch) for sch in free_schedules(base, seed)]
     outputs: list[Output] = []
     for i, sch in enumerate(schedules):
         say(f"swmm: running {sch.name} ({sch.description})")
         run = run_schedule(core, sch, noise_mm, seed + i + 1)
+        check_in_bank(run, sch.name)
         side = sidecar(core, seed=seed + i + 1, noise_mm=noise_mm, condition=sch.name,
                        test=sch.test, role=sch.role, description=sch.description,
                        design_from=response.to_dict())  # fmt: skip

@@ -14,10 +14,18 @@ time L. Every design follows from them (the rules, stated once here):
   T / 2 (rounded to whole samples), plus the gate's travel;
 * ``free`` records (role ``validation``): wide gate moves (± 1, 2, 3 gate steps), inflow
   steps of −40 % and +40 %, both together, and a random sequence (openings within ± 3
-  gate steps, flows within ± 30 %), each held 3·(T + L);
+  gate steps, flows within ± 30 %), each held 3·(T + L). Every hold must stay in bank and
+  in orifice regime: its steady level at the output gauge at least one gate step's level
+  change (|K|·gate step) below the node's top (SWMM's full depth), with no gauge node
+  flooding, and above the opening. A hold that is not is moved, one gate step at a time,
+  to the nearest opening that is (opened when too high, closed when too low): with the
+  gate held, +40 % inflow raises the orifice's head by about 1.4² and overtops a pool
+  run near its bank, where SWMM clips the level and loses the overflow;
 * ``static`` table: flows 0.6–1.3 × base and openings 0.5–1.5 × base (6 × 6), each point
   kept when its steady level at the gate lies above the opening (orifice regime) and
   below the gauge node's top; 30 samples per point.
+
+Any record during which a gauge node floods is refused (:func:`check_in_bank`).
 
 Gauge noise: independent Gaussian, ``noise_mm`` standard deviation, read to 0.1 mm.
 """
@@ -125,19 +133,32 @@ def run_schedule(core: SwmmCore, sch: Schedule, noise_mm: float, seed: int) -> d
     e0, q0 = sch.at(0.0)
     core.start(e0, q0)
     rows = [_row(core, 0.0, e0, q0, moving=False)]
-    t = 0.0
+    t, flooded = 0.0, []
     while t + period <= sch.duration_s + 1e-9:
         command, flow = sch.at(t)
         before = core.position_mm
         core.advance(command, flow)
         t += period
         rows.append(_row(core, t, command, flow, moving=core.position_mm != before))
+        if core.flooding():
+            flooded.append(t)
     names = list(core.spec.gauge_names.values())
     levels = {g: np.array([r["levels"][g] for r in rows]) for g in names}
     for g in names:
         noisy = levels[g] + noise_mm * rng.standard_normal(levels[g].size)
         levels[g] = np.round(noisy / RESOLUTION_MM) * RESOLUTION_MM
-    return {"rows": rows, "levels": levels}
+    return {"rows": rows, "levels": levels, "flooded_s": flooded}
+
+
+def check_in_bank(run: dict[str, Any], name: str) -> None:
+    """Refuse a record during which a gauge node flooded: SWMM clips the level at the node's
+    top and loses the overflow, so the record no longer shows the pool's response."""
+    flooded = run["flooded_s"]
+    if flooded:
+        raise PlantError(
+            f"record {name}: a gauge node floods (over its full depth) for {len(flooded)} "
+            f"samples from t = {flooded[0]:g} s; the level there is clipped at the bank"
+        )
 
 
 def _row(core: SwmmCore, t: float, command: float, flow: float, moving: bool) -> dict[str, Any]:
