@@ -1,0 +1,148 @@
+"""Measured numbers for the README and docs, kept in files so that a page cannot go stale.
+
+A run or a benchmark writes its numbers into ``docs/results/NAME.json`` together with the
+machine, the date and the command that produced them; the pages carry the tables rendered
+from those files between two markers::
+
+    <!-- generated: NAME.BLOCK -->
+    ...rendered text...
+    <!-- end generated -->
+
+``python benchmarks/results.py collect-run OUT`` keeps the numbers of a ``gatetwin run
+--out OUT`` (its ``mpc.json`` and stage times) in ``docs/results/run.json``;
+``python benchmarks/results.py render`` rewrites every block from the files, and
+``--check`` only says which blocks differ (``tests/test_generated_numbers.py`` runs it).
+Any other benchmark keeps its numbers with :func:`save`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "docs" / "results"
+#: The pages whose generated blocks are rendered and checked.
+PAGES = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
+BLOCK = re.compile(
+    r"(<!-- generated: (?P<file>[\w-]+)\.(?P<block>[\w-]+) -->\n)(?P<body>.*?)"
+    r"(<!-- end generated -->)",
+    re.S,
+)
+
+
+def machine() -> dict[str, Any]:
+    """What the numbers were measured on."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "system": platform.platform(),
+            "python": platform.python_version()}  # fmt: skip
+
+
+def save(name: str, data: dict[str, Any], command: str) -> Path:
+    """Keep ``data`` as ``docs/results/<name>.json`` with machine, date and command."""
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    doc = {"command": command, "date": datetime.date.today().isoformat(),
+           "machine": machine(), "data": data}  # fmt: skip
+    path = RESULTS / f"{name}.json"
+    path.write_text(json.dumps(doc, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
+    return path
+
+
+def load(name: str) -> dict[str, Any]:
+    return json.loads((RESULTS / f"{name}.json").read_text(encoding="utf-8"))
+
+
+def _provenance(doc: dict[str, Any]) -> str:
+    m = doc["machine"]
+    return (f"(measured by `{doc['command']}` on {doc['date']}, {m['cores']} cores, "
+            f"{m['cpu']}, Python {m['python']})")  # fmt: skip
+
+
+def _run_mpc(doc: dict[str, Any]) -> str:
+    from gatetwin.run.stages import mpc_table
+
+    return mpc_table(doc["data"]["mpc"]) + "\n" + _provenance(doc) + "\n"
+
+
+def _run_stages(doc: dict[str, Any]) -> str:
+    stages = doc["data"]["stage_seconds"]
+    lines = ["| stage | s |", "|---|---|"]
+    lines += [f"| {name} | {seconds:.1f} |" for name, seconds in stages.items()]
+    lines.append(f"| **total** | {sum(stages.values()):.1f} |")
+    return "\n".join(lines) + "\n\n" + _provenance(doc) + "\n"
+
+
+#: Renderers by ``file.block``: the file's JSON in, the block's Markdown out.
+RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
+    "run.mpc": _run_mpc,
+    "run.stages": _run_stages,
+}
+
+
+def render_page(text: str) -> str:
+    """The page with every generated block rendered from its file."""
+
+    def one(match: re.Match[str]) -> str:
+        key = f"{match['file']}.{match['block']}"
+        if key not in RENDERERS:
+            raise KeyError(f"no renderer for generated block {key}")
+        return match.group(1) + RENDERERS[key](load(match["file"])) + match.group(5)
+
+    return BLOCK.sub(one, text)
+
+
+def stale_pages() -> list[str]:
+    """Pages whose generated blocks differ from what their files render."""
+    texts = {p: p.read_text(encoding="utf-8") for p in PAGES}
+    return [str(p.relative_to(ROOT)) for p, text in texts.items() if render_page(text) != text]
+
+
+def collect_run(out: Path, command: str) -> Path:
+    """Keep a ``gatetwin run``'s MPC results and stage times."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from bench_run import stage_times
+
+    mpc = json.loads((out / "mpc.json").read_text(encoding="utf-8"))
+    stages = stage_times((out / "summary.md").read_text(encoding="utf-8"))
+    return save("run", {"mpc": mpc, "stage_seconds": stages}, command)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="what", required=True)
+    collect = sub.add_parser("collect-run", help="keep a gatetwin run's numbers")
+    collect.add_argument("out", type=Path)
+    collect.add_argument("--command", default=None)
+    render = sub.add_parser("render", help="render the pages' generated blocks")
+    render.add_argument("--check", action="store_true")
+    args = parser.parse_args(argv)
+    if args.what == "collect-run":
+        print(collect_run(args.out, args.command or f"gatetwin run --out {args.out}"))
+        return 0
+    stale = stale_pages()
+    if args.check:
+        print("\n".join(f"stale: {p}" for p in stale) or "every generated block is current")
+        return 1 if stale else 0
+    for page in PAGES:
+        page.write_text(render_page(page.read_text(encoding="utf-8")), encoding="utf-8")
+    print(f"rendered {len(PAGES)} pages")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
