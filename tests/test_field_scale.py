@@ -143,11 +143,16 @@ def _step_controller(fmu: Path, start_mm: float, model: Path) -> float:
     return float(opening)
 
 
-@pytest.mark.slow
-def test_field_gate_public_path(records: Path, tmp_path: Path) -> None:
-    out = tmp_path / "models"
+@pytest.fixture(scope="module")
+def field_models(records: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("field_models")
     _gatetwin("models", "--records", str(records), "--out", str(out), "--workers", "1")
-    models = out / records.name  # one gate's folder: its models go under its name
+    return out / records.name  # one gate's folder: its models go under its name
+
+
+@pytest.mark.slow
+def test_field_gate_public_path(field_models: Path, tmp_path: Path) -> None:
+    models = field_models
     physical = json.loads((models / "physical_P1.json").read_text())
     assert {p.name for p in models.glob("*_P1.json")} == {"fopdt_P1.json", "physical_P1.json"}
     fit = physical["provenance"]["metrics"]["fit"]
@@ -181,14 +186,25 @@ def test_field_gate_public_path(records: Path, tmp_path: Path) -> None:
             extra = ["--without-effects"] if kind == "mpc" else []
             _gatetwin("export-controller", "--kind", kind, "--out", str(ctrl), *extra,
                       str(models / f"{family}_P1.json"))  # fmt: skip
-            opening = _step_controller(ctrl, 384.0, models / f"{family}_P1.json")
             if (family, kind) == ("physical", "mpc"):
-                # exported and stepped without error; its first move is still to be understood
-                # (the MPC of the physical model's linearisation holds 384 mm on this step)
-                assert physical["validity"]["opening_range_mm"][0] <= opening
-                continue
+                continue  # test_field_physical_mpc_opens_the_gate
+            opening = _step_controller(ctrl, 384.0, models / f"{family}_P1.json")
             # a set-point 50 mm below the level opens the gate (K < 0), within the range
             assert 384.0 < opening <= physical["validity"]["opening_range_mm"][1]
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the MPC of the physical model's linearisation holds "
+                   "384 mm on this step; its first move is not yet understood")  # fmt: skip
+def test_field_physical_mpc_opens_the_gate(field_models: Path, tmp_path: Path) -> None:
+    model = field_models / "physical_P1.json"
+    ctrl = tmp_path / "physical_mpc.fmu"
+    _gatetwin("export-controller", "--kind", "mpc", "--without-effects", "--out", str(ctrl),
+              str(model))  # fmt: skip
+    opening = _step_controller(ctrl, 384.0, model)
+    high = json.loads(model.read_text())["validity"]["opening_range_mm"][1]
+    # a set-point 50 mm below the level opens the gate (K < 0), within the range
+    assert 384.0 < opening <= high
 
 
 def _numbers_after(text: str, key: str) -> list[str]:
