@@ -22,6 +22,7 @@ from gatetwin.flume.scenario import with_inflow
 from gatetwin.fmu.observer_fmu import export_observer, run_observer_fmu
 from gatetwin.modelfile import read_model_file
 from gatetwin.mpc.online import ENVELOPE_ANOMALY, OUTPUTS, OnlineObserver
+from gatetwin.plant.model import FLOW_RANGE_M3H
 from observer_cases import ROOT, envelope_plant, flume_scenario, held_opening, observer_steps
 
 #: FMU against Python: the tangent's steady points are the same bits (the kernel's C is the
@@ -148,7 +149,7 @@ def test_a_discharge_outside_the_range_is_refused_at_the_step_with_a_logged_reas
     driver, folder = _initialising(fmus["2.0"])
     try:
         driver.slave.exitInitializationMode()
-        driver.slave.setReal([driver.vr["flow_m3h"]], [1e5])
+        driver.slave.setReal([driver.vr["flow_m3h"]], [2.0 * FLOW_RANGE_M3H[1]])
         with pytest.raises(FMICallException):
             driver.slave.doStep(currentCommunicationPoint=0.0, communicationStepSize=1.2)
         assert any("flow_m3h" in m and "outside" in m for _, m in driver.messages)

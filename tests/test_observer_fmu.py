@@ -27,6 +27,7 @@ from gatetwin.mpc.online import (
     OnlineObserver,
     measured_inputs,
 )
+from gatetwin.plant.model import FLOW_RANGE_M3H
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import read_record
 from observer_cases import observer_steps
@@ -108,7 +109,7 @@ def test_a_saved_state_replays_the_same_samples(fmu):
 
 
 @pytest.mark.parametrize(("name", "value"), [("level_3F_mm", float("nan")),
-                                             ("flow_m3h", 1e5)])  # fmt: skip
+                                             ("flow_m3h", 2.0 * FLOW_RANGE_M3H[1])])  # fmt: skip
 def test_a_bad_measurement_is_refused(fmu, name, value):
     """By the glue when it is set (not finite) or by the observer at the step (a discharge
     outside the plants' range)."""
