@@ -35,17 +35,7 @@ def add_swmm_arguments(parser: argparse.ArgumentParser) -> None:
         help="what to write; all: the whole records folder",
     )  # fmt: skip
     exp.add_argument("--out", metavar="DIR", required=True, help="directory to write into")
-    exp.add_argument("--sample-period", type=float, default=10.0, metavar="S",
-                     help="sample period, s (default 10)")  # fmt: skip
-    exp.add_argument("--noise-mm", type=float, default=3.0,
-                     help="gauge noise standard deviation, mm (default 3)")  # fmt: skip
-    exp.add_argument("--gate-speed-mm-s", type=float, default=5.0,
-                     help="actuator speed, mm/s (default 5)")  # fmt: skip
-    exp.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
-    exp.add_argument(
-        "--flow", type=float, metavar="M3S",
-        help="base inflow, m³/s (default: the .inp's constant inflow there)",
-    )  # fmt: skip
+    _add_recording_arguments(exp)
     exp.add_argument("--opening", type=float, metavar="MM",
                      help="base opening, mm (default: half the orifice height)")  # fmt: skip
 
@@ -76,22 +66,27 @@ def _add_demo_arguments(sub: Any) -> None:
     demo.add_argument("--inflow", metavar="NODE", nargs="+", help="node(s) receiving the inflow")
     demo.add_argument("--out", metavar="DIR", required=True, help="output folder (replaced "
                       "only if an earlier run wrote it)")  # fmt: skip
-    demo.add_argument("--sample-period", type=float, default=10.0, metavar="S",
-                      help="sample period, s (default 10)")  # fmt: skip
-    demo.add_argument("--noise-mm", type=float, default=3.0,
-                      help="gauge noise standard deviation, mm (default 3)")  # fmt: skip
-    demo.add_argument("--gate-speed-mm-s", type=float, default=5.0,
-                      help="actuator speed, mm/s (default 5)")  # fmt: skip
-    demo.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
-    demo.add_argument(
+    _add_recording_arguments(demo)
+    demo.add_argument("--opening", type=float, metavar="MM",
+                      help="base opening, mm (default: the model's rule for the gate, else "
+                      "half the orifice height)")  # fmt: skip
+
+
+def _add_recording_arguments(parser: Any) -> None:
+    """The options of how SWMM's records are logged, shared by ``experiment`` and ``demo``."""
+    parser.add_argument("--sample-period", type=float, default=10.0, metavar="S",
+                        help="sample period, s (default 10)")  # fmt: skip
+    parser.add_argument("--noise-mm", type=float, default=3.0,
+                        help="gauge noise standard deviation, mm (default 3)")  # fmt: skip
+    parser.add_argument("--gate-speed-mm-s", type=float, default=5.0,
+                        help="actuator speed, mm/s (default 5)")  # fmt: skip
+    parser.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
+    parser.add_argument(
         "--flow",
         type=float,
         metavar="M3S",
         help="base inflow, m³/s (default: the .inp's constant inflow there)",
     )
-    demo.add_argument("--opening", type=float, metavar="MM",
-                      help="base opening, mm (default: the model's rule for the gate, else "
-                      "half the orifice height)")  # fmt: skip
 
 
 def run_swmm(args: argparse.Namespace) -> int:
