@@ -75,6 +75,7 @@ def _dask_models(district: Path, tmp_path: Path) -> Path:
         out = tmp_path / "dask"
         done = _models("--records", str(district), "--out", str(out), "--scheduler", address)
         assert done.returncode in (0, 1), done.stderr[-2000:]  # 1: a gate failed, reported
+        assert (out / "fleet.json").is_file(), done.stderr[-2000:]
         assert "dask" in json.loads((out / "fleet.json").read_text())["mode"]
         return out
 

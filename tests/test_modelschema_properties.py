@@ -40,6 +40,9 @@ BUDGET = settings(
     database=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
+#: The schema's bound on a physical kernel parameter: a value past it is refused.
+KERNEL_MAX = model_schema()["$defs"]["kernel_parameters"]["additionalProperties"]["maximum"]
+PAST_KERNEL_MAX = KERNEL_MAX * (1.0 + 1e-9)
 BAD_CHARS = [chr(c) for c in range(0x20)] + ["\x7f", "\x85", "\x9f", "\ud800", "\udbff",
                                               "\udc00", "\udfff", "\ufffe", "\uffff"]  # fmt: skip
 
@@ -176,7 +179,12 @@ TYPED: list[tuple[str, tuple[Any, ...], Any]] = [
     (
         "physical_3F",
         ("plant", "parameters", "area_m2"),
-        st.one_of(st.floats(1e6 + 1, 1e308), st.floats(-1e308, -1e6 - 1), st.text(), st.none()),
+        st.one_of(
+            st.floats(PAST_KERNEL_MAX, 1e308),
+            st.floats(-1e308, -PAST_KERNEL_MAX),
+            st.text(),
+            st.none(),
+        ),
     ),
     (
         "fopdt_3F",

@@ -80,19 +80,32 @@ STORAGE = ["area_m2", "area_per_depth_m"]
 #: The seiche's parameters (period, decay time, amplitude), fitted last; "no seiche".
 SEICHE = ["period_s", "decay_time_s", "amplitude_mm_per_mm"]
 NO_SEICHE = np.array([1.0, 1.0, 0.0])
-#: Start and bounds of the seiche fit: a pool oscillation of a few to a few tens of seconds.
-SEICHE_START = (10.0, 20.0, 0.3)
-SEICHE_BOUNDS = ((2.0, 1.0, -5.0), (60.0, 600.0, 5.0))
+#: Amplitude start of the seiche fit, mm of level per mm of gate move.
+SEICHE_AMPLITUDE_START = 0.3
+#: Largest |amplitude| of the seiche, mm per mm of gate move.
+SEICHE_AMPLITUDE_MAX = 5.0
 #: The seiche is kept when the F-test of its three parameters against none rejects "no
 #: seiche" at this level (residuals treated as independent: an optimistic test, so the level
 #: is strict).
 SEICHE_SIGNIFICANCE = 1e-3
 ACTUATOR = ["speed_mm_s", "stall_depth_m"]
 #: The gate law's parameters that every gate has: a discharge coefficient that may differ
-#: between small and large openings, and the gauge's offset. The rest of ``LAW`` (the
-#: transition's place, width and shape, and every parameter's drift with discharge) is kept
-#: only when the data show it (an F-test at ``SEICHE_SIGNIFICANCE``).
+#: between small and large openings, and the gauge's offset.
 LAW_CORE = ["cd_small", "cd_large", "offset_mm"]
+#: The gate law in nested steps, each kept only when the data ask for it (an F-test against
+#: the step below at ``SEICHE_SIGNIFICANCE``) and its discharge coefficient stays physical
+#: (in (0, 1]) over the steady points' ranges of opening ratio and discharge: the core; the
+#: coefficients' and the offset's drift with discharge (a submerged or far gauge, a pool whose
+#: friction loss grows with Q); the whole transition (its place, width and shape).
+#: Evaluations per parameter allowed to a gate-law fit (five times least_squares' default: a
+#: law's evaluation is one steady solve per point, milliseconds, and the transition's
+#: parameters are weakly determined when the data see one side of it).
+LAW_EVALUATIONS = 500
+LAWS = (
+    LAW_CORE,
+    [*LAW_CORE, "cd_small_per_q", "cd_large_per_q", "offset_per_flow2_mm"],
+    LAW,
+)
 #: Law parameters that start at zero (no drift with discharge, no offset, no shape).
 ZERO_START = ("cd_small_per_q", "cd_large_per_q", "cd_mid_per_q", "cd_log_width_per_q",
               "cd_log_shape", "offset_mm", "offset_per_flow2_mm", "area_per_depth_m")  # fmt: skip
@@ -256,9 +269,10 @@ def _dynamic_residuals(drives: Sequence[_Drive], p: np.ndarray,
     return res
 
 
-def _fit(names: list[str], values: dict[str, float], residual: Callable[[np.ndarray], np.ndarray]
-         ) -> tuple[dict[str, float], Any]:  # fmt: skip
-    """Least squares over ``names`` (the rest of ``values`` held)."""
+def _fit(names: list[str], values: dict[str, float], residual: Callable[[np.ndarray], np.ndarray],
+         max_nfev: int | None = None) -> tuple[dict[str, float], Any]:  # fmt: skip
+    """Least squares over ``names`` (the rest of ``values`` held); ``max_nfev`` as in
+    :func:`scipy.optimize.least_squares` (its default when None)."""
     index = [kernel.INDEX[n] for n in names]
     base = _vector(values)
 
@@ -267,7 +281,7 @@ def _fit(names: list[str], values: dict[str, float], residual: Callable[[np.ndar
         p[index] = x
         return residual(p)
 
-    result = least_squares(fun, base[index], x_scale="jac", diff_step=1e-6)
+    result = least_squares(fun, base[index], x_scale="jac", diff_step=1e-6, max_nfev=max_nfev)
     if not result.success or not np.all(np.isfinite(result.fun)):
         raise IdentificationError(f"physical fit did not converge ({result.message})")
     return {**values, **dict(zip(names, (float(v) for v in result.x), strict=True))}, result
@@ -343,7 +357,8 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
     if not drives:
         raise IdentificationError(f"physical {gauge}: no dynamic record has this gauge")
     fixed, sources = fixed_parameters(static, records, gauge, points)
-    values, law, core = _fit_law(points, fixed, sources)
+    laws = _fit_law(points, fixed, sources)
+    law, values = laws[-1]
     speeds, depths = actuator_moves(records, gauge, values)
     values = _fit_actuator(speeds, depths, values)
     values = _storage_start(values, points, drives, sources)
@@ -361,17 +376,23 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
             ]
         )
 
-    try:
-        values, result = _fit(law + STORAGE, values, joint)
-    except IdentificationError:
-        if law == LAW_CORE:
-            raise
-        # the transition's extra parameters and the storage are not identifiable together
-        sources["gate_law"] = "core: the whole law did not converge jointly with the storage"
-        law = list(LAW_CORE)
-        values, result = _fit(law + STORAGE, {**values, **{n: core[n] for n in LAW}}, joint)
+    staged = values
+    while True:
+        try:
+            values, result = _fit(law + STORAGE, values, joint)
+            break
+        except IdentificationError:
+            if len(laws) == 1:
+                raise
+            # this law's parameters and the storage are not identifiable together: one step down
+            laws.pop()
+            law = laws[-1][0]
+            sources["gate_law"] = (f"{len(law)} of {len(LAW)} law parameters: the larger law "
+                                   "did not converge jointly with the storage")  # fmt: skip
+            values = {**staged, **{n: laws[-1][1][n] for n in LAW}}
     p = _vector(values)
-    seiche, seiche_report = _fit_seiche(drives, p, rms_dyn)
+    seiche, seiche_report = _fit_seiche(drives, p, rms_dyn,
+                                        seiche_periods_s(records, p, points))  # fmt: skip
     effects = (effect_dict("seiche", **dict(zip(SEICHE, seiche, strict=True))),) \
         if seiche_report["kept"] else ()  # fmt: skip
     plant = PhysicalPlant(gauge, values, Schedule(tuple(flow_range_m3h),
@@ -408,31 +429,53 @@ def law_start(points: SteadyPoints, width_m: float) -> dict[str, float]:
 
 
 def _fit_law(points: SteadyPoints, fixed: dict[str, float], sources: dict[str, str]
-             ) -> tuple[dict[str, float], list[str], dict[str, float]]:  # fmt: skip
-    """The gate law on the steady points: ``LAW_CORE`` first, then the whole ``LAW`` from
-    there, kept when it converges and an F-test rejects the core law at
-    ``SEICHE_SIGNIFICANCE``; the values, the names fitted (``sources`` says which law was
-    kept) and the core law's values."""
+             ) -> list[tuple[list[str], dict[str, float]]]:  # fmt: skip
+    """The gate law on the steady points, grown along ``LAWS``: each step fitted from the last
+    one kept, and kept when it converges, its coefficient stays physical over the points
+    (:func:`_physical_law`) and an F-test rejects the step below at ``SEICHE_SIGNIFICANCE``.
+    The laws kept, simplest first, each with its values (``sources`` says which one is last)."""
     values = {**law_start(points, fixed["width_m"]), **fixed}
 
     def residual(p: np.ndarray) -> np.ndarray:
         return _steady_residuals(points, p)
 
-    core, core_fit = _fit(LAW_CORE, values, residual)
+    values, last = _fit(LAW_CORE, values, residual)
+    kept = [(list(LAW_CORE), values)]
     sources["gate_law"] = "core (Cd for small and large openings, offset): the data show no more"
-    try:
-        whole, whole_fit = _fit(LAW, core, residual)
-    except IdentificationError:
-        return core, list(LAW_CORE), core
-    n, extra = points.flow_m3h.size, len(LAW) - len(LAW_CORE)
-    rss0, rss1 = 2.0 * float(core_fit.cost), 2.0 * float(whole_fit.cost)
-    if n <= len(LAW) or rss1 <= 0.0:
-        return core, list(LAW_CORE), core
-    f_stat = ((rss0 - rss1) / extra) / (rss1 / (n - len(LAW)))
-    if float(f_dist.sf(f_stat, extra, n - len(LAW))) >= SEICHE_SIGNIFICANCE:
-        return core, list(LAW_CORE), core
-    sources["gate_law"] = "whole transition law: an F-test rejects the core law"
-    return whole, list(LAW), core
+    n = points.flow_m3h.size
+    for law in LAWS[1:]:
+        if n <= len(law):
+            break
+        try:
+            trial, fit = _fit(law, kept[-1][1], residual, LAW_EVALUATIONS * len(law))
+        except IdentificationError:
+            break
+        rss0, rss1 = 2.0 * float(last.cost), 2.0 * float(fit.cost)
+        extra = len(law) - len(kept[-1][0])
+        if rss1 <= 0.0 or not _physical_law(points, trial):
+            break
+        f_stat = ((rss0 - rss1) / extra) / (rss1 / (n - len(law)))
+        if float(f_dist.sf(f_stat, extra, n - len(law))) >= SEICHE_SIGNIFICANCE:
+            break
+        kept.append((list(law), trial))
+        last = fit
+        sources["gate_law"] = (f"{len(law)} of {len(LAW)} law parameters: an F-test rejects "
+                               f"the {len(kept[-2][0])}-parameter law")  # fmt: skip
+    return kept
+
+
+def _physical_law(points: SteadyPoints, values: dict[str, float]) -> bool:
+    """Whether the discharge coefficient lies in (0, 1] on a grid over the steady points'
+    ranges of opening ratio (against the depth at the gate) and discharge."""
+    p = list(_vector(values))
+    passing = points.flow_m3h / values["flow_scale_m3h"]
+    depth_mm = points.level_mm + values["offset_mm"] + values["offset_per_flow2_mm"] * passing**2
+    depth_m = np.maximum(depth_mm / 1000.0, kernel.DEPTH_MIN_M)
+    ratio = np.log(np.maximum(points.opening_mm / 1000.0 / depth_m, kernel.RATIO_MIN))
+    cd = [kernel.discharge_coefficient(float(np.exp(r)), float(q), p)
+          for r in np.linspace(ratio.min(), ratio.max(), 16)
+          for q in np.linspace(points.flow_m3h.min(), points.flow_m3h.max(), 16)]  # fmt: skip
+    return bool(np.all(np.isfinite(cd)) and min(cd) > 0.0 and max(cd) <= 1.0)
 
 
 def fixed_parameters(static: Any, records: dict[str, Record], gauge: str, points: SteadyPoints
@@ -501,17 +544,56 @@ def _storage_start(values: dict[str, float], points: SteadyPoints, drives: Seque
     return {**values, "area_m2": best, "max_substep_s": substep}
 
 
-def _fit_seiche(drives: Sequence[_Drive], p: np.ndarray, weights: list[float]
-                ) -> tuple[np.ndarray, dict[str, Any]]:  # fmt: skip
+def seiche_periods_s(records: dict[str, Record], p: np.ndarray, points: SteadyPoints
+                     ) -> tuple[float, float]:  # fmt: skip
+    """The seiche periods the data can show, s: from two sample periods (a faster oscillation
+    aliases) to the quarter-wave period of the longest pool the storage allows, 4 L / sqrt(g h)
+    with L = area / gate width (the channel is at least as wide as the gate) at the steady
+    points' median depth."""
+    depth_m = max(float(np.median(points.level_mm + p[kernel.INDEX["offset_mm"]])) / 1000.0,
+                  kernel.DEPTH_MIN_M)  # fmt: skip
+    length_m = kernel.storage_area_m2(depth_m, list(p)) / p[kernel.INDEX["width_m"]]
+    return 2.0 * start.sample_period_s(records), 4.0 * length_m / math.sqrt(kernel.G * depth_m)
+
+
+def _seiche_start(
+    residuals: Sequence[np.ndarray], drives: Sequence[_Drive], periods_s: tuple[float, float]
+) -> float:
+    """The period of the strongest oscillation left in the simulation error within
+    ``periods_s`` (the records' power spectra summed on one grid of periods), s."""
+    grid = np.geomspace(periods_s[0], periods_s[1], 64)
+    power = np.zeros(grid.size)
+    for r, d in zip(residuals, drives, strict=True):
+        dt = float(np.median(np.diff(d.time_s)))
+        freq = np.fft.rfftfreq(r.size, dt)
+        spectrum = np.abs(np.fft.rfft(r - r.mean())) ** 2
+        power += np.interp(1.0 / grid, freq, spectrum)
+    return float(grid[int(np.argmax(power))])
+
+
+def _fit_seiche(drives: Sequence[_Drive], p: np.ndarray, weights: list[float],
+                periods_s: tuple[float, float]) -> tuple[np.ndarray, dict[str, Any]]:  # fmt: skip
     """The pool's seiche from the simulation error left by the hydraulics (held fixed): its
-    period, decay time and amplitude per mm of gate move, with an F-test against none."""
+    period (within ``periods_s``, started at the residuals' spectral peak), decay time (one
+    sample period to ten of the longest periods) and amplitude per mm of gate move, with an
+    F-test against none."""
 
     def residual(x: np.ndarray) -> np.ndarray:
         res = _dynamic_residuals(drives, p, np.asarray(x, float))
         return np.concatenate([r / w for r, w in zip(res, weights, strict=True)])
 
     without = residual(NO_SEICHE)
-    result = least_squares(residual, SEICHE_START, bounds=SEICHE_BOUNDS, x_scale="jac")
+    if periods_s[1] <= periods_s[0]:
+        reason = (
+            f"no seiche the sampling can show: the longest pool's quarter-wave period "
+            f"{periods_s[1]:.3g} s is under two sample periods ({periods_s[0]:.3g} s)"
+        )
+        return NO_SEICHE.copy(), {"kept": False, "reason": reason}
+    period = _seiche_start(_dynamic_residuals(drives, p), drives, periods_s)
+    lower = (periods_s[0], periods_s[0] / 2.0, -SEICHE_AMPLITUDE_MAX)
+    upper = (periods_s[1], 10.0 * periods_s[1], SEICHE_AMPLITUDE_MAX)
+    result = least_squares(residual, (period, period, SEICHE_AMPLITUDE_START),
+                           bounds=(lower, upper), x_scale="jac")  # fmt: skip
     n, k = without.size, len(SEICHE)
     rss0, rss1 = float(without @ without), 2.0 * float(result.cost)
     f_stat = ((rss0 - rss1) / k) / (rss1 / max(1, n - k)) if rss1 > 0 else math.inf
@@ -522,6 +604,7 @@ def _fit_seiche(drives: Sequence[_Drive], p: np.ndarray, weights: list[float]
         "standard_errors": _standard_errors(result, SEICHE),
         "f_test_p_value": p_value,
         "weighted_rss_without": rss0, "weighted_rss_with": rss1,
+        "period_bounds_s": [float(v) for v in periods_s], "period_start_s": period,
     }  # fmt: skip
     return np.asarray(result.x, float), report
 
