@@ -150,6 +150,7 @@ def field_models(records: Path, tmp_path_factory: pytest.TempPathFactory) -> Pat
     return out / records.name  # one gate's folder: its models go under its name
 
 
+@pytest.mark.long
 @pytest.mark.slow
 def test_field_gate_public_path(field_models: Path, tmp_path: Path) -> None:
     models = field_models
@@ -193,6 +194,7 @@ def test_field_gate_public_path(field_models: Path, tmp_path: Path) -> None:
             assert 384.0 < opening <= physical["validity"]["opening_range_mm"][1]
 
 
+@pytest.mark.long
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="the MPC of the physical model's linearisation holds "
                    "384 mm on this step; its first move is not yet understood")  # fmt: skip

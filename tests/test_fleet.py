@@ -88,6 +88,7 @@ def test_a_dask_scheduler_and_two_workers_write_the_same_model_files(district, s
     assert _same_model_files(serial, out) == []
 
 
+@pytest.mark.long
 @pytest.mark.slow
 def test_fifty_gates_on_dask_write_the_serial_runs_model_files(tmp_path):
     """50 generated gates: the dask cluster's model files are the serial run's, byte for

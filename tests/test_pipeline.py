@@ -123,6 +123,7 @@ def test_stages_are_extensible(records_dir: Path, tmp_path: Path) -> None:
     assert not (tmp_path / "new").exists()
 
 
+@pytest.mark.long
 @pytest.mark.slow  # the whole `gatetwin run` (about 2 min); CI runs the slow tests first
 def test_run_writes_models_fmus_figures_and_summary(tmp_path):
     from gatetwin.run.pipeline import run_pipeline

@@ -206,6 +206,7 @@ def test_cli_flume_writes_routine_histories_with_truth(tmp_path) -> None:
     assert not (tmp_path / "e").exists()
 
 
+@pytest.mark.long
 @pytest.mark.slow
 def test_twenty_week_long_histories_within_10_percent(tmp_path) -> None:
     """20 district gates, a week each at 1.2 s (15 under an operator's schedule, 5 under PI
