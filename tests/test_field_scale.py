@@ -159,6 +159,11 @@ def test_field_gate_public_path(field_models: Path, tmp_path: Path) -> None:
     fit = physical["provenance"]["metrics"]["fit"]
     values, errors = physical["plant"]["parameters"], fit["standard_errors"]
     assert values["width_m"] == field.WIDTH_M
+    # the gauge's noise from the records' holds: the truth's within 10 % (a pooled SD over
+    # thousands of hold samples has a relative standard error under 2 %; the margin is for
+    # what the inflow's 0.5 % noise makes the level wander through a hold)
+    noise = physical["validity"]["level_noise_sd_mm"]
+    assert abs(noise / field.LEVEL_SD_MM["P1"] - 1.0) <= 0.1, noise
     # the pool's time constant at the middle of the step tests, identified against the
     # truth: within 4 standard errors of the storage area there (A0 and A1 taken as
     # independent: their covariance is negative at this depth, so this overstates the error)

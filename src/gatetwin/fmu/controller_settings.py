@@ -25,6 +25,9 @@ sample period, horizon and weights come from that model (rules below); an explic
   HORIZON_MAX)`` (a coarser prediction step, which the controller FMU also steps at) and
   ``N = ceil((4 T_max + L_max) / (k Ts))``. A pool with a one-hour time constant at 10 s
   sampling: n = 1440, k = 15, a 150 s step and N = 96.
+* **Observer**: where the model file states its gauge's noise (``validity.level_noise_sd_mm``,
+  the noise floors of the records it was identified from), :func:`observer_settings`;
+  else the observer's defaults.
 * **MPC weights**: the level error's 1/mm²; a gate move's ``(K/4)²``, so that a move of one
   mm costs what a level error of a quarter of its steady effect costs (the ratio the
   controllers were first tuned with: 10 at 12.5 mm/mm); the envelope's move-weight
@@ -169,6 +172,30 @@ def level_band_mm(model: ModelFile, plant: FopdtPlant, opening_range_mm: tuple[f
     return min(levels), max(levels)
 
 
+#: The input disturbance the observer expects per time constant, as a share of the opening: an
+#: inflow change of some 10 % is what a gate under the MPC takes up (the size of the gate
+#: step of the experiments that identify it).
+DISTURBANCE_SHARE = 0.1
+
+
+def observer_settings(noise_sd_mm: float, opening_mm: float, time_constant_s: float,
+                      ts: float) -> Any:  # fmt: skip
+    """The disturbance observer of a gate whose gauge reads with ``noise_sd_mm``: readings
+    and the level's own wander weighed by that noise, and an input disturbance walking
+    ``DISTURBANCE_SHARE`` of the opening per time constant (``sqrt(Ts / T)`` of it per
+    sample).
+
+    Returns
+    -------
+    gatetwin.mpc.settings.ObserverSettings
+    """
+    from gatetwin.mpc.settings import ObserverSettings
+
+    walk = DISTURBANCE_SHARE * opening_mm * math.sqrt(ts / max(time_constant_s, ts))
+    return ObserverSettings(measurement_sd_mm=noise_sd_mm, level_sd_mm=noise_sd_mm,
+                            disturbance_sd_mm=max(walk, 1e-6))  # fmt: skip
+
+
 def derived_settings(model: ModelFile, plant: FopdtPlant) -> Any:
     """:class:`~gatetwin.mpc.demo.DemoSettings` of ``model``'s gate (module docstring)."""
     from gatetwin.mpc.demo import DemoSettings
@@ -186,8 +213,11 @@ def derived_settings(model: ModelFile, plant: FopdtPlant) -> Any:
     n, step = horizon(plant, ts)
     gain = abs(plant.schedule.at("gain_mm_per_mm", flow))
     demo = DemoSettings()
+    noise = model.content.get("validity", {}).get("level_noise_sd_mm")
+    observer = demo.mpc.observer if not noise else observer_settings(
+        float(noise), opening, plant.schedule.at("time_constant_s", flow), ts)  # fmt: skip
     mpc = replace(
-        demo.mpc, horizon=n, sample_period_s=step, opening_range_mm=(lo, hi),
+        demo.mpc, horizon=n, observer=observer, sample_period_s=step, opening_range_mm=(lo, hi),
         opening_rate_mm_s=rate, level_band_mm=level_band_mm(model, plant, (lo, hi)),
         level_weight=1.0, move_weight=max((gain / 4.0) ** 2, 1e-9),
         move_weight_gain_mm_per_mm=max(gain, 1e-9),

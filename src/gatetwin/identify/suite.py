@@ -36,6 +36,7 @@ from gatetwin.identify.schedule import (
 )
 from gatetwin.identify.step import StepIdentification, identify_step
 from gatetwin.modelfile import model_document, physical_document
+from gatetwin.noise import record_noise_floor
 from gatetwin.plant.model import local_fopdt, plant_from_dict
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import Record, detect_table_kind, read_record, read_static_table
@@ -210,8 +211,9 @@ def fopdt_model(ident: Identified, gauge: str,
         )
         validity = {k: physical["validity"][k] for k in ("opening_range_mm", "level_range_mm")}
         validity["flow_m3h"] = physical["validity"]["flow_m3h"]
-        if "sample_period_s" in physical["validity"]:
-            validity["sample_period_s"] = physical["validity"]["sample_period_s"]
+        for key in ("sample_period_s", "level_noise_sd_mm"):
+            if key in physical["validity"]:
+                validity[key] = physical["validity"][key]
         for c in conds:
             middle = c.opening_mm + 0.5 * c.delta_e_mm  # the step's K is a secant over it
             local = local_fopdt(plant, c.flow_m3h, middle)
@@ -401,6 +403,12 @@ def physical_model(ident: Identified, gauge: str) -> dict[str, Any]:
     )
     # the records' sample period: what a controller or observer of this model samples at
     doc["validity"]["sample_period_s"] = min(r.sample_period_s for r in fit_records.values())
+    # the gauge's noise: what an observer of this model weighs the readings by
+    sigmas = [record_noise_floor(r, gauge).sigma_mm for r in fit_records.values()
+              if gauge in r.levels_mm]  # fmt: skip
+    sigmas = [s for s in sigmas if np.isfinite(s)]
+    if sigmas:
+        doc["validity"]["level_noise_sd_mm"] = round(float(np.median(sigmas)), 3)
     return doc
 
 

@@ -8,10 +8,10 @@ gauge noise SD ``σ``, gate speed, the opening and level ranges the experiments 
 * MPC horizon ``N = ceil(3 (T + L) / Ts)``: the prediction covers 95 % of a step response;
 * move weight ``K²``: a gate move costs what its steady level effect costs over one
   sample;
-* observer: measurement SD = ``σ``; level process noise ``σ``; input disturbance random
-  walk ``s_e √(Ts / T)`` per sample (``s_e`` the experiments' gate step): the walk's SD
-  grows by a gate step over one time constant, so such a mismatch is integrated out in
-  about T;
+* observer: :func:`gatetwin.fmu.controller_settings.observer_settings` of ``σ`` (the one
+  rule the controller FMUs follow too): measurement SD and level process noise ``σ``, an
+  input disturbance walking a tenth of the opening per time constant, so such a mismatch
+  is integrated out in about T;
 * opening range: the gate's own (0 to the orifice height): an inflow step may need an
   opening the experiments never set, and the offset-free MPC lives with the twin's
   extrapolation there; level band: the levels the experiments' records covered;
@@ -37,10 +37,11 @@ from typing import Any
 import numpy as np
 
 from gatetwin.errors import PlantError
+from gatetwin.fmu.controller_settings import observer_settings
 from gatetwin.mpc.loop import ClosedLoopRun, LoopSettings, Scenario, loop_metrics
 from gatetwin.mpc.pi import PiSettings
 from gatetwin.mpc.plants import MeasurementNoise
-from gatetwin.mpc.settings import MpcSettings, ObserverSettings
+from gatetwin.mpc.settings import MpcSettings
 from gatetwin.plant.model import FopdtPlant
 from gatetwin.plants.swmm import SwmmCore, SwmmPlantSpec
 
@@ -154,10 +155,9 @@ def loop_settings(point: TwinPoint, *, sample_period_s: float, noise_sd_mm: floa
     """
     from gatetwin.mpc.demo import DemoSettings
 
-    ts, k, tau = sample_period_s, point.gain_mm_per_mm, point.time_constant_s
+    ts, k = sample_period_s, point.gain_mm_per_mm
     sd = max(noise_sd_mm, 0.1)  # the gauge reads to 0.1 mm: no finer noise is meaningful
-    walk = point.gate_step_mm * math.sqrt(ts / tau)
-    observer = ObserverSettings(measurement_sd_mm=sd, level_sd_mm=sd, disturbance_sd_mm=walk)
+    observer = observer_settings(sd, point.opening_mm, point.time_constant_s, ts)
     horizon = min(2000, max(2, math.ceil(3 * point.response_s / ts)))
     mpc = MpcSettings(horizon=horizon, sample_period_s=ts, opening_range_mm=opening_range_mm,
                       opening_rate_mm_s=gate_speed_mm_s, level_band_mm=level_band_mm,
