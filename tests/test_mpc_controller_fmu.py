@@ -398,3 +398,28 @@ def test_the_benchmarks_c_host_builds_and_steps_the_fmu(fmu, tmp_path):
     assert 0.0 < got["p50_ns"] <= got["p99_ns"] <= got["max_ns"]
     assert got["active_share"] > 0.0  # the set-point steps drive the constraints
     assert got["heap_during_steps_bytes"] == 0.0
+
+
+def test_export_controller_takes_the_gates_opening_range(tmp_path, capsys):
+    """``--opening-range`` widens the controller's openings past the model's validity (an
+    inflow step may need more); an empty, inverted or non-finite range is refused in one
+    line and nothing is written."""
+    from pathlib import Path
+
+    from fmpy import read_model_description
+
+    from gatetwin.cli import main
+
+    model = Path(__file__).resolve().parents[1] / "models" / "fopdt_3F.json"
+    out = tmp_path / "pi.fmu"
+    for bad in (["5", "-1"], ["5", "5"], ["0", "nan"], ["0", "1e9"]):
+        assert main(["export-controller", str(model), "--opening-range", *bad, "--out",
+                     str(out)]) == 2  # fmt: skip
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--opening-range" in err[0], err
+        assert not out.exists()
+    assert main(["export-controller", str(model), "--opening-range", "0", "300", "--out",
+                 str(out)]) == 0  # fmt: skip
+    start = {v.name: float(v.start) for v in read_model_description(str(out)).modelVariables
+             if v.causality == "parameter"}  # fmt: skip
+    assert (start["opening_min_mm"], start["opening_max_mm"]) == (0.0, 300.0)

@@ -313,6 +313,11 @@ def add_export_controller_arguments(parser: argparse.ArgumentParser) -> None:
         "time, 4 T + L, in at most 100 steps; the step's cost grows about as N^3, see README)",
     )  # fmt: skip
     parser.add_argument(
+        "--opening-range", metavar=("LO", "HI"), type=float, nargs=2,
+        help="the gate's openings the controller may use, mm (default: the openings the "
+        "model was identified over, its validity; an inflow step may need more)",
+    )  # fmt: skip
+    parser.add_argument(
         "--without-effects", action="store_true",
         help="mpc: control the model's FOPDT with its effect blocks dropped (the MPC FMU does "
         "not cover them; a model with effect blocks is refused otherwise)",
@@ -335,11 +340,16 @@ def run_export_controller(args: argparse.Namespace) -> int:
         raise GatetwinError("--horizon applies to --kind mpc")
     model = read_model_file(args.model)
     settings = None
-    if args.horizon is not None:
+    if args.horizon is not None or args.opening_range is not None:
         from gatetwin.fmu.controller_settings import controller_plant, derived_settings
 
-        derived = derived_settings(model, controller_plant(model))
-        settings = replace(derived, mpc=replace(derived.mpc, horizon=args.horizon))
+        given = tuple(args.opening_range) if args.opening_range else None
+        try:
+            settings = derived_settings(model, controller_plant(model), given)
+        except GatetwinError as exc:
+            raise GatetwinError(f"--opening-range: {exc}") from None
+        if args.horizon is not None:
+            settings = replace(settings, mpc=replace(settings.mpc, horizon=args.horizon))
     check_writable(args.out)
     if args.without_effects and args.kind != "mpc":
         raise GatetwinError("--without-effects applies to --kind mpc")

@@ -15,10 +15,11 @@ sample period, horizon and weights come from that model (rules below); an explic
   ``opening_ref_mm`` (for a physical model, the opening of its linearisation).
 * **Sample period** ``Ts``: the records' (``validity.sample_period_s``, or the ARX's); a file
   written before it was recorded keeps the controllers' historical 1.2 s.
-* **Limits**: the validity's opening range; the gate's loaded speed at the operating depth
-  where the model knows its actuator (physical or envelope parameters), else no rate limit
-  (the whole range in one sample); the MPC's level band is the validity's level range, else
-  the levels the schedule reaches over the opening range.
+* **Limits**: the validity's opening range, or the gate's range when given; the gate's
+  loaded speed at the operating depth where the model knows its actuator (physical or
+  envelope parameters), else no rate limit (the whole range in one sample); the MPC's level
+  band is the validity's level range, else the levels the schedule reaches over the opening
+  range.
 * **MPC horizon**: it covers the 2 % settling time ``4 T_max + L_max`` of the slowest
   knot. At ``Ts`` that takes ``n = ceil((4 T_max + L_max) / Ts)`` samples; when ``n``
   exceeds :data:`HORIZON_MAX` the MPC samples every ``k Ts`` with ``k = ceil(n /
@@ -46,6 +47,7 @@ from gatetwin.errors import ExportError
 from gatetwin.modelfile import ModelFile, validity_envelope
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.model import (
+    OPENING_RANGE_MM,
     ArxPlant,
     FopdtPlant,
     PhysicalPlant,
@@ -196,17 +198,22 @@ def observer_settings(noise_sd_mm: float, opening_mm: float, time_constant_s: fl
                             disturbance_sd_mm=max(walk, 1e-6))  # fmt: skip
 
 
-def derived_settings(model: ModelFile, plant: FopdtPlant) -> Any:
-    """:class:`~gatetwin.mpc.demo.DemoSettings` of ``model``'s gate (module docstring)."""
+def derived_settings(model: ModelFile, plant: FopdtPlant,
+                     opening_range_mm: tuple[float, float] | None = None) -> Any:  # fmt: skip
+    """:class:`~gatetwin.mpc.demo.DemoSettings` of ``model``'s gate (module docstring);
+    ``opening_range_mm`` the gate's range the controllers may use, when it is wider (or
+    narrower) than the openings the model was identified over (the default): an inflow step
+    may need an opening the records never set."""
     from gatetwin.mpc.demo import DemoSettings
     from gatetwin.mpc.pi import PiSettings
 
     box = validity_envelope(model.content)
     q_lo, q_hi = box.get("flow_m3h", plant.schedule.flow_range_m3h)
     flow = 0.5 * (q_lo + q_hi)
-    lo, hi = box.get("opening_mm") or _no_range(model, "opening_range_mm")
-    if not lo < hi:
-        raise ExportError(f"{model.name}: validity opening range [{lo}, {hi}] mm is empty")
+    lo, hi = opening_range_mm or box.get("opening_mm") or _no_range(model, "opening_range_mm")
+    if not (OPENING_RANGE_MM[0] <= lo < hi <= OPENING_RANGE_MM[1]):
+        raise ExportError(f"{model.name}: opening range [{lo}, {hi}] mm is empty or outside "
+                          f"{OPENING_RANGE_MM[0]:g}..{OPENING_RANGE_MM[1]:g} mm")  # fmt: skip
     opening = min(max(plant.opening_ref_mm, lo), hi)
     ts = sample_period_s(model)
     rate = opening_rate_mm_s(model, opening, flow, (lo, hi), ts)

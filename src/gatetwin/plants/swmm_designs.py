@@ -138,7 +138,10 @@ class InBank:
         return self._seen[key]
 
     def opening(self, opening_mm: float, flow_m3h: float) -> float:
-        """The opening nearest ``opening_mm``, in whole gate steps, whose hold is in bank."""
+        """The opening nearest ``opening_mm``, in whole gate steps, whose hold is in bank; where
+        the band of such openings is narrower than a gate step (the level jumps from below
+        the gate's lip to the bank's margin within one step), the whole millimetre in it
+        that bisection finds."""
         direction = self.side(opening_mm, flow_m3h)
         e = opening_mm
         while direction and self.side(e, flow_m3h) == direction:
@@ -146,12 +149,19 @@ class InBank:
             if not self.step_mm <= e <= self.core.height_mm:
                 raise PlantError(f"free records: no opening keeps Q = {flow_m3h:g} m³/h in bank "
                                  f"and in orifice regime near e = {opening_mm:g} mm")  # fmt: skip
-        if self.side(e, flow_m3h):
-            raise PlantError(
-                f"free records: Q = {flow_m3h:g} m³/h is out of bank or out of "
-                f"orifice regime at every opening near e = {opening_mm:g} mm"
-            )
-        return e
+        if not self.side(e, flow_m3h):
+            return e
+        near, far = e - direction * self.step_mm, e  # sides: ``direction``, then past the band
+        while abs(far - near) > 1.0:
+            middle = float(round(0.5 * (near + far)))
+            side = self.side(middle, flow_m3h)
+            if side == 0:
+                return middle
+            near, far = (middle, far) if side == direction else (near, middle)
+        raise PlantError(
+            f"free records: Q = {flow_m3h:g} m³/h is out of bank or out of "
+            f"orifice regime at every opening near e = {opening_mm:g} mm"
+        )
 
     def fit(self, sch: Schedule) -> Schedule:
         """``sch`` with every hold's opening moved in bank (its description says which)."""

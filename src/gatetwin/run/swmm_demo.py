@@ -326,6 +326,7 @@ def controller_fmu_loops(req: DemoRequest, loops: dict[str, Any], work: Path,
     from the model file) through fmpy, SWMM as the plant, in the closed loop's scenarios.
     A controller FMU that cannot be built or run is reported with its one-line cause."""
     from gatetwin.fmu.controller import export_controller
+    from gatetwin.fmu.controller_settings import controller_plant, derived_settings
     from gatetwin.modelfile import read_model_file
 
     gauge = loops["gauge"]
@@ -335,7 +336,13 @@ def controller_fmu_loops(req: DemoRequest, loops: dict[str, Any], work: Path,
     for kind in ("pi", "mpc"):
         path = work / "fmus" / "controllers" / f"fopdt_{gauge}_{kind}.fmu"
         try:
-            export_controller(model, kind, path, without_effects=kind == "mpc")
+            # the gate's whole range, as the Python loops have it (export-controller's
+            # --opening-range): the inflow steps need openings the records never set
+            plant = controller_plant(model)
+            gate = tuple(loops["settings"]["mpc"]["opening_range_mm"])
+            settings = derived_settings(model, plant, gate)
+            export_controller(model, kind, path, settings=settings,
+                              without_effects=kind == "mpc")  # fmt: skip
             out[kind] = _fmu_scenarios(req, path, point, loops, say)
         except GatetwinError as exc:
             out[kind] = {"failed": " ".join(str(exc).split())}
