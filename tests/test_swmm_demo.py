@@ -174,3 +174,19 @@ def test_the_demo_meets_its_acceptance_claim(demo: dict) -> None:
         assert mpc["iae_mean_mm"] < pi["iae_mean_mm"], name
         assert mpc["gate_reversals_per_hour"] <= pi["gate_reversals_per_hour"], name
         assert mpc["violations"] == 0, name
+
+
+def test_the_inflow_step_up_is_the_largest_the_gate_can_take() -> None:
+    """A twin whose level rises 0.01 mm per m³/h and falls 2 mm per mm of opening: holding
+    1050 mm at +40 % (14000 m³/h) needs 120 mm of opening, at +30 % 115 mm. With the gate's
+    range 0..130 mm (reserve 13 mm: reach 117 mm) the step is +30 %; with 0..200 mm, +40 %;
+    with 0..105 mm none fits and the smallest step is kept."""
+    flows = (5000.0, 20000.0)
+    values = {"gain_mm_per_mm": (-2.0, -2.0), "time_constant_s": (600.0, 600.0),
+              "dead_time_s": (0.0, 0.0), "level_ref_mm": (1000.0, 1150.0)}  # fmt: skip
+    plant = FopdtPlant("G", 100.0, Schedule(flows, values))
+    point = swmm_loop.TwinPoint.of(plant, 10000.0, 100.0, 10.0)
+    assert point.level_mm == pytest.approx(1050.0)
+    assert swmm_loop.inflow_up_factor(plant, point, (0.0, 130.0)) == 1.3
+    assert swmm_loop.inflow_up_factor(plant, point, (0.0, 200.0)) == 1.4
+    assert swmm_loop.inflow_up_factor(plant, point, (0.0, 105.0)) == 1.1

@@ -74,7 +74,13 @@ def _datum_mm(plant: Plant, flow_m3h: Any) -> Any:
 
 
 def steady_level_mm(plant: Plant, flow_m3h: float, opening_mm: float) -> float:
-    """The plant's steady level at (Q, e), mm (the physical family's datum included)."""
+    """The plant's steady level at (Q, e), mm (the physical family's datum included); an
+    FOPDT without an envelope holds its schedule's tangent, ``level_ref(Q) + K(Q) (e -
+    opening_ref)``."""
+    if isinstance(plant, FopdtPlant) and plant.envelope is None:
+        s = plant.schedule
+        return s.at("level_ref_mm", flow_m3h) + s.at("gain_mm_per_mm", flow_m3h) * (
+            opening_mm - plant.opening_ref_mm)  # fmt: skip
     _require_envelope(plant)
     p = plant.vector if isinstance(plant, PhysicalPlant) else list(plant.envelope.values())
     return envelope_point(opening_mm, flow_m3h, p)[0] + _datum_mm(plant, flow_m3h)

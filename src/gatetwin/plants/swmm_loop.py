@@ -49,6 +49,10 @@ from gatetwin.plants.swmm import SwmmCore, SwmmPlantSpec
 HOLD_TIME_CONSTANTS = 4.0
 #: Inflow steps of the scenarios, as factors of the operating discharge.
 INFLOW_UP, INFLOW_DOWN = 1.4, 0.7
+#: The step up is the largest of these that the gate can take (:func:`inflow_up_factor`).
+INFLOW_UP_STEPS = (INFLOW_UP, 1.3, 1.2, 1.1)
+#: Share of the gate's range kept in reserve above the opening an inflow step needs.
+OPENING_RESERVE = 0.1
 #: Keys of a plant spec file (``--swmm-plant PLANT.json``).
 SPEC_KEYS = ("inp", "gate", "gauges", "inflow", "gate_speed_mm_s", "sample_period_s")
 
@@ -203,9 +207,26 @@ def mpc_demo_inputs(plant: FopdtPlant, spec_path: str | Path) -> tuple[Any, Any]
     return settings, factory
 
 
-def canal_scenarios(point: TwinPoint, setpoint_step_mm: float) -> tuple[Scenario, ...]:
-    """Set-point steps (+step, back), an inflow step up and one down; each event held
-    :data:`HOLD_TIME_CONSTANTS` × (T + L) after one (T + L) at rest."""
+def inflow_up_factor(plant: FopdtPlant, point: TwinPoint,
+                     opening_range_mm: tuple[float, float]) -> float:  # fmt: skip
+    """The largest of :data:`INFLOW_UP_STEPS` at which the twin holds the operating level
+    with the gate short of :data:`OPENING_RESERVE` of its range from fully open: past that
+    no controller can hold the level, and the scenario would compare two saturated gates."""
+    from gatetwin.mpc.envelope import steady_opening_mm
+
+    lo, hi = opening_range_mm
+    reach = hi - OPENING_RESERVE * (hi - lo)
+    for factor in INFLOW_UP_STEPS:
+        need = steady_opening_mm(plant, factor * point.flow_m3h, point.level_mm, (lo, hi))
+        if need <= reach:
+            return factor
+    return INFLOW_UP_STEPS[-1]
+
+
+def canal_scenarios(point: TwinPoint, setpoint_step_mm: float,
+                    up: float = INFLOW_UP) -> tuple[Scenario, ...]:  # fmt: skip
+    """Set-point steps (+step, back), an inflow step up (by the factor ``up``) and one down;
+    each event held :data:`HOLD_TIME_CONSTANTS` × (T + L) after one (T + L) at rest."""
     hold, rest = HOLD_TIME_CONSTANTS * point.response_s, point.response_s
     common = {"flow_m3h": point.flow_m3h, "opening_mm": point.opening_mm}
     q = point.flow_m3h
@@ -216,7 +237,7 @@ def canal_scenarios(point: TwinPoint, setpoint_step_mm: float) -> tuple[Scenario
             setpoint_changes=((rest, setpoint_step_mm), (rest + hold, 0.0)),
             **common,
         ),  # fmt: skip
-        Scenario("inflow_up", rest + hold, flow_changes=((rest, INFLOW_UP * q),), **common),
+        Scenario("inflow_up", rest + hold, flow_changes=((rest, up * q),), **common),
         Scenario("inflow_down", rest + hold, flow_changes=((rest, INFLOW_DOWN * q),), **common),
     )
 
@@ -261,6 +282,7 @@ __all__ = [
     "TwinPoint",
     "canal_indicators",
     "canal_scenarios",
+    "inflow_up_factor",
     "core_factory",
     "loop_settings",
     "mpc_demo_inputs",

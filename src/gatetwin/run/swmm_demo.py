@@ -44,10 +44,12 @@ from gatetwin._io import write_json_atomic, write_text_atomic
 from gatetwin.errors import GatetwinError, IdentificationError
 from gatetwin.plants.swmm import SwmmCore, SwmmPlantSpec, swmm_versions
 from gatetwin.plants.swmm_loop import (
+    INFLOW_DOWN,
     TwinPoint,
     canal_indicators,
     canal_scenarios,
     core_factory,
+    inflow_up_factor,
     loop_settings,
     record_ranges,
     settings_summary,
@@ -307,9 +309,10 @@ def closed_loops(req: DemoRequest, core: SwmmCore, point_doc: dict[str, float], 
                       gate_speed_mm_s=req.spec.gate_speed_mm_s,
                       opening_range_mm=(0.0, core.height_mm), level_band_mm=band)  # fmt: skip
     factory = core_factory(req.spec)
+    up = inflow_up_factor(plant, point, s.mpc.opening_range_mm)
     out: dict[str, Any] = {"gauge": gauge, "twin": point.__dict__, "settings": settings_summary(s),
-                           "scenarios": {}}  # fmt: skip
-    for scenario in canal_scenarios(point, s.setpoint_step_mm):
+                           "inflow_up_factor": up, "scenarios": {}}  # fmt: skip
+    for scenario in canal_scenarios(point, s.setpoint_step_mm, up):
         runs = compare_controllers(plant, scenario, plant_kind="swmm", settings=s,
                                    core_factory=factory)  # fmt: skip
         out["scenarios"][scenario.name] = {n: canal_indicators(r, point, s.loop)
@@ -364,7 +367,8 @@ def _fmu_scenarios(req: DemoRequest, path: Path, point: TwinPoint, loops: dict[s
     resolution = loops["settings"]["actuator_resolution_mm"]
     out: dict[str, Any] = {"sample_period_s": ts}
     try:
-        for scenario in canal_scenarios(point, loops["settings"]["setpoint_step_mm"]):
+        for scenario in canal_scenarios(point, loops["settings"]["setpoint_step_mm"],
+                                        loops["inflow_up_factor"]):  # fmt: skip
             plant = LoopPlant(SwmmCore(spec), noise=noise, sample_period_s=ts,
                               actuator_resolution_mm=resolution)  # fmt: skip
             try:
@@ -398,7 +402,10 @@ def summary_markdown(doc: dict[str, Any]) -> str:
     if failures:
         lines += [""] + [f"- physical fit of {g} failed: {m}" for g, m in failures.items()]
     loops = doc["closed_loop"]
+    up = round(100.0 * (loops["inflow_up_factor"] - 1.0))
     lines += ["", f"## Closed loop at {loops['gauge']} (Clemmens et al. 1998 indicators, mm)",
+              "", f"Inflow steps +{up} % (the largest of +40/30/20/10 % the gate can take) "
+              f"and {round(100.0 * (INFLOW_DOWN - 1.0))} %.",
               "", "| scenario | controller | MAE | IAE (mean) | StE | IAW | violations | "
               "reversals/h |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for name, by in loops["scenarios"].items():
