@@ -31,7 +31,6 @@ from gatetwin.identify.suite import arx_gauge_of  # noqa: E402
 from gatetwin.modelfile import read_model_file  # noqa: E402
 from gatetwin.plant import physical_kernel as kernel  # noqa: E402
 from gatetwin.plant.inputs import check_inputs  # noqa: E402
-from gatetwin.plant.model import FopdtPlant, Schedule  # noqa: E402
 from gatetwin.records import read_record, read_static_table  # noqa: E402
 
 
@@ -100,12 +99,14 @@ def test_discrete_gauge_is_the_best_signal_to_noise(tmp_path: Path) -> None:
 
 def test_horizon_covers_settling_in_bounded_steps() -> None:
     t, ts = 3600.0, 10.0
-    plant = FopdtPlant("P1", 400.0, Schedule((7200.0,), {
-        "gain_mm_per_mm": (-6.0,), "time_constant_s": (t,), "dead_time_s": (20.0,),
-        "level_ref_mm": (1800.0,)}))  # fmt: skip
-    n, step = horizon(plant, ts)
+    n, step = horizon(t, 20.0, ts)
+    # at most HORIZON_MAX steps of whole samples, reaching one time constant past the dead
+    # time, and the settling time (4 T + L) when the steps allow it
     assert n <= HORIZON_MAX and step % ts == 0
-    assert n * step >= 4.0 * t + 20.0 > (n - 1) * step
+    assert n * step >= min(4.0 * t + 20.0, HORIZON_MAX * step) >= t + 20.0
+    assert (step - ts) * HORIZON_MAX < t + 20.0  # no coarser than it needs to be
+    n, step = horizon(500.0, 20.0, ts)  # a pool answering in minutes: every sample
+    assert (n, step) == (HORIZON_MAX, ts)
 
 
 def _gatetwin(*args: str) -> str:

@@ -5,9 +5,10 @@ Nothing here is a constant of one canal. From the twin's FOPDT at the operating 
 (gain ``K``, time constant ``T``, dead time ``L``) and the records (sample period ``Ts``,
 gauge noise SD ``σ``, gate speed, the opening and level ranges the experiments covered):
 
-* MPC horizon ``N = ceil(3 (T + L) / Ts)``: the prediction covers 95 % of a step response;
-* move weight ``K²``: a gate move costs what its steady level effect costs over one
-  sample;
+* MPC horizon and prediction step, and its move weight: the rules the controller FMUs
+  follow (:func:`gatetwin.fmu.controller_settings.horizon` and
+  :func:`~gatetwin.fmu.controller_settings.move_weight`), so that the Python loop and the
+  exported MPC are one design;
 * observer: :func:`gatetwin.fmu.controller_settings.observer_settings` of ``σ`` (the one
   rule the controller FMUs follow too): measurement SD and level process noise ``σ``, an
   input disturbance walking a tenth of the opening per time constant, so such a mismatch
@@ -37,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from gatetwin.errors import PlantError
-from gatetwin.fmu.controller_settings import observer_settings
+from gatetwin.fmu.controller_settings import horizon, move_weight, observer_settings
 from gatetwin.mpc.loop import ClosedLoopRun, LoopSettings, Scenario, loop_metrics
 from gatetwin.mpc.pi import PiSettings
 from gatetwin.mpc.plants import MeasurementNoise
@@ -162,10 +163,10 @@ def loop_settings(point: TwinPoint, *, sample_period_s: float, noise_sd_mm: floa
     ts, k = sample_period_s, point.gain_mm_per_mm
     sd = max(noise_sd_mm, 0.1)  # the gauge reads to 0.1 mm: no finer noise is meaningful
     observer = observer_settings(sd, point.opening_mm, point.time_constant_s, ts)
-    horizon = min(2000, max(2, math.ceil(3 * point.response_s / ts)))
-    mpc = MpcSettings(horizon=horizon, sample_period_s=ts, opening_range_mm=opening_range_mm,
+    n, step = horizon(point.time_constant_s, point.dead_time_s, ts)
+    mpc = MpcSettings(horizon=n, sample_period_s=step, opening_range_mm=opening_range_mm,
                       opening_rate_mm_s=gate_speed_mm_s, level_band_mm=level_band_mm,
-                      move_weight=k * k, move_weight_gain_mm_per_mm=abs(k),
+                      move_weight=move_weight(k), move_weight_gain_mm_per_mm=abs(k),
                       observer=observer)  # fmt: skip
     pi = PiSettings(opening_range_mm=opening_range_mm, opening_rate_mm_s=gate_speed_mm_s,
                     sample_period_s=ts)  # fmt: skip
