@@ -330,7 +330,8 @@ def _pi_tuning(plant_model: Plant, s: DemoSettings) -> PiTuning:
             "mpc demo: the PI baseline is tuned from an FOPDT plant; got "
             f"{type(plant_model).__name__}"
         )
-    return simc_pi_for_plant(plant_model, s.flow_m3h, sample_period_s=s.mpc.sample_period_s)
+    # tuned for the period it steps at (its own; the MPC's prediction step may be coarser)
+    return simc_pi_for_plant(plant_model, s.flow_m3h, sample_period_s=s.pi.sample_period_s)
 
 
 def run_mpc_demo(
