@@ -208,6 +208,7 @@ def test_closed_loop_on_the_fmu_equals_the_python_loop(plant, fmu, index):
     _check_loops(plant, fmu, demo_scenarios(4.0, SHORT)[index], SHORT)
 
 
+@pytest.mark.long
 @pytest.mark.slow
 def test_closed_loop_equals_the_python_loop_at_the_demos_horizon(plant, tmp_path):
     from gatetwin.fmu.mpc_controller import export_mpc_controller

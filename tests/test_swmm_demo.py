@@ -116,11 +116,13 @@ def test_the_demo_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path, cap
     assert not out.exists() and not list(tmp_path.glob(".demo.*"))
 
 
-#: Why the whole demo on the field canal does not run yet: its models stage (the physical
-#: fits) takes some 18 min on this canal, beyond the slow tests' budget, and two of its three
-#: gauges' physical fits stop at their evaluation limit; the twins then miss the held-out
-#: inflow steps. Remove the skip when identification finishes within minutes.
-NOT_YET = "the physical fit of gatetwin.identify takes ~18 min on this canal and fails on 2 gauges"
+#: What the whole demo on the field canal does not meet yet: the held-out free-run fits of
+#: its three gauges' FOPDT and physical twins are 74-97 % (most under 90 %, biases up to
+#: -88 mm on the inflow records) while the records' noise floors are 97-99.6 %.
+NOT_YET = (
+    "the twins of the field canal miss the held-out inflow records (fits 74-97 %, "
+    "noise floors 97-99.6 %)"
+)
 
 
 @pytest.fixture(scope="module")
@@ -137,8 +139,8 @@ def demo(tmp_path_factory) -> dict:
     return {"out": out, "doc": json.loads((out / "demo.json").read_text(encoding="utf-8"))}
 
 
+@pytest.mark.long
 @pytest.mark.slow
-@pytest.mark.skip(reason=NOT_YET)
 def test_the_demo_writes_every_stage(demo: dict) -> None:
     out, doc = demo["out"], demo["doc"]
     for name in ("summary.md", "validation.json", "plant.json", "records/static.csv",
@@ -158,8 +160,9 @@ def test_the_demo_writes_every_stage(demo: dict) -> None:
             assert all(math.isfinite(m[k]) for k in ("mae_mm", "iae_mean_mm", "ste_mm", "iaw_mm"))
 
 
+@pytest.mark.long
 @pytest.mark.slow
-@pytest.mark.skip(reason=NOT_YET)
+@pytest.mark.xfail(strict=True, reason=NOT_YET)
 def test_the_demo_meets_its_acceptance_claim(demo: dict) -> None:
     """Every FMU fits every held-out record (>= 90 % or within 5 points of the noise
     floor, bias within a tenth of the level's range); the MPC's mean |error| is below the
