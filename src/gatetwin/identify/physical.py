@@ -2,9 +2,10 @@
 
 Three stages, each on the data that determines its parameters, then a joint refinement:
 
-1. **Gate law and gauge offset** (11 parameters) from every steady point: the static table's
-   rows and the settled end of every long hold in the dynamic records (the last
-   :data:`STEADY_SAMPLES` valid samples of a hold lasting at least
+1. **Gate law and gauge offset** (3, 6 or 11 parameters, grown along :data:`LAWS` while the
+   data ask for more and the discharge coefficient stays physical) from every steady point:
+   the static table's rows and the settled end of every long hold in the dynamic records
+   (the last :data:`STEADY_SAMPLES` valid samples of a hold lasting at least
    :data:`STEADY_HOLD_SAMPLES` sample periods).
    Residuals are levels (mm) against the kernel's steady level.
 2. **Actuator** (no-load speed, stall depth) from the gate's moves: each move's opening change
@@ -12,11 +13,12 @@ Three stages, each on the data that determines its parameters, then a joint refi
    depth at the gate (rating level plus offset) at the start of the move.
 3. **Storage** (A0, A1) by simulation error: the kernel run freely on every dynamic record,
    driven by the reconstructed opening and the measured inflow.
-4. **Joint**: all 13 hydraulic parameters on the stacked residuals of 1 and 3, each source
+4. **Joint**: the law's and the storage's parameters on the stacked residuals of 1 and 3, each source
    weighted by the inverse of its residual RMS after stage 3 (its noise level), with standard
    errors from the Jacobian.
 5. **Seiche** (period, decay time, amplitude per mm of gate move: the pool's oscillation that
-   gate moves excite) from the simulation error left by stage 4, the hydraulics held; kept as
+   gate moves excite; periods the sampling and the pool can show, :func:`seiche_periods_s`)
+   from the simulation error left by stage 4, the hydraulics held; kept as
    the plant's ``seiche`` effect block only when an F-test rejects "no seiche" at
    :data:`SEICHE_SIGNIFICANCE`.
 
