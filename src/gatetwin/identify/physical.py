@@ -13,9 +13,9 @@ Three stages, each on the data that determines its parameters, then a joint refi
    depth at the gate (rating level plus offset) at the start of the move.
 3. **Storage** (A0, A1) by simulation error: the kernel run freely on every dynamic record,
    driven by the reconstructed opening and the measured inflow.
-4. **Joint**: the law's and the storage's parameters on the stacked residuals of 1 and 3, each source
-   weighted by the inverse of its residual RMS after stage 3 (its noise level), with standard
-   errors from the Jacobian.
+4. **Joint**: the law's and the storage's parameters on the stacked residuals of 1 and 3,
+   each source weighted by the inverse of its residual RMS after stage 3 (its noise level),
+   with standard errors from the Jacobian.
 5. **Seiche** (period, decay time, amplitude per mm of gate move: the pool's oscillation that
    gate moves excite; periods the sampling and the pool can show, :func:`seiche_periods_s`)
    from the simulation error left by stage 4, the hydraulics held; kept as
