@@ -124,7 +124,7 @@ def test_stages_are_extensible(records_dir: Path, tmp_path: Path) -> None:
 
 
 @pytest.mark.long
-@pytest.mark.slow  # the whole `gatetwin run` (about 2 min); CI runs the slow tests first
+@pytest.mark.slow  # the whole `gatetwin run` (8 min here, loaded): long, left out of CI
 def test_run_writes_models_fmus_figures_and_summary(tmp_path):
     from gatetwin.run.pipeline import run_pipeline
 
