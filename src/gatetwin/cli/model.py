@@ -348,6 +348,8 @@ def run_export_controller(args: argparse.Namespace) -> int:
         try:
             settings = derived_settings(model, controller_plant(model), given)
         except GatetwinError as exc:
+            if given is None:
+                raise
             raise GatetwinError(f"--opening-range: {exc}") from None
         if args.horizon is not None:
             settings = replace(settings, mpc=replace(settings.mpc, horizon=args.horizon))

@@ -587,18 +587,21 @@ def _fit_seiche(drives: Sequence[_Drive], p: np.ndarray, weights: list[float],
     sample period to ten of the longest periods) and amplitude per mm of gate move, with an
     F-test against none."""
 
-    def residual(x: np.ndarray) -> np.ndarray:
-        res = _dynamic_residuals(drives, p, np.asarray(x, float))
+    def weighted(res: list[np.ndarray]) -> np.ndarray:
         return np.concatenate([r / w for r, w in zip(res, weights, strict=True)])
 
-    without = residual(NO_SEICHE)
+    def residual(x: np.ndarray) -> np.ndarray:
+        return weighted(_dynamic_residuals(drives, p, np.asarray(x, float)))
+
+    plain = _dynamic_residuals(drives, p)
+    without = weighted(plain)
     if periods_s[1] <= periods_s[0]:
         reason = (
             f"no seiche the sampling can show: the longest pool's quarter-wave period "
             f"{periods_s[1]:.3g} s is under two sample periods ({periods_s[0]:.3g} s)"
         )
         return NO_SEICHE.copy(), {"kept": False, "reason": reason}
-    period = _seiche_start(_dynamic_residuals(drives, p), drives, periods_s)
+    period = _seiche_start(plain, drives, periods_s)
     lower = (periods_s[0], periods_s[0] / 2.0, -SEICHE_AMPLITUDE_MAX)
     upper = (periods_s[1], 10.0 * periods_s[1], SEICHE_AMPLITUDE_MAX)
     result = least_squares(residual, (period, period, SEICHE_AMPLITUDE_START),
