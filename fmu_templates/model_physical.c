@@ -44,6 +44,7 @@ void dynamics_initialize(ModelData *m, double u_mm, double x0_mm)
 {
     m->dyn.gate_mm = actuator_target(m, u_mm);
     m->dyn.depth_m = steady_depth_m(m, m->dyn.gate_mm, m->real[VR_FLOW_M3H]);
+    gt_tail_steady_m(m->real[VR_FLOW_M3H], PHYSICAL(m), &m->dyn.tail_m);
     m->dyn.x = x0_mm;
 }
 
@@ -83,8 +84,8 @@ void dynamics_step(ModelData *m, double step_s, double command_mm)
     dt = step_s / n;
     for (i = 0; i < (long)n; i++) {
         const double gate_mm = m->dyn.gate_mm; /* drives the seiche over the sub-step */
-        gt_substep(m->dyn.depth_m, m->dyn.gate_mm, target, flow_m3h, dt, PHYSICAL(m),
-                   &m->dyn.depth_m, &m->dyn.gate_mm);
+        gt_substep(m->dyn.depth_m, m->dyn.tail_m, m->dyn.gate_mm, target, flow_m3h, dt,
+                   PHYSICAL(m), &m->dyn.depth_m, &m->dyn.tail_m, &m->dyn.gate_mm);
         effects_seiche_piece(m, dt, gate_mm);
     }
     gt_level_mm(m->dyn.depth_m, m->dyn.gate_mm, flow_m3h, PHYSICAL(m), &m->dyn.x);
@@ -94,9 +95,12 @@ void dynamics_step(ModelData *m, double step_s, double command_mm)
 PlantStatus dynamics_check_state(const ModelData *m, PlantMessage *msg)
 {
     const DynamicsState *d = &m->dyn;
-    if (!(isfinite(d->x) && isfinite(d->depth_m) && isfinite(d->gate_mm))) {
-        plant_message(msg, "physical state (level %g mm, depth %g m, gate %g mm) is not finite",
-                      d->x, d->depth_m, d->gate_mm);
+    if (!(isfinite(d->x) && isfinite(d->depth_m) && isfinite(d->tail_m) &&
+          isfinite(d->gate_mm))) {
+        plant_message(msg,
+                      "physical state (level %g mm, depth %g m, tail %g m, gate %g mm) is not "
+                      "finite",
+                      d->x, d->depth_m, d->tail_m, d->gate_mm);
         return PLANT_ERROR;
     }
     return PLANT_OK;

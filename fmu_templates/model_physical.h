@@ -6,6 +6,7 @@
 typedef struct {
     double x;       /* level at the gauge, mm (level_ref_mm is added by plant.c) */
     double depth_m; /* depth at the gate, m */
+    double tail_m;  /* depth of the pool below the gate, m (0 without one) */
     double gate_mm; /* gate position, mm */
 } DynamicsState;
 

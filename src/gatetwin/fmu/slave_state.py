@@ -53,7 +53,7 @@ def _dyn_sizes(config: dict[str, Any]) -> dict[str, tuple[int, int] | None]:
         history = (1, config["history_capacity"])
         return {"x": None, "change_t": history, "change_u": history, "max_dead_time_s": None}
     if config["family"] == "physical":
-        return {"x": None, "depth_m": None, "gate_mm": None}
+        return {"x": None, "depth_m": None, "tail_m": None, "gate_mm": None}
     na, nb, nk = config["arx_orders"]
     return {"x": None, "x_hist": (na, na), "u_hist": (nk + nb - 1, nk + nb - 1)}
 

@@ -438,7 +438,8 @@ class GatetwinPlant(GuardedSlave):
 
     def _physical_initialize(self, u: float, x0: float, q: float) -> None:
         gate = physical_kernel.actuator_target_mm(u, self._physical())
-        self.dyn = {"x": x0, "depth_m": self._physical_depth(gate, q), "gate_mm": gate}
+        self.dyn = {"x": x0, "depth_m": self._physical_depth(gate, q),
+                    "tail_m": physical_kernel.tail_steady_m(q, self._physical()), "gate_mm": gate}
 
     def _physical_step(self, h: float, command: float, q: float) -> None:
         p = self._physical()
@@ -450,14 +451,15 @@ class GatetwinPlant(GuardedSlave):
                 f"{CONFIG['physical_max_substeps']}"
             )
         target = physical_kernel.actuator_target_mm(command, p)
-        depth, gate, dt = self.dyn["depth_m"], self.dyn["gate_mm"], h / n
+        depth, tail, gate, dt = self.dyn["depth_m"], self.dyn["tail_m"], self.dyn["gate_mm"], h / n
         for _ in range(int(n)):
             start = gate  # drives the seiche over the sub-step (model_physical.c)
-            depth, gate = physical_kernel.substep(depth, gate, target, q, dt, p)
+            depth, tail, gate = physical_kernel.substep(depth, tail, gate, target, q, dt, p)
             self._seiche_piece(dt, start)
         self.dyn = {
             "x": physical_kernel.level_mm(depth, gate, q, p),
             "depth_m": depth,
+            "tail_m": tail,
             "gate_mm": gate,
         }
 

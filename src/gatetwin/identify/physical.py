@@ -65,7 +65,7 @@ from gatetwin.plant import blocks
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import effect_dict
 from gatetwin.plant.kernel_render import numba_kernel
-from gatetwin.plant.model import PhysicalPlant, Schedule
+from gatetwin.plant.model import FORMAT_DEFAULTS, PhysicalPlant, Schedule
 from gatetwin.records import Record
 
 #: A hold this many sample periods long counts as settled.
@@ -91,6 +91,17 @@ SEICHE_AMPLITUDE_MAX = 5.0
 #: is strict).
 SEICHE_SIGNIFICANCE = 1e-3
 ACTUATOR = ["speed_mm_s", "stall_depth_m"]
+#: The pool below the gate (storage, steady depth at the discharge centre, datum, outlet
+#: exponent): fitted with the law and the storage, kept when an F-test against the free gate
+#: rejects it at ``SEICHE_SIGNIFICANCE`` and the pool is physical (:func:`_physical_tail`).
+TAIL = ["tail_area_m2", "tail_depth_m", "tail_datum_m", "tail_exponent"]
+#: The tail pool's start: the outlet of an orifice (the next check gate) and a pool as deep
+#: as this fraction of the steady depths above the gate.
+TAIL_EXPONENT_START = 0.5
+TAIL_DEPTH_START = 0.5
+#: The outlet exponents a tail pool may have: an orifice's 1/2 to a wide channel's 5/3, with a
+#: margin of a factor of two each way.
+TAIL_EXPONENT_RANGE = (0.25, 10.0 / 3.0)
 #: The gate law's parameters that every gate has: a discharge coefficient that may differ
 #: between small and large openings, and the gauge's offset.
 LAW_CORE = ["cd_small", "cd_large", "offset_mm"]
@@ -181,7 +192,7 @@ def kernel_simulator() -> tuple[Callable[..., Any], Callable[..., Any]]:
 
     k = numba_kernel(kernel.__name__)
     substep, bisect, level = k.substep, k.bisection_step, k.level_mm
-    target_of, count_of = k.actuator_target_mm, k.substep_count
+    target_of, count_of, tail0 = k.actuator_target_mm, k.substep_count, k.tail_steady_m
     low0, high_index = kernel.DEPTH_LOW_M, kernel.DEPTH_MAX_INDEX
     n_bisect = kernel.BISECTION_STEPS
 
@@ -203,6 +214,7 @@ def kernel_simulator() -> tuple[Callable[..., Any], Callable[..., Any]]:
         has_seiche = s[2] != 0.0
         gate = target_of(e[0], p)
         depth = depth0(gate, q[0], p)
+        tail = tail0(q[0], p)
         x1 = at_rest(e[0], s[0], s[1]) if has_seiche else 0.0
         x2 = 0.0
         out[0] = level(depth, gate, q[0], p)
@@ -213,7 +225,7 @@ def kernel_simulator() -> tuple[Callable[..., Any], Callable[..., Any]]:
             dt = h / n
             for _ in range(int(n)):
                 start = gate
-                depth, gate = substep(depth, gate, target, q[i - 1], dt, p)
+                depth, tail, gate = substep(depth, tail, gate, target, q[i - 1], dt, p)
                 if has_seiche:
                     x1, x2 = advance(x1, x2, start, dt, s[0], s[1])
             out[i] = level(depth, gate, q[i - 1], p)
@@ -392,6 +404,8 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
             sources["gate_law"] = (f"{len(law)} of {len(LAW)} law parameters: the larger law "
                                    "did not converge jointly with the storage")  # fmt: skip
             values = {**staged, **{n: laws[-1][1][n] for n in LAW}}
+    law, values, result = _fit_tail(law, values, result, joint, points, laws[0][1], sources)
+    fitted = law + STORAGE + (TAIL if values["tail_area_m2"] > 0.0 else [])
     p = _vector(values)
     seiche, seiche_report = _fit_seiche(drives, p, rms_dyn,
                                         seiche_periods_s(records, p, points))  # fmt: skip
@@ -403,7 +417,7 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
     s = seiche if seiche_report["kept"] else NO_SEICHE
     return PhysicalFit(
         plant=plant,
-        standard_errors=_standard_errors(result, law + STORAGE),
+        standard_errors=_standard_errors(result, fitted),
         steady_rmse_mm=_rms(_steady_residuals(points, p)),
         n_steady=int(points.flow_m3h.size),
         dynamic_rmse_mm={
@@ -413,6 +427,68 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
         seiche=seiche_report,
         fixed_sources=sources,
     )
+
+
+def _fit_tail(law: list[str], values: dict[str, float], free: Any,
+              joint: Callable[[np.ndarray], np.ndarray], points: SteadyPoints,
+              core: dict[str, float], sources: dict[str, str]
+              ) -> tuple[list[str], dict[str, float], Any]:  # fmt: skip
+    """The gate discharging into a pool of its own (a submerged check).
+
+    The pool's four parameters are fitted with the core law (``core``: its values on the
+    steady points) and the storage, on the same weighted residuals as the free gate with its
+    kept ``law`` (``free``: that fit's least-squares result): a submerged gate's discharge
+    falls with the tailwater, which the free law can only mimic by drifting with discharge.
+    The pool is kept when it is physical (:func:`_physical_tail`, :func:`_physical_law`) and
+    either fits better with no more parameters than the free gate, or an F-test of its extra
+    parameters rejects the free gate at ``SEICHE_SIGNIFICANCE``. Returns the law, values and
+    least-squares result kept."""
+    names = LAW_CORE + STORAGE + TAIL
+    k_free, k_tail, n = len(law) + len(STORAGE), len(names), free.fun.size
+    if n <= k_tail:
+        return law, values, free
+    # start: the pool as deep as a fraction of the depths above the gate, then the core law
+    # refitted on the steady points against that tailwater (the free law's coefficient
+    # absorbed the submergence), then everything jointly
+    depth_m = (points.level_mm + core["offset_mm"]) / 1000.0
+    start_values = {**values, **{k: core[k] for k in LAW},
+                    "tail_area_m2": values["area_m2"],
+                    "tail_depth_m": TAIL_DEPTH_START * float(np.median(depth_m)),
+                    "tail_datum_m": 0.0, "tail_exponent": TAIL_EXPONENT_START}  # fmt: skip
+    try:
+        start_values, _ = _fit(LAW_CORE, start_values,
+                               lambda p: _steady_residuals(points, p))  # fmt: skip
+        trial, fit = _fit(names, start_values, joint)
+    except IdentificationError:
+        sources["tail"] = "none: a pool below the gate did not converge"
+        return law, values, free
+    rss0, rss1 = 2.0 * float(free.cost), 2.0 * float(fit.cost)
+    if not (rss1 > 0.0 and _physical_tail(trial) and _physical_law(points, trial)):
+        sources["tail"] = "none: the fitted pool below the gate is not physical"
+        return law, values, free
+    if k_tail <= k_free:
+        keep, why = rss1 < rss0, f"{k_tail} parameters against the free gate's {k_free}"
+    else:
+        extra = k_tail - k_free
+        f_stat = ((rss0 - rss1) / extra) / (rss1 / (n - k_tail))
+        p_value = float(f_dist.sf(f_stat, extra, n - k_tail))
+        keep, why = p_value < SEICHE_SIGNIFICANCE, f"F-test p = {p_value:.2g}"
+    rms = f"RMS of the weighted residuals {math.sqrt(rss0 / n):.3g} free, " \
+          f"{math.sqrt(rss1 / n):.3g} with the pool"  # fmt: skip
+    if not keep:
+        sources["tail"] = f"none: the free gate holds ({why}; {rms})"
+        return law, values, free
+    sources["tail"] = f"a pool below the gate with the core law ({why}; {rms})"
+    sources["gate_law"] = "core (Cd for small and large openings, offset) with the tail pool"
+    return list(LAW_CORE), trial, fit
+
+
+def _physical_tail(values: dict[str, float]) -> bool:
+    """Whether a fitted tail pool is physical: it stores water, its steady depth lies above
+    its datum, and its outlet's exponent lies in :data:`TAIL_EXPONENT_RANGE`."""
+    lo, hi = TAIL_EXPONENT_RANGE
+    return bool(values["tail_area_m2"] > 0.0 and values["tail_depth_m"] > values["tail_datum_m"]
+                and lo <= values["tail_exponent"] <= hi)  # fmt: skip
 
 
 def law_start(points: SteadyPoints, width_m: float) -> dict[str, float]:
@@ -500,6 +576,7 @@ def fixed_parameters(static: Any, records: dict[str, Record], gauge: str, points
         "flow_centre_m3h": centre, "flow_scale_m3h": scale,
         "depth_max_m": start.depth_bracket_m(points.level_mm, records, gauge),
         "area_m2": 1.0, "speed_mm_s": 1.0, "stall_depth_m": values_depth(points),
+        **{n: FORMAT_DEFAULTS[n] for n in TAIL},
     }  # fmt: skip
     sources = {
         "width_m": width_from, "resolution_mm": resolution_from, "flow_centre_m3h": flow_from,
@@ -524,9 +601,9 @@ def _conductance_m2s(points: SteadyPoints, values: dict[str, float]) -> np.ndarr
         low, high = kernel.DEPTH_LOW_M, p[kernel.DEPTH_MAX_INDEX]
         for _ in range(kernel.BISECTION_STEPS):
             low, high = kernel.bisection_step(low, high, gate, float(q), p)
-        h = 0.5 * (low + high)
-        upper = kernel.gate_flow_m3s(h + d, gate, float(q), p)
-        lower = kernel.gate_flow_m3s(h - d, gate, float(q), p)
+        h, tail = 0.5 * (low + high), kernel.tail_steady_m(float(q), p)
+        upper = kernel.gate_flow_m3s(h + d, tail, gate, float(q), p)
+        lower = kernel.gate_flow_m3s(h - d, tail, gate, float(q), p)
         out.append((upper - lower) / (2.0 * d))
     return np.asarray(out)
 

@@ -12,6 +12,7 @@ Semantics shared by every rendering (this simulator, the C FMU, the pythonfmu FM
   sub-steps (:func:`~gatetwin.plant.physical_kernel.substep`); a step that would need more
   than :data:`MAX_SUBSTEPS` is refused;
 * initial state: the gate at the command, the depth at which the gate passes the inflow
+  into the tail pool (if any) at its steady depth for the inflow
   (:data:`~gatetwin.plant.physical_kernel.BISECTION_STEPS` bisection steps);
 * output: the kernel's gauge level at the current depth, gate position and the inflow in
   force over the last step, plus the schedule's ``level_ref_mm`` (a datum correction, 0 as
@@ -44,6 +45,7 @@ class PhysicalSimulator:
     plant: PhysicalPlant
     time_s: float = 0.0
     depth_m: float = 0.0
+    tail_m: float = 0.0
     gate_mm: float = 0.0
     flow_m3h: float = 0.0
     warned_range: bool = False
@@ -58,6 +60,7 @@ class PhysicalSimulator:
         self.time_s, self.flow_m3h = time_s, flow_m3h
         self.gate_mm = kernel.actuator_target_mm(opening_mm, self.p)
         self.depth_m = steady_depth_m(self.gate_mm, flow_m3h, self.p)
+        self.tail_m = kernel.tail_steady_m(flow_m3h, self.p)
         self.seiche = seiche = self.plant.effect_set.seiche
         self.seiche_x1 = self.seiche_x2 = 0.0
         if seiche:
@@ -94,8 +97,8 @@ class PhysicalSimulator:
         dt = h / n
         for _ in range(int(n)):
             gate = self.gate_mm
-            self.depth_m, self.gate_mm = kernel.substep(
-                self.depth_m, self.gate_mm, target, flow_m3h, dt, self.p
+            self.depth_m, self.tail_m, self.gate_mm = kernel.substep(
+                self.depth_m, self.tail_m, self.gate_mm, target, flow_m3h, dt, self.p
             )
             if seiche:
                 self.seiche_x1, self.seiche_x2 = blocks.seiche_advance(

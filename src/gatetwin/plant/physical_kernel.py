@@ -3,12 +3,24 @@
 The pool upstream of the gate is one storage area fed by the measured inflow and drained by
 the gate law, behind an actuator that moves at a speed falling with the water load:
 
-    A(h) dh/dt = Q_in/3600 − Q_g(h, e, Q_in)                    (h: depth at the gate, m)
-    Q_g = min(Cd(e/h, Q_in) · b · e · √(2 g h),  b · √g · (2h/3)^1.5)    (m³/s; e in m)
+    A(h) dh/dt = Q_in/3600 − Q_g(h, h_t, e, Q_in)               (h: depth at the gate, m)
+    Q_g = min(Cd(e/h, Q_in) · b · e · √(2 g (h − t)),  b · √g · (2h/3)^1.5)    (m³/s; e in m)
     Cd  = c∞ + (c₀ − c∞) / (1 + exp((ln r − m)/w))^ν             (r = e/h; c₀, c∞, m, ln w
                                                                    linear in (Q − Q_c)/Q_s)
     A(h) = max(A₀ + A₁ (h − 0.2 m), 0.05 m²)
     level at the gauge = 1000 h − o₀ − o₂ (3600 Q_g / Q_s)²      (mm; Q_g in units of Q_s)
+
+The tailwater ``t`` is 0 (free underflow) unless the model has a pool below the gate
+(``tail_area_m2 > 0``): then the gate discharges into it, ``t = max(h_t, e/2)`` (the orifice's
+centre while the jet is free), and the pool's depth ``h_t`` above the sill follows
+
+    A_t dh_t/dt = Q_g − Q_c/3600 · ((h_t − z) / (h_c − z))^β     (0 below its datum z)
+
+whose steady depth at the discharge Q is ``z + (h_c − z) (Q/Q_c)^(1/β)``: ``h_c`` the tail
+depth at the discharge centre, ``β`` the exponent of the outlet below (½ an orifice, 1.5 a weir,
+about 5/3 a long channel at normal depth). A submerged gate answers with the tail pool's
+slower mode too. The steady functions (bisection, level, time constant) see the tail pool at its
+steady depth for the inflow.
 
 The discharge's centre ``Q_c`` and scale ``Q_s`` (m³/h) are parameters fixed at
 identification from the data's own discharge range (see :mod:`gatetwin.identify.physical`),
@@ -65,6 +77,10 @@ PARAMETERS = (
     ("flow_centre_m3h", "m3/h", "Discharge at which the Cd coefficients hold, Q_c"),
     ("flow_scale_m3h", "m3/h", "Discharge unit of the Cd slopes and of o2, Q_s"),
     ("depth_max_m", "m", "Upper end of the steady-depth bisection bracket"),
+    ("tail_area_m2", "m2", "Storage area of the pool below the gate, A_t; 0: free underflow"),
+    ("tail_depth_m", "m", "Steady depth of the pool below the gate at Q = flow_centre_m3h, h_c"),
+    ("tail_datum_m", "m", "Depth of the pool below the gate at which its outflow stops, z"),
+    ("tail_exponent", "1", "Exponent of the outflow of the pool below the gate in its depth"),
 )
 N_PARAMETERS = len(PARAMETERS)
 #: Index of each parameter in ``p``.
@@ -86,6 +102,8 @@ DEPTH_LOW_M = 1e-4
 BISECTION_STEPS = 44
 #: Index of the bracket's upper end in ``p``.
 DEPTH_MAX_INDEX = 20
+#: Smallest exponent of the tail pool's outflow (keeps its steady depth defined).
+TAIL_EXPONENT_MIN = 0.05
 #: Half-width of the central difference of the gate law in the depth, m.
 DEPTH_DIFFERENCE_M = 1e-6
 
@@ -127,12 +145,33 @@ def discharge_coefficient(ratio: float, flow_m3h: float, p: list[float]) -> floa
     return c_large + (c_small - c_large) * exp(-shape * log(1.0 + exp(z)))
 
 
-def gate_flow_m3s(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float]) -> float:
-    """Discharge under the gate, m³/s (free underflow, capped at critical flow)."""
+def has_tail(p: list[float]) -> bool:
+    """Whether the gate discharges into a pool of its own (else free underflow)."""
+    return less(0.0, p[21])
+
+
+def tail_steady_m(flow_m3h: float, p: list[float]) -> float:
+    """Steady depth of the pool below the gate at the discharge ``flow_m3h``, m (0: none)."""
+    ratio = fmax(flow_m3h, 0.0) / p[18]
+    power = exp(log(fmax(ratio, RATIO_MIN)) / fmax(p[24], TAIL_EXPONENT_MIN))
+    return select(has_tail(p), p[23] + (p[22] - p[23]) * power, 0.0)
+
+
+def tail_outflow_m3s(tail_m: float, p: list[float]) -> float:
+    """Outflow of the pool below the gate, m³/s."""
+    fraction = fmax(tail_m - p[23], 0.0) / fmax(p[22] - p[23], DEPTH_MIN_M)
+    power = exp(fmax(p[24], TAIL_EXPONENT_MIN) * log(fmax(fraction, RATIO_MIN)))
+    return select(less(RATIO_MIN, fraction), p[18] / 3600.0 * power, 0.0)
+
+
+def gate_flow_m3s(depth_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
+                  p: list[float]) -> float:  # fmt: skip
+    """Discharge under the gate, m³/s (underflow against the tailwater, capped at critical)."""
     h = fmax(depth_m, DEPTH_MIN_M)
     e = fmax(opening_mm, 0.0) / 1000.0
     cd = discharge_coefficient(e / h, flow_m3h, p)
-    free = cd * p[9] * e * sqrt(2.0 * G * h)
+    tailwater = select(has_tail(p), fmax(tail_m, 0.5 * e), 0.0)
+    free = cd * p[9] * e * sqrt(2.0 * G * fmax(h - tailwater, 0.0))
     critical = p[9] * sqrt(G) * 0.5443310539518174 * h * sqrt(h)  # (2/3)^1.5 h^1.5
     return fmin(free, critical)
 
@@ -141,10 +180,13 @@ def storage_area_m2(depth_m: float, p: list[float]) -> float:
     return fmax(p[12] + p[13] * (depth_m - AREA_DEPTH_REF_M), AREA_MIN_M2)
 
 
-def depth_rate(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float]) -> float:
-    """dh/dt, m/s."""
-    net = flow_m3h / 3600.0 - gate_flow_m3s(depth_m, opening_mm, flow_m3h, p)
-    return net / storage_area_m2(depth_m, p)
+def depth_rates(depth_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
+                p: list[float]) -> tuple[float, float]:  # fmt: skip
+    """dh/dt and dh_t/dt, m/s."""
+    passing = gate_flow_m3s(depth_m, tail_m, opening_mm, flow_m3h, p)
+    net = flow_m3h / 3600.0 - passing
+    tail = (passing - tail_outflow_m3s(tail_m, p)) / fmax(p[21], AREA_MIN_M2)
+    return net / storage_area_m2(depth_m, p), select(has_tail(p), tail, 0.0)
 
 
 def actuator_target_mm(command_mm: float, p: list[float]) -> float:
@@ -158,33 +200,40 @@ def actuator_speed_mm_s(depth_m: float, p: list[float]) -> float:
 
 
 def substep(
-    depth_m: float, gate_mm: float, target_mm: float, flow_m3h: float, dt_s: float,
-    p: list[float],
-) -> tuple[float, float]:  # fmt: skip
-    """Depth and gate position after ``dt_s`` with the target and the inflow held."""
+    depth_m: float, tail_m: float, gate_mm: float, target_mm: float, flow_m3h: float,
+    dt_s: float, p: list[float],
+) -> tuple[float, float, float]:  # fmt: skip
+    """Depth, tail depth and gate position after ``dt_s`` with the target and inflow held."""
     travel = actuator_speed_mm_s(depth_m, p) * dt_s
     gate_end = gate_mm + fmax(-travel, fmin(travel, target_mm - gate_mm))
     gate_mid = 0.5 * (gate_mm + gate_end)
-    k1 = depth_rate(depth_m, gate_mm, flow_m3h, p)
-    k2 = depth_rate(depth_m + 0.5 * dt_s * k1, gate_mid, flow_m3h, p)
-    k3 = depth_rate(depth_m + 0.5 * dt_s * k2, gate_mid, flow_m3h, p)
-    k4 = depth_rate(depth_m + dt_s * k3, gate_end, flow_m3h, p)
+    k1, l1 = depth_rates(depth_m, tail_m, gate_mm, flow_m3h, p)
+    k2, l2 = depth_rates(depth_m + 0.5 * dt_s * k1, tail_m + 0.5 * dt_s * l1, gate_mid,
+                         flow_m3h, p)  # fmt: skip
+    k3, l3 = depth_rates(depth_m + 0.5 * dt_s * k2, tail_m + 0.5 * dt_s * l2, gate_mid,
+                         flow_m3h, p)  # fmt: skip
+    k4, l4 = depth_rates(depth_m + dt_s * k3, tail_m + dt_s * l3, gate_end, flow_m3h, p)
     depth_end = depth_m + dt_s / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-    return depth_end, gate_end
+    tail_end = tail_m + dt_s / 6.0 * (l1 + 2.0 * l2 + 2.0 * l3 + l4)
+    return depth_end, tail_end, gate_end
 
 
 def bisection_step(
     low_m: float, high_m: float, opening_mm: float, flow_m3h: float, p: list[float]
 ) -> tuple[float, float]:
-    """One halving of the bracket of the steady depth (the gate passes the inflow)."""
+    """One halving of the bracket of the steady depth (the gate passes the inflow into the
+    tail pool at its steady depth)."""
     middle = 0.5 * (low_m + high_m)
-    below = less(gate_flow_m3s(middle, opening_mm, flow_m3h, p), flow_m3h / 3600.0)
+    passing = gate_flow_m3s(middle, tail_steady_m(flow_m3h, p), opening_mm, flow_m3h, p)
+    below = less(passing, flow_m3h / 3600.0)
     return select(below, middle, low_m), select(below, high_m, middle)
 
 
 def level_mm(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float]) -> float:
-    """Level at the gauge, mm, for a depth at the gate and the gate's position."""
-    passing = gate_flow_m3s(depth_m, opening_mm, flow_m3h, p) * (3600.0 / p[19])
+    """Level at the gauge, mm, for a depth at the gate and the gate's position (the offset's
+    discharge is the gate's with the tail pool at its steady depth for ``flow_m3h``)."""
+    tail = tail_steady_m(flow_m3h, p)
+    passing = gate_flow_m3s(depth_m, tail, opening_mm, flow_m3h, p) * (3600.0 / p[19])
     return 1000.0 * depth_m - p[10] - p[11] * passing * passing
 
 
@@ -195,8 +244,9 @@ def time_constant_s(depth_m: float, opening_mm: float, flow_m3h: float, p: list[
     storage equation linearised at (h, e, Q) (∂Q_g/∂h by a central difference).
     """
     d = DEPTH_DIFFERENCE_M
-    upper = gate_flow_m3s(depth_m + d, opening_mm, flow_m3h, p)
-    lower = gate_flow_m3s(depth_m - d, opening_mm, flow_m3h, p)
+    tail = tail_steady_m(flow_m3h, p)
+    upper = gate_flow_m3s(depth_m + d, tail, opening_mm, flow_m3h, p)
+    lower = gate_flow_m3s(depth_m - d, tail, opening_mm, flow_m3h, p)
     # a closed gate passes nothing at any depth: no finite time constant (the floor keeps the
     # division defined; the level then barely moves)
     return storage_area_m2(depth_m, p) * (2.0 * d) / fmax(upper - lower, 1e-15)
@@ -209,7 +259,8 @@ def substep_count(step_s: float, p: list[float]) -> float:
 
 #: The functions rendered into C, with their argument names (``p`` last) and output count.
 RENDERED = (
-    ("substep", ("depth_m", "gate_mm", "target_mm", "flow_m3h", "dt_s"), 2),
+    ("substep", ("depth_m", "tail_m", "gate_mm", "target_mm", "flow_m3h", "dt_s"), 3),
+    ("tail_steady_m", ("flow_m3h",), 1),
     ("bisection_step", ("low_m", "high_m", "opening_mm", "flow_m3h"), 2),
     ("level_mm", ("depth_m", "opening_mm", "flow_m3h"), 1),
     ("actuator_target_mm", ("command_mm",), 1),
