@@ -5,11 +5,14 @@ fmpy with each bundled record's inputs (opening reconstructed during gate motion
 flow, on the nominal sample grid so the ARX FMU can follow); the C FMU, the python FMU and
 :func:`gatetwin.plant.simulate` must agree within 1e-9 mm at every sample, and the FMI 3.0
 FMU must give the FMI 2.0 C FMU's outputs exactly: both compile the same component with the
-same flags, only the glue differs.
+same flags, only the glue differs. The physical model and the envelope FOPDT are run as well
+with a pool below the gate (a submerged gate: the kernel's second state and its time
+constant's two-pool moment).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -28,7 +31,19 @@ from fmu_support import compiler, extract_all, fmu_run, open_fmu, reference_run 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 RECORDS = sorted(p for p in bundled_records_dir().glob("*.csv") if p.stem != "static")
 TOLERANCE_MM = 1e-9
-NAMES = ("fopdt_3F", "arx_3F", "physical_3F")
+NAMES = ("fopdt_3F", "arx_3F", "physical_3F", "fopdt_3F_submerged", "physical_3F_submerged")
+#: A pool below the flume's gate (m², m; an orifice outlet) for the submerged variants.
+TAIL = {"tail_area_m2": 1.5, "tail_depth_m": 0.12, "tail_datum_m": 0.03, "tail_exponent": 0.5}
+
+
+def _plant(name: str):
+    base, submerged = name.removesuffix("_submerged"), name.endswith("_submerged")
+    plant = read_model_file(MODELS / f"{base}.json").plant
+    if not submerged:
+        return plant
+    if plant.kind == "physical":
+        return dataclasses.replace(plant, parameters={**plant.parameters, **TAIL})
+    return dataclasses.replace(plant, envelope={**plant.envelope, **TAIL})
 
 
 @pytest.fixture(scope="module")
@@ -38,13 +53,13 @@ def extracted(tmp_path_factory):
     folder = tmp_path_factory.mktemp("bundled_fmus")
     fmus = {}
     for name in NAMES:
-        model = read_model_file(MODELS / f"{name}.json")
+        plant = _plant(name)
         for key, backend, version in (
             ("c", "c", "2.0"),
             ("python", "python", "2.0"),
             ("fmi3", "c", "3.0"),
         ):
-            fmus[(name, key)] = export_fmu(model.plant, folder / key / f"{name}.fmu",
+            fmus[(name, key)] = export_fmu(plant, folder / key / f"{name}.fmu",
                                            backend=backend, model_name=name,
                                            provenance={"model": name},
                                            fmi_version=version)  # fmt: skip
@@ -62,7 +77,7 @@ def _inputs(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 @pytest.mark.parametrize("name", NAMES)
 def test_reference_c_and_python_fmus_agree_on_bundled_record(extracted, record, name):
     times, opening, flow = _inputs(record)
-    plant = read_model_file(MODELS / f"{name}.json").plant
+    plant = _plant(name)
     reference = reference_run(plant, times, opening, flow)
     got = {}
     for backend in ("c", "python", "fmi3"):

@@ -1,6 +1,6 @@
 """Identify the ``physical`` family of one gauge from every record at once.
 
-Three stages, each on the data that determines its parameters, then a joint refinement:
+Stages, each on the data that determines its parameters, with joint refinements:
 
 1. **Gate law and gauge offset** (3, 6 or 11 parameters, grown along :data:`LAWS` while the
    data ask for more and the discharge coefficient stays physical) from every steady point:
@@ -16,9 +16,16 @@ Three stages, each on the data that determines its parameters, then a joint refi
 4. **Joint**: the law's and the storage's parameters on the stacked residuals of 1 and 3,
    each source weighted by the inverse of its residual RMS after stage 3 (its noise level),
    with standard errors from the Jacobian.
-5. **Seiche** (period, decay time, amplitude per mm of gate move: the pool's oscillation that
+5. **Tail pool** (:func:`_fit_tail`): a submerged gate discharges into a pool of its own,
+   whose depth lowers the head and answers on its own, slower time scale — an upstream gauge
+   alone shows it as a second mode. Its four parameters are fitted jointly with the core law
+   and the storage, from a pool half as deep as the water above the gate with an orifice
+   below (the next check) and the core law refitted against that tailwater; the pool replaces
+   the free gate when it is physical and fits the weighted residuals better with no more
+   parameters, or an F-test of its extra parameters rejects the free gate.
+6. **Seiche** (period, decay time, amplitude per mm of gate move: the pool's oscillation that
    gate moves excite; periods the sampling and the pool can show, :func:`seiche_periods_s`)
-   from the simulation error left by stage 4, the hydraulics held; kept as
+   from the simulation error left by stages 4–5, the hydraulics held; kept as
    the plant's ``seiche`` effect block only when an F-test rejects "no seiche" at
    :data:`SEICHE_SIGNIFICANCE`.
 

@@ -238,18 +238,26 @@ def level_mm(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float])
 
 
 def time_constant_s(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float]) -> float:
-    """Small-signal time constant at a steady point: storage area over ∂Q_g/∂h, s.
+    """Time constant of the level's answer to the gate at a steady point, s.
 
-    The envelope FOPDT relaxes towards the steady level with this time constant; it is the
-    storage equation linearised at (h, e, Q) (∂Q_g/∂h by a central difference).
+    The envelope FOPDT relaxes towards the steady level with this time constant. A free gate:
+    the storage equation linearised at (h, e, Q), A / (∂Q_g/∂h). Behind a tail pool the level
+    answers with two modes; this is the first moment of that answer to a gate step (the
+    single time constant whose first-order answer encloses the same area),
+    A (1 + b/c) / (∂Q_g/∂h), with b = −∂Q_g/∂h_t the tailwater's hold on the gate and
+    c = ∂Q_t/∂h_t the tail pool's outlet (derivatives by central differences).
     """
     d = DEPTH_DIFFERENCE_M
     tail = tail_steady_m(flow_m3h, p)
     upper = gate_flow_m3s(depth_m + d, tail, opening_mm, flow_m3h, p)
     lower = gate_flow_m3s(depth_m - d, tail, opening_mm, flow_m3h, p)
+    drowned = gate_flow_m3s(depth_m, tail - d, opening_mm, flow_m3h, p) - gate_flow_m3s(
+        depth_m, tail + d, opening_mm, flow_m3h, p)  # fmt: skip
+    outlet = tail_outflow_m3s(tail + d, p) - tail_outflow_m3s(tail - d, p)
+    factor = 1.0 + select(has_tail(p), drowned / fmax(outlet, 1e-15), 0.0)
     # a closed gate passes nothing at any depth: no finite time constant (the floor keeps the
     # division defined; the level then barely moves)
-    return storage_area_m2(depth_m, p) * (2.0 * d) / fmax(upper - lower, 1e-15)
+    return storage_area_m2(depth_m, p) * (2.0 * d) / fmax(upper - lower, 1e-15) * factor
 
 
 def substep_count(step_s: float, p: list[float]) -> float:
