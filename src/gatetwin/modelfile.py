@@ -11,6 +11,7 @@ rules of :mod:`gatetwin.modelschema`, before building anything from it.
 from __future__ import annotations
 
 import hashlib
+import sys
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -20,6 +21,7 @@ from gatetwin._io import write_json_atomic, write_text_atomic
 from gatetwin.errors import ModelFileError
 from gatetwin.modelschema import MAX_FILE_BYTES, check_model_document, parse_model_json, show
 from gatetwin.plant.model import Plant, plant_from_dict, plant_to_dict
+from gatetwin.records.limits import open_regular
 from gatetwin.version import __version__
 
 SCHEMA_ID = "https://gatetwin.invalid/schema/model-1.json"
@@ -205,7 +207,8 @@ def read_model_file(path: str | Path) -> ModelFile:
     """
     p = Path(path)
     try:
-        with p.open("rb") as handle:
+        # a FIFO, a device or a directory is refused before anything is read from it
+        with open_regular(p, sys.maxsize, "a model file (JSON)", ModelFileError) as handle:
             raw = handle.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise ModelFileError(f"{p}: cannot read ({exc.strerror or exc})") from None

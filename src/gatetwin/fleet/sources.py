@@ -23,11 +23,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gatetwin.errors import GatetwinError
+from gatetwin.fleet.summary import summary_paths
 from gatetwin.records.chunks import HISTORY_SUFFIXES
 
 _GLOB_CHARS = frozenset("*?[")
 #: A gate name becomes a folder name in the output: letters, digits, ``._-``, no leading dot.
 _GATE_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]*")
+#: Names a gate's folder cannot take: the fleet's summary files beside the gate folders
+#: (compared case-blind: some file systems are).
+_RESERVED = frozenset(p.name.casefold() for p in summary_paths(Path(".")).values())
 
 
 @dataclass(frozen=True)
@@ -148,6 +152,10 @@ def discover_gates(sources: list[str]) -> list[GateRecords]:
         if not _GATE_NAME.fullmatch(gate):
             raise GatetwinError(f"{path}: gate name {gate!r} is not usable as a folder name "
                                 "(letters, digits, '.', '_', '-')")  # fmt: skip
+        if gate.casefold() in _RESERVED:
+            names = ", ".join(sorted(_RESERVED))
+            raise GatetwinError(f"{path}: gate name {gate!r} is the name of a fleet summary "
+                                f"file ({names}); rename the gate")  # fmt: skip
         gates.setdefault(gate, []).append(path)
     return [GateRecords(g, tuple(str(p) for p in sorted(ps, key=lambda p: (p.name, str(p)))))
             for g, ps in sorted(gates.items())]  # fmt: skip

@@ -438,8 +438,12 @@ class GatetwinPlant(GuardedSlave):
 
     def _physical_initialize(self, u: float, x0: float, q: float) -> None:
         gate = physical_kernel.actuator_target_mm(u, self._physical())
-        self.dyn = {"x": x0, "depth_m": self._physical_depth(gate, q),
-                    "tail_m": physical_kernel.tail_steady_m(q, self._physical()), "gate_mm": gate}
+        self.dyn = {
+            "x": x0,
+            "depth_m": self._physical_depth(gate, q),
+            "tail_m": physical_kernel.tail_steady_m(q, self._physical()),
+            "gate_mm": gate,
+        }
 
     def _physical_step(self, h: float, command: float, q: float) -> None:
         p = self._physical()

@@ -231,10 +231,17 @@ POSITIVE = (
 )
 #: Kernel parameters added after the first model files were written, with the values those
 #: files' equations had built in (the discharge normalisation and the bisection bracket they
-#: were identified with): a file without them reads as it always did.
-FORMAT_DEFAULTS = {"flow_centre_m3h": 55.0, "flow_scale_m3h": 100.0, "depth_max_m": 2.0,
-                   "tail_area_m2": 0.0, "tail_depth_m": 1.0, "tail_datum_m": 0.0,
-                   "tail_exponent": 0.5}
+#: were identified with; no tail pool: a free gate): a file without them reads as it always
+#: did.
+FORMAT_DEFAULTS = {
+    "flow_centre_m3h": 55.0,
+    "flow_scale_m3h": 100.0,
+    "depth_max_m": 2.0,
+    "tail_area_m2": 0.0,
+    "tail_depth_m": 1.0,
+    "tail_datum_m": 0.0,
+    "tail_exponent": 0.5,
+}
 
 
 def check_physical_parameters(values: dict[str, float] | list[float]) -> list[float]:

@@ -158,7 +158,7 @@ class SwmmCore:
     def __init__(self, spec: SwmmPlantSpec) -> None:
         self._pyswmm = load_pyswmm()
         self.spec = spec
-        if not spec.inp_path.is_file():
+        if not spec.inp_path.exists():
             raise PlantError(f"{spec.inp_path}: no such SWMM input file")
         self.inp = InpFile(spec.inp_path)
         self.to_m3s = self.inp.flow_to_m3s()

@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from gatetwin.errors import PlantError
+from gatetwin.records.limits import open_regular
 
 #: Flow units whose lengths are metres, and their size in m³/s.
 METRIC_FLOW_UNITS_M3S = {"CMS": 1.0, "LPS": 1e-3, "MLD": 1e6 / 1e3 / 86400.0}
@@ -67,7 +69,9 @@ class InpFile:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         try:
-            self.text = self.path.read_text(encoding="utf-8", errors="replace")
+            with open_regular(self.path, sys.maxsize, "a SWMM input file (.inp)",
+                              PlantError) as handle:  # fmt: skip
+                self.text = handle.read().decode("utf-8", errors="replace")
         except OSError as exc:
             raise PlantError(
                 f"{self.path}: cannot read the SWMM model ({exc.strerror or exc})"

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
-from gatetwin.errors import RecordError
+from gatetwin.errors import GatetwinError, RecordError
 
 #: Default largest record file, bytes (512 MiB: about 10 million rows of 9 columns).
 DEFAULT_MAX_BYTES = 512 * 1024 * 1024
@@ -80,31 +80,33 @@ def resolve_limits(limits: ReadLimits | None) -> ReadLimits:
     return ReadLimits.from_env() if limits is None else limits
 
 
-def open_regular(path: str | Path, max_bytes: int, what: str = "a CSV record") -> BinaryIO:
+def open_regular(path: str | Path, max_bytes: int, what: str = "a CSV record",
+                 error: type[GatetwinError] = RecordError) -> BinaryIO:  # fmt: skip
     """Open ``path`` for binary reading if it is a regular file of at most ``max_bytes``.
 
     The file is opened without blocking (a FIFO without a writer would otherwise hang)
     and checked through its open descriptor, so a symlink swapped after the check cannot
-    lead elsewhere.
+    lead elsewhere. Every file gatetwin reads from a user (records, sidecars, model files,
+    FMUs, SSP packages, SWMM models) is opened here.
 
     Raises
     ------
     RecordError
-        One line naming the file, for a missing file, a directory, anything that is not
-        a regular file, an unreadable file or one larger than ``max_bytes``.
+        (or ``error``) One line naming the file, for a missing file, a directory, anything
+        that is not a regular file, an unreadable file or one larger than ``max_bytes``.
     """
     name = str(path)
     try:
         fd = os.open(name, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
-        raise RecordError(f"{name}: no such file; expected {what}") from None
+        raise error(f"{name}: no such file; expected {what}") from None
     except OSError as exc:
-        raise RecordError(f"{name}: cannot be read ({exc.strerror or exc})") from None
+        raise error(f"{name}: cannot be read ({exc.strerror or exc})") from None
     try:
         info = os.fstat(fd)
-        _check_kind(name, info.st_mode, what)
+        _check_kind(name, info.st_mode, what, error)
         if info.st_size > max_bytes:
-            raise RecordError(
+            raise error(
                 f"{name}: {info.st_size} bytes, more than the limit of {max_bytes} bytes; "
                 f"raise it with --max-bytes or {ENV_MAX_BYTES} for a longer history"
             )
@@ -116,11 +118,11 @@ def open_regular(path: str | Path, max_bytes: int, what: str = "a CSV record") -
         raise
 
 
-def _check_kind(name: str, mode: int, what: str) -> None:
+def _check_kind(name: str, mode: int, what: str, error: type[GatetwinError]) -> None:
     if stat.S_ISDIR(mode):
-        raise RecordError(f"{name}: is a directory; expected {what}")
+        raise error(f"{name}: is a directory; expected {what}")
     if not stat.S_ISREG(mode):
-        raise RecordError(f"{name}: is a {_kind_word(mode)}, not a regular file; expected {what}")
+        raise error(f"{name}: is a {_kind_word(mode)}, not a regular file; expected {what}")
 
 
 def _kind_word(mode: int) -> str:

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import shutil
+import sys
 import tempfile
 import zipfile
 from dataclasses import dataclass, field
@@ -39,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from gatetwin.errors import SspError
+from gatetwin.records.limits import open_regular
 from gatetwin.ssp.documents import NS, SSD_SCHEMA, read_parameter_set, schema_problems
 
 #: A signal's change at ``time_s`` is in force from the first communication point not before
@@ -380,7 +382,8 @@ def simulate_ssp(
 
 def _unpack(path: Path, folder: Path, where: str) -> tuple[SspSystem, dict[str, float]]:
     try:
-        with zipfile.ZipFile(path) as zf:
+        with open_regular(path, sys.maxsize, "an SSP package (.ssp)", SspError) as handle, \
+                zipfile.ZipFile(handle) as zf:  # fmt: skip
             names = set(zf.namelist())
             if "SystemStructure.ssd" not in names:
                 raise SspError(f"{where}: no SystemStructure.ssd in the package")

@@ -18,6 +18,7 @@ This module runs FMUs; it computes no metrics and decides nothing.
 from __future__ import annotations
 
 import hashlib
+import sys
 import tempfile
 import zipfile
 from dataclasses import dataclass, field
@@ -27,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from gatetwin.records import GAP_FACTOR, gauge_of_column
+from gatetwin.records.limits import open_regular
 from gatetwin.validate.errors import ValidationError
 
 #: FMI versions the harness runs (co-simulation).
@@ -132,10 +134,10 @@ def unsafe_member(name: str) -> str:
 
 
 def _archive_names(fmu: Path) -> set[str]:
-    if not fmu.is_file():
-        raise ValidationError(f"{fmu}: no such file; expected an FMI 2.0 co-simulation FMU")
     try:
-        with zipfile.ZipFile(fmu) as archive:
+        what = "an FMI 2.0 co-simulation FMU"
+        with open_regular(fmu, sys.maxsize, what, ValidationError) as handle, \
+                zipfile.ZipFile(handle) as archive:  # fmt: skip
             names = archive.namelist()
     except (zipfile.BadZipFile, OSError) as exc:
         raise ValidationError(f"{fmu}: not an FMU (not a readable zip archive: {exc})") from None
