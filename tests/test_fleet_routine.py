@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from gatetwin.bundled import bundled_records_dir
 from gatetwin.cli import main
 from gatetwin.fleet.district import district_gates
 from gatetwin.fleet.routine import write_routine_gate
@@ -166,3 +167,19 @@ def test_fleet_refuses_a_budget_below_the_libraries_and_two_histories_of_one_nam
                  "--workers", "1"]) == 1  # fmt: skip
     doc = json.loads((out / "fleet.json").read_text())
     assert doc["n_failed"] == 1 and "a second routine history named 'routine'" in json.dumps(doc)
+
+
+@pytest.mark.parametrize("budget", ["inf", "1e308", "nan", "-inf"])
+def test_a_budget_no_machine_has_is_refused_in_one_line(budget, tmp_path, capsys) -> None:
+    """Infinity, NaN and numbers past an exbibyte are mistakes, refused by ``models`` and
+    ``routine`` before anything is read (formerly an OverflowError traceback)."""
+    out = tmp_path / "fleet"
+    assert main(["models", "--out", str(out), f"--max-memory={budget}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--max-memory" in err[0] and "memory budget" in err[0]
+    assert not out.exists()
+    record = bundled_records_dir() / "A.csv"
+    json_out = tmp_path / "routine.json"
+    assert main(["routine", str(record), "--json", str(json_out), f"--max-memory={budget}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "memory budget" in err[0] and not json_out.exists()

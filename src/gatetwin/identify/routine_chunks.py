@@ -54,6 +54,9 @@ _WORKING_COPIES = 16
 #: Resident memory of ``gatetwin routine`` before it reads a row (interpreter, numpy,
 #: scipy, pyarrow, numba and the fit's compiled kernels), MiB, as measured.
 BASE_MEMORY_MIB = 300.0
+#: Largest budget taken, MiB: an exbibyte, beyond any machine's memory (a larger number, or
+#: infinity, is a mistake, not a budget).
+MAX_MEMORY_MIB = 2.0**40
 
 
 def chunk_rows_for(max_memory_mib: float, n_gauges: int = 1) -> int:
@@ -63,12 +66,16 @@ def chunk_rows_for(max_memory_mib: float, n_gauges: int = 1) -> int:
     Raises
     ------
     IdentificationError
-        A budget not above :data:`BASE_MEMORY_MIB`.
+        A budget not above :data:`BASE_MEMORY_MIB`, or above :data:`MAX_MEMORY_MIB` (which
+        also refuses infinity and NaN).
     """
     if not max_memory_mib > BASE_MEMORY_MIB:
         raise IdentificationError(f"memory budget {max_memory_mib:g} MiB: expected more than "
                                   f"the {BASE_MEMORY_MIB:g} MiB the interpreter and its "
                                   "libraries take")  # fmt: skip
+    if not max_memory_mib <= MAX_MEMORY_MIB:
+        raise IdentificationError(f"memory budget {max_memory_mib:g} MiB: expected at most "
+                                  f"{MAX_MEMORY_MIB:g} MiB (an exbibyte)")  # fmt: skip
     row_bytes = 8 * (_BASE_COLUMNS + n_gauges) + 1
     free = (max_memory_mib - BASE_MEMORY_MIB) * 2**20
     return max(3600, int(free / (_WORKING_COPIES * row_bytes) / 2))
