@@ -140,3 +140,20 @@ def test_pool_processes_run_their_numerical_libraries_on_one_thread(monkeypatch)
     assert seen == [expected[k] for k in names]
     assert [os.environ.get(k) for k in names] == [
         "3" if k == "OMP_NUM_THREADS" else None for k in names]  # fmt: skip
+
+
+@pytest.mark.parametrize("where", ["under a file", "under /proc"])
+def test_an_output_that_cannot_be_written_is_refused_before_any_gate_runs(district, tmp_path,
+                                                                         where):  # fmt: skip
+    """The fleet checks ``--out`` as the other commands do, before identifying anything: a
+    refusal comes at once (a gate's identification alone takes seconds), in one line."""
+    if where == "under /proc" and not Path("/proc").is_dir():
+        pytest.skip("no /proc on this platform")
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    out = blocker / "models" if where == "under a file" else Path("/proc/gatetwin-out")
+    done = _models("--records", str(district), "--out", str(out), "--workers", "1")
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1, done.stderr[-2000:]
+    assert str(out) in lines[0] and "cannot write" in lines[0]
+    assert "fleet:" not in done.stderr  # no gate was started

@@ -230,10 +230,10 @@ def run_models(args: argparse.Namespace) -> int:
     from gatetwin.identify.suite import identify_folder
     from gatetwin.modelfile import write_model_files
 
+    check_writable(args.out, folder=True)  # before any gate is identified, fleet or not
     if _is_fleet(args):
         return _run_fleet(args)
     folder = Path(args.records[0]) if args.records else bundled_records_dir()
-    check_writable(args.out, folder=True)
     ident = identify_folder(folder)
     for path in write_model_files(ident.models, Path(args.out)):
         print(f"wrote {path}")
