@@ -466,7 +466,7 @@ def _fit_tail(law: list[str], values: dict[str, float], free: Any,
         start_values, _ = _fit(LAW_CORE, start_values,
                                lambda p: _steady_residuals(points, p))  # fmt: skip
         trial, fit = _fit(names, start_values, joint)
-    except IdentificationError:
+    except (IdentificationError, ValueError):  # ValueError: least_squares met a non-finite start
         sources["tail"] = "none: a pool below the gate did not converge"
         return law, values, free
     rss0, rss1 = 2.0 * float(free.cost), 2.0 * float(fit.cost)
