@@ -9,6 +9,7 @@ import subprocess
 import types
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -205,9 +206,13 @@ def _synthetic_record(path: Path, truth: PhysicalPlant, flow: float, openings: l
     return path
 
 
-def test_identification_recovers_a_known_plant(tmp_path):
-    truth = PhysicalPlant("3F", TRUTH, Schedule((20.0, 90.0), {"level_ref_mm": (0.0, 0.0)}))
-    rng = np.random.default_rng(7)
+def _identified(tmp_path: Path, parameters: dict[str, float], plans: list[tuple],
+                seed: int) -> tuple[PhysicalPlant, Any, Any]:  # fmt: skip
+    """``(truth, static table, fit)``: the plant of ``parameters`` identified from its static
+    table (0.3 mm noise, levels 100-380 mm) and one record per ``(flow, openings, hold_s)``
+    of ``plans``."""
+    truth = PhysicalPlant("3F", parameters, Schedule((20.0, 90.0), {"level_ref_mm": (0.0, 0.0)}))
+    rng = np.random.default_rng(seed)
     q, e = np.meshgrid(np.arange(25.0, 90.0, 10.0), np.arange(15.0, 80.0, 10.0))
     q, e = q.ravel(), e.ravel()
     h = np.array([truth.steady_level_mm(ei, qi) for qi, ei in zip(q, e, strict=True)])
@@ -217,12 +222,16 @@ def test_identification_recovers_a_known_plant(tmp_path):
         opening_mm=e[keep],
         levels_mm={"3F": h[keep] + rng.normal(0, 0.3, keep.sum())},
     )
+    records = {f"S{i}": read_record(_synthetic_record(tmp_path / f"S{i}.csv", truth, qq,
+                                                      [float(o) for o in ops], hs, 3 + seed + i))
+               for i, (qq, ops, hs) in enumerate(plans)}  # fmt: skip
+    return truth, static, fit_physical(static, records, "3F", (25.0, 85.0))
+
+
+def test_identification_recovers_a_known_plant(tmp_path):
     plans = [(35.0, [15, 20, 25, 20, 15], 420.0), (60.0, [30, 40, 35, 45, 30], 400.0),
              (80.0, [40, 50, 60, 50], 400.0)]  # fmt: skip
-    records = {f"S{i}": read_record(_synthetic_record(tmp_path / f"S{i}.csv", truth, qq,
-                                                      [float(o) for o in ops], hs, 10 + i))
-               for i, (qq, ops, hs) in enumerate(plans)}  # fmt: skip
-    fit = fit_physical(static, records, "3F", (25.0, 85.0))
+    truth, static, fit = _identified(tmp_path, TRUTH, plans, 7)
     got = fit.plant
     # storage: the dynamic records determine it to a few per cent at this noise
     assert abs(got.parameters["area_m2"] / TRUTH["area_m2"] - 1) < 0.05
@@ -256,23 +265,9 @@ def test_identification_finds_the_pool_below_a_submerged_gate(tmp_path):
     pool's slower mode, the identification keeps the tail pool, and a record never fitted
     (moves at a discharge between the fitted ones; moves as large as the fitted ones, on which
     the actuator is timed) is simulated at the noise floor."""
-    truth = PhysicalPlant("3F", SUBMERGED, Schedule((20.0, 90.0), {"level_ref_mm": (0.0, 0.0)}))
-    rng = np.random.default_rng(8)
-    q, e = np.meshgrid(np.arange(25.0, 90.0, 10.0), np.arange(15.0, 80.0, 10.0))
-    q, e = q.ravel(), e.ravel()
-    h = np.array([truth.steady_level_mm(ei, qi) for qi, ei in zip(q, e, strict=True)])
-    keep = (h > 100) & (h < 380)
-    static = types.SimpleNamespace(
-        flow_m3h=q[keep],
-        opening_mm=e[keep],
-        levels_mm={"3F": h[keep] + rng.normal(0, 0.3, keep.sum())},
-    )
     plans = [(35.0, [20, 25, 30, 25, 20], 600.0), (60.0, [35, 45, 40, 50, 35], 600.0),
              (80.0, [45, 55, 65, 55], 600.0)]  # fmt: skip
-    records = {f"S{i}": read_record(_synthetic_record(tmp_path / f"S{i}.csv", truth, qq,
-                                                      [float(o) for o in ops], hs, 20 + i))
-               for i, (qq, ops, hs) in enumerate(plans)}  # fmt: skip
-    fit = fit_physical(static, records, "3F", (25.0, 85.0))
+    truth, _, fit = _identified(tmp_path, SUBMERGED, plans, 17)
     got = fit.plant.parameters
     assert got["tail_area_m2"] > 0.0, fit.fixed_sources["tail"]
     # the pool's storage is seen only through the upstream level's second mode: a factor of
