@@ -138,6 +138,14 @@ def test_model_file_round_trip_and_bad_parameters(plant):
     bad["parameters"] = {**plant.parameters, "speed_mm_s": 0.0}
     with pytest.raises(ModelFileError, match="speed_mm_s"):
         plant_from_dict(bad)
+    # a pool below the gate stores water, fills above its datum, drains more as it fills
+    bad["parameters"] = {**plant.parameters, "tail_area_m2": -1.0}
+    with pytest.raises(ModelFileError, match="tail_area_m2 = -1.0 must be >= 0"):
+        plant_from_dict(bad)
+    for broken in ({"tail_datum_m": 0.5, "tail_depth_m": 0.1}, {"tail_exponent": 0.0}):
+        bad["parameters"] = {**plant.parameters, **TAIL, **broken}
+        with pytest.raises(ModelFileError, match="the pool below the gate needs"):
+            plant_from_dict(bad)
 
 
 def test_a_step_needing_too_many_substeps_is_refused_without_change(plant):

@@ -264,6 +264,17 @@ def check_physical_parameters(values: dict[str, float] | list[float]) -> list[fl
             rule = "finite and > 0" if name in POSITIVE else "finite"
             raise ModelFileError(f"physical: parameter {name} = {value!r} must be {rule}")
         out.append(v)
+    tail = dict(zip((n for n, _, _ in kernel.PARAMETERS), out, strict=True))
+    if tail["tail_area_m2"] < 0.0:
+        raise ModelFileError(f"physical: parameter tail_area_m2 = {tail['tail_area_m2']!r} "
+                             "must be >= 0 (0: no pool below the gate)")  # fmt: skip
+    if tail["tail_area_m2"] > 0.0 and not (tail["tail_depth_m"] > tail["tail_datum_m"]
+                                           and tail["tail_exponent"] > 0.0):  # fmt: skip
+        raise ModelFileError(
+            f"physical: the pool below the gate needs tail_depth_m ({tail['tail_depth_m']!r}) "
+            f"above tail_datum_m ({tail['tail_datum_m']!r}) and tail_exponent "
+            f"({tail['tail_exponent']!r}) > 0"
+        )
     return out
 
 
