@@ -669,7 +669,8 @@ def _fit_seiche(drives: Sequence[_Drive], p: np.ndarray, weights: list[float],
     """The pool's seiche from the simulation error left by the hydraulics (held fixed): its
     period (within ``periods_s``, started at the residuals' spectral peak), decay time (one
     sample period to ten of the longest periods) and amplitude per mm of gate move, with an
-    F-test against none."""
+    F-test against none; not kept when the period or the decay time ends on its bound
+    (``at_bound`` in the report)."""
 
     def weighted(res: list[np.ndarray]) -> np.ndarray:
         return np.concatenate([r / w for r, w in zip(res, weights, strict=True)])
@@ -694,8 +695,15 @@ def _fit_seiche(drives: Sequence[_Drive], p: np.ndarray, weights: list[float],
     rss0, rss1 = float(without @ without), 2.0 * float(result.cost)
     f_stat = ((rss0 - rss1) / k) / (rss1 / max(1, n - k)) if rss1 > 0 else math.inf
     p_value = float(f_dist.sf(f_stat, k, max(1, n - k)))
+    # a period or decay time at its bound is not an oscillation the sampling resolves (a
+    # decay of one sample period is a transient the hydraulics miss), and the F-test's
+    # reference distribution does not hold on a bound
+    bounded = [name for name, active in zip(SEICHE[:2], result.active_mask[:2], strict=True)
+               if active != 0]  # fmt: skip
     report = {
-        "kept": bool(result.success and p_value < SEICHE_SIGNIFICANCE and result.x[2] != 0.0),
+        "kept": bool(result.success and p_value < SEICHE_SIGNIFICANCE and result.x[2] != 0.0
+                     and not bounded),  # fmt: skip
+        "at_bound": bounded,
         "parameters": dict(zip(SEICHE, (float(v) for v in result.x), strict=True)),
         "standard_errors": _standard_errors(result, SEICHE),
         "f_test_p_value": p_value,
