@@ -3,8 +3,8 @@ reader forever) or a device (``/dev/zero``: endless bytes) given as a model file
 package, an FMU or a SWMM model is refused at once in one line naming it, with a non-zero
 exit and nothing written. And a gate may not take the name of a fleet summary file.
 
-The commands run in a child process with a timeout, so that a regression hangs the child,
-not the test run.
+The commands given a special file run in a child process with a timeout, so that a
+regression hangs the child, not the test run.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from gatetwin.bundled import bundled_records_dir
+from gatetwin.cli import main
 
 #: A refusal reads no byte, so it takes what starting Python and gatetwin take; a hang is
 #: what this catches.
@@ -80,7 +81,8 @@ def test_a_fifo_as_the_swmm_model_is_refused(tmp_path):
 
 
 @pytest.mark.parametrize("gate", ["fleet.json", "fleet.md", "FLEET.PNG", "Fleet.html"])
-def test_a_gate_named_like_a_fleet_summary_file_is_refused_before_any_work(tmp_path, gate):
+def test_a_gate_named_like_a_fleet_summary_file_is_refused_before_any_work(tmp_path, gate,
+                                                                          capsys):  # fmt: skip
     """The summary files sit beside the gate folders; a gate of the same name (compared
     case-blind, as some file systems compare) would collide with one of them."""
     records = bundled_records_dir()
@@ -90,9 +92,10 @@ def test_a_gate_named_like_a_fleet_summary_file_is_refused_before_any_work(tmp_p
         for suffix in (".csv", ".json"):
             (folder / f"A{suffix}").write_bytes((records / f"A{suffix}").read_bytes())
     out = tmp_path / "out"
-    run = _gatetwin("models", "--records", str(tmp_path / "gates"), "--out", str(out),
-                    "--workers", "1", cwd=tmp_path)  # fmt: skip
-    lines = run.stderr.strip().splitlines()
-    assert run.returncode != 0 and len(lines) == 1, run.stderr
+    code = main(["models", "--records", str(tmp_path / "gates"), "--out", str(out),
+                 "--workers", "1"])  # fmt: skip
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert code != 0 and len(lines) == 1, err
     assert repr(gate) in lines[0] and "fleet summary file" in lines[0]
     assert not out.exists()
