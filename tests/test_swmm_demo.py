@@ -122,7 +122,8 @@ def test_the_demo_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path, cap
 NOT_YET = (
     "the physical twins of the field canal fit every held-out record (96-99 %), but a "
     "first-order model cannot follow the submerged gate's tail pool: the envelope FOPDTs "
-    "fit the inflow and random records at 73-86 % (noise floors 97-99.6 %)"
+    "fit the inflow and random records at 73-86 % (noise floors 97-99.6 %); and the MPC "
+    "pumps the pool's one-minute resonance in two of the three scenarios"
 )
 
 
