@@ -87,3 +87,19 @@ def test_the_runs_matrix_on_a_pool_is_the_serial_matrix(fmu):
                         thresholds)  # fmt: skip
     assert [c["record"] for c in pooled] == [p.name for p in RECORDS]
     assert pooled == serial
+
+
+def test_a_record_without_the_fmus_gauge_is_refused_before_any_task_runs(fmu, tmp_path,
+                                                                         capsys):  # fmt: skip
+    """The FMU's output is level_3F_mm; a record of other gauges is refused in one line before
+    the pool starts (no task's progress line), as the serial run refuses it."""
+    other = tmp_path / "other.csv"
+    other.write_text(RECORDS[0].read_text().replace("level_3F_mm", "level_9Z_mm", 1))
+    other.with_suffix(".json").write_bytes(RECORDS[0].with_suffix(".json").read_bytes())
+    out = tmp_path / "v.json"
+    code = main(["validate", str(fmu), str(RECORDS[0]), str(other), "--json", str(out),
+                 "--workers", "2"])  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert "other.csv" in err[0] and "level_3F_mm" in err[0]
+    assert not out.exists()

@@ -390,7 +390,10 @@ class _Inputs:
     grid: CommunicationGrid
 
 
-def _inputs(fmu: FmuInfo, output: str, record: Record) -> _Inputs:
+def prepare_inputs(fmu: FmuInfo, output: str, record: Record) -> _Inputs:
+    """A record's measured level for ``output`` and the FMU's inputs on its communication
+    grid; :class:`ValidationError` for a record the FMU cannot be validated on (no such
+    gauge, a grid the FMU cannot step)."""
     gauge = output[len("level_") : -len("_mm")]
     measured = _measured_level(record, gauge, fmu)
     where = record.path or "<arrays>"
@@ -514,7 +517,7 @@ def validate_fmu(
         start_host()  # its imports overlap with the reading and checking below
     info = inspect_fmu(fmu_path)
     output = output_for_gauge(info, gauge)
-    prepared = [_inputs(info, output, _load(r)) for r in records]
+    prepared = [prepare_inputs(info, output, _load(r)) for r in records]
     findings = static_findings(info.path)
     envelope = read_envelope(info.path)
     settings = _Settings(tuple(thresholds), envelope, fail_outside_validity)

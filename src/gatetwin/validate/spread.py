@@ -20,7 +20,12 @@ from gatetwin.errors import GatetwinError
 from gatetwin.records import Record, read_record
 from gatetwin.validate.errors import ValidationError
 from gatetwin.validate.fmu_runner import inspect_fmu, output_for_gauge, static_findings
-from gatetwin.validate.harness import FmuValidation, RecordValidation, validate_fmu
+from gatetwin.validate.harness import (
+    FmuValidation,
+    RecordValidation,
+    prepare_inputs,
+    validate_fmu,
+)
 from gatetwin.validate.thresholds import Threshold
 from gatetwin.validate.validity import read_envelope
 
@@ -86,8 +91,10 @@ def validate_fmu_spread(
     if not records:
         raise ValidationError("no records to validate against")
     info = inspect_fmu(fmu_path)
-    output_for_gauge(info, gauge)
+    output = output_for_gauge(info, gauge)
     loaded = [r if isinstance(r, Record) else read_record(r) for r in records]
+    for rec in loaded:  # each record's gauge and grid, as validate_fmu checks them, first
+        prepare_inputs(info, output, rec)
     data = Path(fmu_path).read_bytes()
     tasks = [RecordTask(Path(fmu_path).name, data, rec, gauge, tuple(thresholds),
                         fail_outside_validity, timeout_s) for rec in loaded]  # fmt: skip
