@@ -99,8 +99,8 @@ SEICHE_AMPLITUDE_MAX = 5.0
 SEICHE_SIGNIFICANCE = 1e-3
 ACTUATOR = ["speed_mm_s", "stall_depth_m"]
 #: The pool below the gate (storage, steady depth at the discharge centre, datum, outlet
-#: exponent): fitted with the law and the storage, kept when an F-test against the free gate
-#: rejects it at ``SEICHE_SIGNIFICANCE`` and the pool is physical (:func:`_physical_tail`).
+#: exponent): fitted with the core law and the storage, kept by the rule of
+#: :func:`_fit_tail`.
 TAIL = ["tail_area_m2", "tail_depth_m", "tail_datum_m", "tail_exponent"]
 #: The tail pool's start: the outlet of an orifice (the next check gate) and a pool as deep
 #: as this fraction of the steady depths above the gate.
@@ -477,8 +477,7 @@ def _fit_tail(law: list[str], values: dict[str, float], free: Any,
         keep, why = rss1 < rss0, f"{k_tail} parameters against the free gate's {k_free}"
     else:
         extra = k_tail - k_free
-        f_stat = ((rss0 - rss1) / extra) / (rss1 / (n - k_tail))
-        p_value = float(f_dist.sf(f_stat, extra, n - k_tail))
+        p_value = _f_test_p(rss0, rss1, extra, n - k_tail)
         keep, why = p_value < SEICHE_SIGNIFICANCE, f"F-test p = {p_value:.2g}"
     rms = f"RMS of the weighted residuals {math.sqrt(rss0 / n):.3g} free, " \
           f"{math.sqrt(rss1 / n):.3g} with the pool"  # fmt: skip
@@ -539,8 +538,7 @@ def _fit_law(points: SteadyPoints, fixed: dict[str, float], sources: dict[str, s
         extra = len(law) - len(kept[-1][0])
         if rss1 <= 0.0 or not _physical_law(points, trial):
             break
-        f_stat = ((rss0 - rss1) / extra) / (rss1 / (n - len(law)))
-        if float(f_dist.sf(f_stat, extra, n - len(law))) >= SEICHE_SIGNIFICANCE:
+        if _f_test_p(rss0, rss1, extra, n - len(law)) >= SEICHE_SIGNIFICANCE:
             break
         kept.append((list(law), trial))
         last = fit
@@ -693,8 +691,7 @@ def _fit_seiche(drives: Sequence[_Drive], p: np.ndarray, weights: list[float],
                            bounds=(lower, upper), x_scale="jac")  # fmt: skip
     n, k = without.size, len(SEICHE)
     rss0, rss1 = float(without @ without), 2.0 * float(result.cost)
-    f_stat = ((rss0 - rss1) / k) / (rss1 / max(1, n - k)) if rss1 > 0 else math.inf
-    p_value = float(f_dist.sf(f_stat, k, max(1, n - k)))
+    p_value = _f_test_p(rss0, rss1, k, max(1, n - k))
     # a period or decay time at its bound is not an oscillation the sampling resolves (a
     # decay of one sample period is a transient the hydraulics miss), and the F-test's
     # reference distribution does not hold on a bound
@@ -711,6 +708,14 @@ def _fit_seiche(drives: Sequence[_Drive], p: np.ndarray, weights: list[float],
         "period_bounds_s": [float(v) for v in periods_s], "period_start_s": period,
     }  # fmt: skip
     return np.asarray(result.x, float), report
+
+
+def _f_test_p(rss0: float, rss1: float, extra: int, residual_dof: int) -> float:
+    """p-value of the F-test of ``extra`` added parameters that take the residual sum of
+    squares from ``rss0`` to ``rss1`` with ``residual_dof`` degrees of freedom left (0 for a
+    perfect fit)."""
+    f_stat = ((rss0 - rss1) / extra) / (rss1 / residual_dof) if rss1 > 0 else math.inf
+    return float(f_dist.sf(f_stat, extra, residual_dof))
 
 
 def _rms(x: np.ndarray) -> float:
