@@ -33,11 +33,11 @@ sample period, horizon and weights come from that model (rules below); an explic
 * **Observer**: where the model file states its gauge's noise (``validity.level_noise_sd_mm``,
   the noise floors of the records it was identified from), :func:`observer_settings`;
   else the observer's defaults.
-* **MPC weights**: the level error's 1/mm²; a gate move's :func:`move_weight` ``(K/4)²``,
-  so that a move of one mm costs what a level error of a quarter of its steady effect costs
-  (the ratio the controllers were first tuned with: 10 at 12.5 mm/mm; on the SWMM canal
-  ``K²`` made the MPC FMU too slow to beat the PI FMU); the envelope's move-weight reference
-  gain is the operating point's ``|K|``.
+* **MPC weights**: the level error's 1/mm²; a gate move's
+  :func:`~gatetwin.mpc.settings.gate_move_weight` ``K²`` at the operating point, so that a
+  move costs what its whole steady effect on the level costs as a level error (the rule of
+  every MPC here); the envelope's move-weight reference gain is the operating point's
+  ``|K|``.
 """
 
 from __future__ import annotations
@@ -164,12 +164,6 @@ def horizon(time_constant_s: float, dead_time_s: float, ts: float) -> tuple[int,
     return max(HORIZON_MIN, n), k * ts
 
 
-def move_weight(gain_mm_per_mm: float) -> float:
-    """The MPC's weight of a gate move, 1/mm² of level per mm² of move: ``(K/4)²``, so that
-    a move of one mm costs what a level error of a quarter of its steady effect costs."""
-    return max((gain_mm_per_mm / 4.0) ** 2, 1e-9)
-
-
 def level_band_mm(model: ModelFile, plant: FopdtPlant, opening_range_mm: tuple[float, float]
                   ) -> tuple[float, float]:  # fmt: skip
     """The validity's level range, else the schedule's levels over the opening range."""
@@ -217,6 +211,7 @@ def derived_settings(model: ModelFile, plant: FopdtPlant,
     may need an opening the records never set."""
     from gatetwin.mpc.demo import DemoSettings
     from gatetwin.mpc.pi import PiSettings
+    from gatetwin.mpc.settings import gate_move_weight
 
     box = validity_envelope(model.content)
     q_lo, q_hi = box.get("flow_m3h", plant.schedule.flow_range_m3h)
@@ -237,7 +232,7 @@ def derived_settings(model: ModelFile, plant: FopdtPlant,
     mpc = replace(
         demo.mpc, horizon=n, observer=observer, sample_period_s=step, opening_range_mm=(lo, hi),
         opening_rate_mm_s=rate, level_band_mm=level_band_mm(model, plant, (lo, hi)),
-        level_weight=1.0, move_weight=move_weight(gain),
+        level_weight=1.0, move_weight=gate_move_weight(gain),
         move_weight_gain_mm_per_mm=max(gain, 1e-9),
     )  # fmt: skip
     pi = PiSettings(opening_range_mm=(lo, hi), opening_rate_mm_s=rate, sample_period_s=ts)

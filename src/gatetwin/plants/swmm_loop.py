@@ -7,7 +7,7 @@ gauge noise SD ``σ``, gate speed, the opening and level ranges the experiments 
 
 * MPC horizon and prediction step, and its move weight: the rules the controller FMUs
   follow (:func:`gatetwin.fmu.controller_settings.horizon` and
-  :func:`~gatetwin.fmu.controller_settings.move_weight`), so that the Python loop and the
+  :func:`~gatetwin.mpc.settings.gate_move_weight`), so that the Python loop and the
   exported MPC are one design;
 * observer: :func:`gatetwin.fmu.controller_settings.observer_settings` of ``σ`` (the one
   rule the controller FMUs follow too): measurement SD and level process noise ``σ``, an
@@ -38,11 +38,11 @@ from typing import Any
 import numpy as np
 
 from gatetwin.errors import PlantError
-from gatetwin.fmu.controller_settings import horizon, move_weight, observer_settings
+from gatetwin.fmu.controller_settings import horizon, observer_settings
 from gatetwin.mpc.loop import ClosedLoopRun, LoopSettings, Scenario, loop_metrics
 from gatetwin.mpc.pi import PiSettings
 from gatetwin.mpc.plants import MeasurementNoise
-from gatetwin.mpc.settings import MpcSettings
+from gatetwin.mpc.settings import MpcSettings, gate_move_weight
 from gatetwin.plant.model import FopdtPlant
 from gatetwin.plants.swmm import SwmmCore, SwmmPlantSpec
 
@@ -166,7 +166,7 @@ def loop_settings(point: TwinPoint, *, sample_period_s: float, noise_sd_mm: floa
     n, step = horizon(point.time_constant_s, point.dead_time_s, ts)
     mpc = MpcSettings(horizon=n, sample_period_s=step, opening_range_mm=opening_range_mm,
                       opening_rate_mm_s=gate_speed_mm_s, level_band_mm=level_band_mm,
-                      move_weight=move_weight(k), move_weight_gain_mm_per_mm=abs(k),
+                      move_weight=gate_move_weight(k), move_weight_gain_mm_per_mm=abs(k),
                       observer=observer)  # fmt: skip
     pi = PiSettings(opening_range_mm=opening_range_mm, opening_rate_mm_s=gate_speed_mm_s,
                     sample_period_s=ts)  # fmt: skip
