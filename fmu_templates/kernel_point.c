@@ -13,10 +13,18 @@ double kernel_steady_depth_m(const double *p, double opening_mm, double flow_m3h
     return 0.5 * (low + high);
 }
 
-void kernel_envelope_point(const double *p, double opening_mm, double flow_m3h,
-                           double *level_mm, double *time_constant_s)
+void kernel_envelope_steady(const double *p, double opening_mm, double flow_m3h,
+                            double *level_mm, double *time_constant_s, double *depth_m)
 {
     const double depth = kernel_steady_depth_m(p, opening_mm, flow_m3h);
     gt_level_mm(depth, opening_mm, flow_m3h, p, level_mm);
     gt_time_constant_s(depth, opening_mm, flow_m3h, p, time_constant_s);
+    *depth_m = depth;
+}
+
+void kernel_envelope_point(const double *p, double opening_mm, double flow_m3h,
+                           double *level_mm, double *time_constant_s)
+{
+    double depth;
+    kernel_envelope_steady(p, opening_mm, flow_m3h, level_mm, time_constant_s, &depth);
 }

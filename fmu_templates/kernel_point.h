@@ -10,5 +10,8 @@ double kernel_steady_depth_m(const double *p, double opening_mm, double flow_m3h
 /* Steady level at the gauge (mm) and small-signal time constant (s) at (Q, e). */
 void kernel_envelope_point(const double *p, double opening_mm, double flow_m3h,
                            double *level_mm, double *time_constant_s);
+/* The same and the steady depth at the gate (m), which the secant time constant needs. */
+void kernel_envelope_steady(const double *p, double opening_mm, double flow_m3h,
+                            double *level_mm, double *time_constant_s, double *depth_m);
 
 #endif

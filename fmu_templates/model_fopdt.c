@@ -13,8 +13,10 @@
 
 #if GT_ENVELOPE
 /* Envelope FOPDT: the target is the gate law's steady level at the arrived opening and the
- * step's discharge, the time constant the storage linearised there (kernel_support.c). */
+ * step's discharge, the time constant the storage's secant from the level to there
+ * (kernel_support.c, physical_kernel.c). */
 #include "kernel_support.h"
+#include "physical_kernel.h"
 #define KERNEL(m) (&(m)->real[VR_KERNEL_FIRST])
 #endif
 
@@ -187,26 +189,30 @@ static double cached_decay(ModelData *m, double duration_s, double tau_s)
 }
 
 #if GT_ENVELOPE
-/* The envelope's steady level and time constant at the input deviation u and the cached
- * discharge. */
-static void steady_point(const ModelData *m, double u_mm, double *level_mm, double *tau_s)
+/* The envelope's steady level, tangent time constant and depth at the input deviation u and
+ * the cached discharge. */
+static void steady_point(const ModelData *m, double u_mm, double *level_mm, double *tau_s,
+                         double *depth_m)
 {
-    kernel_envelope_point(KERNEL(m), u_mm + m->real[VR_OPENING_REF_MM], m->cache.flow_m3h,
-                          level_mm, tau_s);
+    kernel_envelope_steady(KERNEL(m), u_mm + m->real[VR_OPENING_REF_MM], m->cache.flow_m3h,
+                           level_mm, tau_s, depth_m);
 }
 
-/* The steady point at u, from the cache when it holds for u (the bisection only when the
- * arrived input, the discharge or a parameter changed). */
-static void cached_steady_point(ModelData *m, double u_mm, double *level_mm, double *tau_s)
+/* The time constant of a piece that starts at the level x for the input u: the secant of the
+ * storage equation from x to the steady point at u (the bisection only when the arrived
+ * input, the discharge or a parameter changed). */
+static void piece_point(ModelData *m, double u_mm, double x_mm, double *level_mm, double *tau_s)
 {
     DynamicsCache *c = &m->cache.dyn;
     if (!c->point_valid || !plant_same_bits(c->point_u_mm, u_mm)) {
-        steady_point(m, u_mm, &c->point_level_mm, &c->point_tau_s);
+        steady_point(m, u_mm, &c->point_level_mm, &c->point_tau_s, &c->point_depth_m);
         c->point_u_mm = u_mm;
         c->point_valid = 1;
     }
     *level_mm = c->point_level_mm;
-    *tau_s = c->point_tau_s;
+    gt_secant_time_constant_s(x_mm, c->point_level_mm, c->point_depth_m, c->point_tau_s,
+                              u_mm + m->real[VR_OPENING_REF_MM], m->cache.flow_m3h, KERNEL(m),
+                              tau_s);
 }
 #endif
 
@@ -234,7 +240,7 @@ static void piece(ModelData *m, double t_start, double t_end, double u_mm,
             }
         }
 #if GT_ENVELOPE
-        cached_steady_point(m, d->change_u[slot(d, j)], &target, &tau_s);
+        piece_point(m, d->change_u[slot(d, j)], d->x, &target, &tau_s);
 #else
         target = p->gain * d->change_u[slot(d, j)];
 #endif
@@ -355,10 +361,12 @@ PlantStatus dynamics_check_cache(const ModelData *m, PlantMessage *msg)
         return PLANT_ERROR;
     }
     if (c->point_valid) {
-        steady_point(m, c->point_u_mm, &fresh.point_level_mm, &fresh.point_tau_s);
+        steady_point(m, c->point_u_mm, &fresh.point_level_mm, &fresh.point_tau_s,
+                     &fresh.point_depth_m);
         if (!isfinite(c->point_u_mm) ||
             !plant_same_bits(c->point_level_mm, fresh.point_level_mm) ||
-            !plant_same_bits(c->point_tau_s, fresh.point_tau_s)) {
+            !plant_same_bits(c->point_tau_s, fresh.point_tau_s) ||
+            !plant_same_bits(c->point_depth_m, fresh.point_depth_m)) {
             plant_message(msg, "state's cached steady point (%.17g mm, %.17g s) is not the one "
                                "at its input %.17g mm",
                           c->point_level_mm, c->point_tau_s, c->point_u_mm);

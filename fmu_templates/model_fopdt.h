@@ -38,7 +38,8 @@ typedef struct {
     int point_valid;         /* 1: the steady point below holds for point_u_mm */
     double point_u_mm;       /* the arrived input deviation it is at, mm */
     double point_level_mm;   /* the gate law's steady level there, mm */
-    double point_tau_s;      /* the storage's time constant there, s */
+    double point_tau_s;      /* the storage's time constant there (the tangent), s */
+    double point_depth_m;    /* the steady depth at the gate there, m */
 #endif
 } DynamicsCache;
 

@@ -233,7 +233,9 @@ TAMPERING = {
     "cache.dyn.point_u_mm": ("=d", lambda v: v + 1.0),
     "cache.dyn.point_level_mm": ("=d", lambda v: np.nextafter(v, np.inf)),  # one ulp
     "cache.dyn.decay_filled": ("=i", lambda v: 7),  # an FOPDT's decays of its last pieces
-    "cache.dyn.decay_next": ("=i", lambda v: v + 1),
+    # past the last slot (a full ring takes any next slot in range: an envelope FOPDT's
+    # secant time constant fills it while the level moves)
+    "cache.dyn.decay_next": ("=i", lambda v: v + 3),
     "cache.dyn.decay": ("=d", lambda v: np.nextafter(v, np.inf)),  # one ulp, the first slot
 }
 

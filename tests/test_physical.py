@@ -23,7 +23,13 @@ from gatetwin.modelfile import read_model_file
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import effect_dict
 from gatetwin.plant.kernel_render import casadi_kernel, numba_kernel, portable_kernel
-from gatetwin.plant.model import PhysicalPlant, Schedule, plant_from_dict, plant_to_dict
+from gatetwin.plant.model import (
+    PhysicalPlant,
+    Schedule,
+    plant_from_dict,
+    plant_to_dict,
+    steady_depth_m,
+)
 from gatetwin.plant.simulate import SimulationError, simulate, simulator_for
 from gatetwin.records import read_record
 
@@ -86,6 +92,15 @@ def test_c_rendering_of_the_kernel_equals_python(plant, tmp_path):
         worst = max(worst, abs(out[0].value - kernel.level_mm(h, a, q, p)))
         getattr(c, f"{KERNEL_PREFIX}time_constant_s")(*level_args, pa, ctypes.byref(out[0]))
         assert out[0].value == portable.time_constant_s(h, a, q, p)
+        # the secant from a level up to 0.2 m either side of the steady one at (a, q)
+        steady = steady_depth_m(a, q, p)
+        target = portable.level_mm(steady, a, q, p)
+        tangent = portable.time_constant_s(steady, a, q, p)
+        secant_args = (target + 1000.0 * (h - 0.25), target, steady, tangent, a, q)
+        getattr(c, f"{KERNEL_PREFIX}secant_time_constant_s")(
+            *(ctypes.c_double(v) for v in secant_args), pa, ctypes.byref(out[0])
+        )
+        assert out[0].value == portable.secant_time_constant_s(*secant_args, p)
     assert worst <= ROUNDOFF
 
 

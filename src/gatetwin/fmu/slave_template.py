@@ -415,12 +415,26 @@ class GatetwinPlant(GuardedSlave):
 
     def _envelope_point(self, u: float, q: float) -> tuple[float, float]:
         """Steady level and time constant at the opening u + opening_ref (kernel_point.c)."""
+        return self._envelope_steady(u, q)[:2]
+
+    def _envelope_steady(self, u: float, q: float) -> tuple[float, float, float]:
+        """The same and the steady depth at the gate, m (kernel_envelope_steady)."""
         p = self._physical()
         e = u + self.real[self.vr_opening_ref]
         depth = self._physical_depth(e, q)
         return (
             physical_kernel_portable.level_mm(depth, e, q, p),
             physical_kernel_portable.time_constant_s(depth, e, q, p),
+            depth,
+        )
+
+    def _piece_point(self, u: float, x: float, q: float) -> tuple[float, float]:
+        """A piece from the level x with u held: the target and the storage's secant time
+        constant to it (piece_point of model_fopdt.c)."""
+        target, tangent, depth = self._envelope_steady(u, q)
+        e = u + self.real[self.vr_opening_ref]
+        return target, physical_kernel_portable.secant_time_constant_s(
+            x, target, depth, tangent, e, q, self._physical()
         )
 
     def _level_offset(self, q: float) -> float:
@@ -592,7 +606,7 @@ class GatetwinPlant(GuardedSlave):
             if j + 1 < len(times):
                 t_next = min(t1, times[j + 1] + delay)
             if self._envelope():
-                target, tau = self._envelope_point(inputs[j], q)
+                target, tau = self._piece_point(inputs[j], d["x"], q)
             else:
                 target = k * inputs[j]
             if lag:

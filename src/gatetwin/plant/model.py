@@ -340,13 +340,21 @@ class PhysicalPlant:
 physical_kernel_portable = portable_kernel(kernel)
 
 
-def envelope_point(opening_mm: float, flow_m3h: float, p: list[float]) -> tuple[float, float]:
-    """Steady level at the gauge (mm) and small-signal time constant (s) at (Q, e)."""
+def envelope_steady(opening_mm: float, flow_m3h: float, p: list[float]
+                    ) -> tuple[float, float, float]:  # fmt: skip
+    """Steady level at the gauge (mm), small-signal time constant (s) and depth at the gate
+    (m) at (Q, e) (``kernel_envelope_steady`` of the C FMU)."""
     depth = steady_depth_m(opening_mm, flow_m3h, p)
     return (
         physical_kernel_portable.level_mm(depth, opening_mm, flow_m3h, p),
         physical_kernel_portable.time_constant_s(depth, opening_mm, flow_m3h, p),
+        depth,
     )
+
+
+def envelope_point(opening_mm: float, flow_m3h: float, p: list[float]) -> tuple[float, float]:
+    """Steady level at the gauge (mm) and small-signal time constant (s) at (Q, e)."""
+    return envelope_steady(opening_mm, flow_m3h, p)[:2]
 
 
 def local_fopdt(plant: FopdtPlant | ArxPlant | PhysicalPlant, flow_m3h: float,

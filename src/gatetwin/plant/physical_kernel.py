@@ -260,6 +260,48 @@ def time_constant_s(depth_m: float, opening_mm: float, flow_m3h: float, p: list[
     return storage_area_m2(depth_m, p) * (2.0 * d) / fmax(upper - lower, 1e-15) * factor
 
 
+def secant_time_constant_s(
+    level_mm: float,
+    target_mm: float,
+    steady_m: float,
+    tangent_s: float,
+    opening_mm: float,
+    flow_m3h: float,
+    p: list[float],
+) -> float:
+    """Time constant with which the envelope FOPDT leaves ``level_mm`` for the steady level
+    ``target_mm`` (depth ``steady_m`` at the gate, tangent time constant ``tangent_s``), s.
+
+    The tangent at the target is right near the target only: after a large inflow or gate
+    change the level first moves at the storage's rate ``(Q_in − Q_g(h)) / A``, which a
+    tangent taken where the level ends misjudges. This is the secant through the current
+    depth ``h`` and the steady depth ``h_s``:
+
+        T = T_tangent · (A(h̄) / A(h_s)) · (∂Q_g/∂h · (h_s − h)) / (Q_in − Q_g(h))
+
+    with ``h̄`` the mid-depth (the mean storage area over the gap, A linear in depth), so that
+    ``(target − level) / T`` is the storage equation's rate at ``h`` and the first-order
+    answer keeps the tangent's two-pool factor. The depth is the steady depth less the
+    level's gap (exact when the offset does not grow with discharge, ``o₂ = 0``). Within one
+    central-difference step of the target, or where the gate law does not grow with the depth
+    (a closed gate, the critical-flow cap), the tangent itself.
+    """
+    d = DEPTH_DIFFERENCE_M
+    tail = tail_steady_m(flow_m3h, p)
+    depth = fmax(steady_m - (target_mm - level_mm) / 1000.0, DEPTH_LOW_M)
+    gap = steady_m - depth
+    slope = (gate_flow_m3s(steady_m + d, tail, opening_mm, flow_m3h, p)
+             - gate_flow_m3s(steady_m - d, tail, opening_mm, flow_m3h, p)) / (2.0 * d)  # fmt: skip
+    imbalance = flow_m3h / 3600.0 - gate_flow_m3s(depth, tail, opening_mm, flow_m3h, p)
+    # the secant holds where the gap is resolved and the gate law grows with the depth
+    # across it (imbalance and gap of one sign); elsewhere the tangent
+    resolved = less(d, fmax(gap, -gap))
+    growing = less(0.0, slope * gap * imbalance)
+    ratio = (storage_area_m2(0.5 * (depth + steady_m), p) / storage_area_m2(steady_m, p)
+             * slope * gap / select(growing, imbalance, 1.0))  # fmt: skip
+    return select(resolved, select(growing, tangent_s * ratio, tangent_s), tangent_s)
+
+
 def substep_count(step_s: float, p: list[float]) -> float:
     """Sub-steps of one communication step: the fewest of at most ``max_substep_s``."""
     return fmax(1.0, -floor(-step_s / p[17]))
@@ -274,4 +316,9 @@ RENDERED = (
     ("actuator_target_mm", ("command_mm",), 1),
     ("substep_count", ("step_s",), 1),
     ("time_constant_s", ("depth_m", "opening_mm", "flow_m3h"), 1),
+    (
+        "secant_time_constant_s",
+        ("level_mm", "target_mm", "steady_m", "tangent_s", "opening_mm", "flow_m3h"),
+        1,
+    ),
 )

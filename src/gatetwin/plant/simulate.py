@@ -21,8 +21,9 @@ from gatetwin.plant.model import (
     FopdtPlant,
     PhysicalPlant,
     Plant,
-    envelope_point,
+    envelope_steady,
     interp_clamped,
+    physical_kernel_portable,
 )
 from gatetwin.plant.physical import PhysicalSimulator
 
@@ -94,7 +95,9 @@ class PlantSimulator:
     fx: EffectSet = field(default_factory=EffectSet)
     es: EffectState = field(default_factory=EffectState)
     envelope_p: list[float] | None = None
-    envelope_memo: dict[tuple[float, float], tuple[float, float]] = field(default_factory=dict)
+    envelope_memo: dict[tuple[float, float], tuple[float, float, float]] = field(
+        default_factory=dict
+    )
 
     def initialize(self, opening_mm: float, flow_m3h: float, time_s: float = 0.0) -> None:
         check_inputs(opening_mm, flow_m3h)
@@ -162,16 +165,30 @@ class PlantSimulator:
         return self.plant.schedule.at("level_ref_mm", flow_m3h)
 
     def _envelope_point(self, u: float, q: float) -> tuple[float, float]:
-        """Steady level and time constant of the envelope at the opening ``u + opening_ref``
-        (as the C FMU forms it) and discharge ``q``; remembered for the last few inputs."""
+        """Steady level and (tangent) time constant of the envelope at the opening
+        ``u + opening_ref`` (as the C FMU forms it) and discharge ``q``."""
+        return self._envelope_steady(u, q)[:2]
+
+    def _envelope_steady(self, u: float, q: float) -> tuple[float, float, float]:
+        """:func:`~gatetwin.plant.model.envelope_steady` at ``u + opening_ref`` and ``q``;
+        remembered for the last few inputs."""
         key = (u, q)
         point = self.envelope_memo.get(key)
         if point is None:
             if len(self.envelope_memo) > 64:
                 self.envelope_memo.clear()
-            point = envelope_point(u + self.plant.opening_ref_mm, q, self.envelope_p)
+            point = envelope_steady(u + self.plant.opening_ref_mm, q, self.envelope_p)
             self.envelope_memo[key] = point
         return point
+
+    def _piece_point(self, u: float, q: float) -> tuple[float, float]:
+        """An envelope FOPDT piece from the state ``x`` with the input ``u`` held: the target
+        and the storage's secant time constant to it (``piece_point`` of the C FMU)."""
+        target, tangent, depth = self._envelope_steady(u, q)
+        tau = physical_kernel_portable.secant_time_constant_s(
+            self.x, target, depth, tangent, u + self.plant.opening_ref_mm, q, self.envelope_p
+        )
+        return target, tau
 
     def _physical_terms(self, y: float) -> float:
         """``y`` plus the seiche and inflow terms (in the output blocks' order)."""
@@ -338,7 +355,7 @@ class PlantSimulator:
             if i + 1 < len(self.history_t):
                 t_next = min(t1, self.history_t[i + 1] + delay)
             if self.envelope_p is not None:
-                target, tau = self._envelope_point(self.history_u[i], q)
+                target, tau = self._piece_point(self.history_u[i], q)
             else:
                 target = k * self.history_u[i]
             if lag:
