@@ -122,8 +122,7 @@ def test_the_demo_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path, cap
 NOT_YET = (
     "the physical twins of the field canal fit every held-out record (96-99 %), but a "
     "first-order model cannot follow the submerged gate's tail pool: the envelope FOPDTs "
-    "fit the inflow and random records at 73-86 % (noise floors 97-99.6 %); and the MPC "
-    "pumps the pool's one-minute resonance in two of the three scenarios"
+    "fit the inflow and random records at 81-89 % (noise floors 99.3-99.6 %)"
 )
 
 
@@ -178,15 +177,22 @@ def test_the_physical_twins_fit_every_held_out_record(demo: dict) -> None:
 @pytest.mark.long
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason=NOT_YET)
-def test_the_demo_meets_its_acceptance_claim(demo: dict) -> None:
+def test_every_fmu_fits_every_held_out_record(demo: dict) -> None:
     """Every FMU fits every held-out record (>= 90 % or within 5 points of the noise
-    floor, bias within a tenth of the level's range); the MPC's mean |error| is below the
-    PI's in every scenario and it reverses the gate no more often."""
+    floor, bias within a tenth of the level's range)."""
     doc = demo["doc"]
     failed = [(r["fmu"], r["record"], r["fit_percent"]) for r in doc["validation"]["rows"]
               if not r["passed"]]  # fmt: skip
     assert not failed
     assert not doc["identification"]["physical_failures"]
+
+
+@pytest.mark.long
+@pytest.mark.slow
+def test_the_mpc_beats_the_pi_in_every_scenario(demo: dict) -> None:
+    """The MPC's mean |error| is below the PI's in every scenario, with no violation, and
+    it reverses the gate no more often."""
+    doc = demo["doc"]
     for name, by in doc["closed_loop"]["scenarios"].items():
         mpc, pi = by["mpc"], by["pi"]
         assert mpc["iae_mean_mm"] < pi["iae_mean_mm"], name
