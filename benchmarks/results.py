@@ -87,10 +87,42 @@ def _run_stages(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n\n" + _provenance(doc) + "\n"
 
 
+def _run_envelope(doc: dict[str, Any]) -> str:
+    """The single-point and the envelope MPC side by side on ``wide_range``, per plant."""
+    scenarios = doc["data"]["mpc"]["scenarios"]
+    keys = ("iae", "overshoot_mm", "settling_s", "travel_mm", "gate_reversals_per_hour",
+            "violations")  # fmt: skip
+    lines = ["| plant | IAE (mm·s) | overshoot (mm) | settling (s) | gate travel (mm) | "
+             "reversals per hour | violations |", "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for name, runs in scenarios.items():
+        if "mpc_envelope" not in runs:
+            continue
+        cells = [" / ".join(f"{runs[c][k]:.4g}" for c in ("mpc", "mpc_envelope")) for k in keys]
+        lines.append(f"| {name.removesuffix('_wide_range')} | " + " | ".join(cells) + " |")
+    return ("single-point / envelope MPC, same plant and noise:\n\n" + "\n".join(lines)
+            + "\n\n" + _provenance(doc) + "\n")  # fmt: skip
+
+
+def _run_families(doc: dict[str, Any]) -> str:
+    """Free runs per record: the local FOPDT, the envelope FOPDT and the physical model."""
+    families = ("local FOPDT", "envelope FOPDT", "physical")
+    lines = ["| record | floor fit % | "
+             + " | ".join(f"{f}: fit % / RMSE / bias (mm)" for f in families) + " |",
+             "|---|---|" + "---|" * len(families)]  # fmt: skip
+    for row in doc["data"]["families"]["rows"]:
+        cells = [f"{row[f]['fit_percent']:.1f} / {row[f]['rmse_mm']:.1f} / "
+                 f"{row[f]['bias_mm']:+.1f}" for f in families]  # fmt: skip
+        lines.append(f"| {row['record']} | {row['noise_floor_fit_percent']:.1f} | "
+                     + " | ".join(cells) + " |")  # fmt: skip
+    return "\n".join(lines) + "\n\n" + _provenance(doc) + "\n"
+
+
 #: Renderers by ``file.block``: the file's JSON in, the block's Markdown out.
 RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "run.mpc": _run_mpc,
     "run.stages": _run_stages,
+    "run.envelope": _run_envelope,
+    "run.families": _run_families,
 }
 
 
@@ -118,8 +150,9 @@ def collect_run(out: Path, command: str) -> Path:
     from bench_run import stage_times
 
     mpc = json.loads((out / "mpc.json").read_text(encoding="utf-8"))
+    families = json.loads((out / "families.json").read_text(encoding="utf-8"))
     stages = stage_times((out / "summary.md").read_text(encoding="utf-8"))
-    return save("run", {"mpc": mpc, "stage_seconds": stages}, command)
+    return save("run", {"mpc": mpc, "families": families, "stage_seconds": stages}, command)
 
 
 def main(argv: list[str] | None = None) -> int:
