@@ -137,6 +137,22 @@ def test_bad_packages_and_requests_are_one_line_without_output(package, tmp_path
         write_ssp(read_model_file(MODEL), tmp_path / "loop.zip")
 
 
+def test_two_components_of_one_name_are_refused_before_any_is_instantiated(package, tmp_path,
+                                                                          capsys):  # fmt: skip
+    twins = tmp_path / "twins.ssp"
+    with zipfile.ZipFile(package) as src, zipfile.ZipFile(twins, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == SSD_NAME:
+                data = data.replace(b'Component name="controller"', b'Component name="plant"')
+            dst.writestr(item, data)
+    out = tmp_path / "r.csv"
+    assert main(["simulate-ssp", str(twins), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "two components are named 'plant'" in err[0], err
+    assert not out.exists()
+
+
 #: The MPC package: a short horizon keeps the build to seconds (the demo's N = 100 takes
 #: ~30 s), a short scenario keeps the Python MPC's run to seconds.
 MPC_HORIZON = 20

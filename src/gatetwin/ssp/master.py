@@ -110,6 +110,22 @@ def _float(value: str | None, what: str, where: str) -> float:
     return out
 
 
+def _components(system: Any, where: str) -> list[SspComponent]:
+    """The system's elements: FMU components only, each name once."""
+    from lxml import etree
+
+    components: list[SspComponent] = []
+    for c in system.iterfind("ssd:Elements/*", NS):
+        kind = c.get("type", "application/x-fmu-sharedlibrary")
+        if etree.QName(c).localname != "Component" or kind != "application/x-fmu-sharedlibrary":
+            raise SspError(f"{where}: element {c.get('name')} is not an FMU component")
+        if any(seen.name == c.get("name") for seen in components):
+            raise SspError(f"{where}: two components are named {c.get('name')!r}")
+        connectors = {k.get("name"): k.get("kind") for k in c.iterfind("ssd:Connectors/*", NS)}
+        components.append(SspComponent(c.get("name"), c.get("source"), connectors))
+    return components
+
+
 def read_ssd(xml: bytes, where: str) -> SspSystem:
     """The system of an SSD document, checked against the SSP 1.0 schema and the subset the
     master runs."""
@@ -122,13 +138,7 @@ def read_ssd(xml: bytes, where: str) -> SspSystem:
     system = root.find("ssd:System", NS)
     if system.find("ssd:Elements/ssd:System", NS) is not None:
         raise SspError(f"{where}: nested systems are not run by this master")
-    components = []
-    for c in system.iterfind("ssd:Elements/*", NS):
-        kind = c.get("type", "application/x-fmu-sharedlibrary")
-        if etree.QName(c).localname != "Component" or kind != "application/x-fmu-sharedlibrary":
-            raise SspError(f"{where}: element {c.get('name')} is not an FMU component")
-        connectors = {k.get("name"): k.get("kind") for k in c.iterfind("ssd:Connectors/*", NS)}
-        components.append(SspComponent(c.get("name"), c.get("source"), connectors))
+    components = _components(system, where)
     connections = []
     for c in system.iterfind("ssd:Connections/ssd:Connection", NS):
         if len(c):
