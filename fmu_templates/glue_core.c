@@ -390,7 +390,15 @@ static int check_header(Instance *inst, const char *function, SerialHeader *head
         return glue_refuse(inst, "%s: not a serialised state of format %s", function, format);
     }
     if (strncmp(header->token, GT_GUID, sizeof header->token) != 0) {
+        size_t i;
         header->token[sizeof header->token - 1] = '\0';
+        /* the token comes from the caller's bytes: only printable ASCII reaches the log */
+        for (i = 0; header->token[i] != '\0'; i++) {
+            const unsigned char c = (unsigned char)header->token[i];
+            if (c < 0x20 || c > 0x7e) {
+                header->token[i] = '?';
+            }
+        }
         return glue_refuse(inst, "%s: the state is of FMU %s, this FMU is %s", function,
                            header->token, GT_GUID);
     }

@@ -145,6 +145,22 @@ def test_a_state_of_another_fmu_is_refused_by_its_guid(start):
     b.slave.freeFMUstate(own)
 
 
+def test_a_state_whose_guid_is_not_text_is_refused_in_printable_words(start):
+    """The GUID of a state comes from the caller's bytes; the log line naming it must stay
+    text a host can decode (raw bytes made fmpy's logger raise UnicodeDecodeError)."""
+    driver = start("fopdt")
+    state = driver.slave.getFMUstate()
+    data = driver.slave.serializeFMUstate(state)
+    guid = driver.slave.guid.encode()
+    at = data.find(guid)
+    assert at >= 0
+    bad = data[:at] + bytes([0xFF, 0xC3, 0x80, 0x01]) + data[at + 4 :]
+    message = _refused(driver, lambda: driver.slave.deSerializeFMUstate(bad), "the state is of FMU")
+    assert message.isascii() and message.isprintable()
+    assert "????" in message
+    driver.slave.freeFMUstate(state)
+
+
 def test_every_double_of_a_restored_state_must_be_finite(start):
     driver = start("fopdt")
     driver.step(1.0, 25.0, 50.0)
