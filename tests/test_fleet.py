@@ -114,6 +114,10 @@ def test_a_broken_gate_is_reported_and_the_others_are_written(district, tmp_path
     victim = next(p for p in sorted((records / "gate002").glob("*.csv")) if "static" not in p.name)
     victim.write_text("time_s,opening_mm\nnot,a,record\n")
     out = tmp_path / "out"
+    # an earlier run into the same --out identified gate002: its folder goes with the rerun
+    (out / "gate002").mkdir(parents=True)
+    (out / "gate002" / "fopdt_3F.json").write_text("{}")
+    (out / "fleet.json").write_text(json.dumps({"gates": [{"gate": "gate002", "status": "ok"}]}))
     done = _models("--records", str(records), "--out", str(out), "--workers", "1")
     assert done.returncode == 1, done.stderr[-2000:]
     doc = json.loads((out / "fleet.json").read_text())

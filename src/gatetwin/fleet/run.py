@@ -5,11 +5,13 @@ Output layout under ``out``: one folder per identified gate holding its model fi
 under ``<gate>/fmus/`` when asked for, and the fleet summary ``fleet.json``, ``fleet.md``,
 ``fleet.html`` and ``fleet.png``. Bad input (a source that does not exist, no records) is
 refused before anything is written; a gate that fails is reported in the summary and gets
-no folder.
+no folder (the one an earlier run into the same ``out`` wrote for it is removed).
 """
 
 from __future__ import annotations
 
+import json
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +40,15 @@ def write_gate_outputs(result: dict[str, Any], out: Path) -> list[Path]:
     for name, data in sorted(result["fmus"].items()):
         paths.append(write_bytes_atomic(folder / "fmus" / f"{name}.fmu", data))
     return paths
+
+
+def _gates_written_before(out: Path) -> set[str]:
+    """Gates whose folders an earlier fleet run wrote into ``out`` (its ``fleet.json``)."""
+    try:
+        doc = json.loads(summary_paths(out)["json"].read_text(encoding="utf-8"))
+        return {g["gate"] for g in doc["gates"] if g["status"] == "ok"}
+    except (OSError, ValueError, KeyError, TypeError):
+        return set()
 
 
 def run_fleet(sources: list[str], out: str | Path, settings: FleetSettings, *,
@@ -82,10 +93,15 @@ def run_fleet(sources: list[str], out: str | Path, settings: FleetSettings, *,
     if progress:
         progress(f"fleet: {len(gates)} gates, {settings.describe()}")
     jobs = [GateJob(g.gate, g.paths, fmu_backend, max_memory_mib) for g in gates]
+    ours = _gates_written_before(out_dir)
     results = run_gates(jobs, settings, progress)
     for res in results:
         if res["status"] == "ok":
             write_gate_outputs(res, out_dir)
+        elif res["summary"]["gate"] in ours:
+            # the folder an earlier run into this --out wrote for the gate would stand beside
+            # a summary that says the gate failed
+            shutil.rmtree(out_dir / res["summary"]["gate"], ignore_errors=True)
     doc = fleet_document(results, settings.describe())
     paths = summary_paths(out_dir)
     png = fleet_figure_png(doc)
