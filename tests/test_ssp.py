@@ -130,6 +130,17 @@ def test_bad_packages_and_requests_are_one_line_without_output(package, tmp_path
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("gatetwin: error:"), (argv, err)
         assert not (tmp_path / "m.ssp").exists()
+    # too many steps: refused in one short line (the count was printed with all its digits)
+    assert main(["simulate-ssp", str(package), "--out", str(tmp_path / "r.csv"),
+                 "--step-size", "1e-300"]) == 2  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "need 1 to" in err[0] and len(err[0]) < 300, err
+    assert not (tmp_path / "r.csv").exists()
+    # a scenario longer than simulate-ssp runs is refused when the package would be written
+    assert main(["ssp", str(MODEL), "--out", str(tmp_path / "m.ssp"), "--minutes", "1e9"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "simulate-ssp runs at most" in err[0] and len(err[0]) < 200, err
+    assert not (tmp_path / "m.ssp").exists()
     assert main(["ssp", str(MODELS / "arx_3F.json"), "--out", str(tmp_path / "m.ssp"),
                  "--controller", "mpc", "--without-effects"]) == 2  # fmt: skip
     assert "FOPDT" in capsys.readouterr().err and not (tmp_path / "m.ssp").exists()

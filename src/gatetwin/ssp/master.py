@@ -332,10 +332,11 @@ def _log_outputs(m: _Master, c: SspComponent, rows: dict[str, list[float]]) -> N
 
 def _run(m: _Master, h: float) -> SspRun:
     start, stop = m.system.start_time_s, m.system.stop_time_s
-    n = int(round((stop - start) / h))
-    if not 1 <= n <= MAX_STEPS:
-        raise SspError(f"{m.where}: {n} steps of {h} s from {start} to {stop} s; need 1 to "
-                       f"{MAX_STEPS}")  # fmt: skip
+    steps = (stop - start) / h
+    if not 0.5 <= steps < MAX_STEPS + 0.5:
+        raise SspError(f"{m.where}: {steps:.6g} steps of {h:.6g} s from {start:.6g} to "
+                       f"{stop:.6g} s; need 1 to {MAX_STEPS}")  # fmt: skip
+    n = int(round(steps))
     rows: dict[str, list[float]] = {}
     times = start + np.arange(n) * h
     monitors = m.monitors()

@@ -47,6 +47,7 @@ from gatetwin.ssp.documents import (
     parameter_set_xml,
     schema_problems,
 )
+from gatetwin.ssp.master import MAX_STEPS
 
 if TYPE_CHECKING:
     from gatetwin.fmu.controller import ControllerDescription
@@ -280,6 +281,11 @@ def write_ssp(
         raise ExportError(f"output {target} must end in .ssp")
     s = settings or DemoSettings()
     scn = scenario or demo_scenarios(30.0, s)[0]
+    period = s.mpc.sample_period_s if controller == "mpc" else s.pi.sample_period_s
+    if not scn.duration_s / period < MAX_STEPS + 0.5:
+        raise ExportError(f"a scenario of {scn.duration_s:.6g} s is {scn.duration_s / period:.6g} "
+                          f"steps of the controller's {period:g} s; simulate-ssp runs at most "
+                          f"{MAX_STEPS}")  # fmt: skip
     covered = _covered_plant(model, controller, observer, without_effects)
     desc = None
     if controller == "pi":
