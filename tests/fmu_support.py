@@ -383,3 +383,18 @@ def fuzz_spec(
     layout = subprocess.run([str(probe)], check=True, capture_output=True, text=True).stdout
     out.write_text("\n".join([*lines, layout]), encoding="utf-8")
     return out
+
+
+def with_zip_bomb(src: Path, dst: Path) -> Path:
+    """``src`` (a zip: an FMU or an SSP package) with one more member that unpacks to more
+    than gatetwin's 512 MiB limit (zeros: a few hundred kB packed)."""
+    from gatetwin.records.limits import DEFAULT_MAX_BYTES
+
+    chunk = bytes(1 << 20)
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as zout:
+        for item in zin.infolist():
+            zout.writestr(item, zin.read(item))
+        with zout.open("resources/zeros.bin", "w", force_zip64=True) as member:
+            for _ in range(DEFAULT_MAX_BYTES // len(chunk) + 1):
+                member.write(chunk)
+    return dst

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from fmu_support import with_zip_bomb
 from gatetwin.cli import main
 from gatetwin.errors import ExportError, SspError
 from gatetwin.modelfile import read_model_file
@@ -161,6 +162,23 @@ def test_two_components_of_one_name_are_refused_before_any_is_instantiated(packa
     assert main(["simulate-ssp", str(twins), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "two components are named 'plant'" in err[0], err
+    assert not out.exists()
+
+
+def test_an_fmu_that_unpacks_past_the_limit_is_refused_before_it_is_unpacked(package, tmp_path,
+                                                                            capsys):  # fmt: skip
+    plant = tmp_path / "plant.fmu"
+    plant.write_bytes(_read(package, "resources/plant.fmu"))
+    bomb = with_zip_bomb(plant, tmp_path / "bomb.fmu")
+    bombed = tmp_path / "bombed.ssp"
+    with zipfile.ZipFile(package) as src, zipfile.ZipFile(bombed, "w") as dst:
+        for item in src.infolist():
+            data = bomb.read_bytes() if item.filename == "resources/plant.fmu" else src.read(item)
+            dst.writestr(item, data)
+    out = tmp_path / "r.csv"
+    assert main(["simulate-ssp", str(bombed), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "component plant: its members unpack to" in err[0], err
     assert not out.exists()
 
 

@@ -28,6 +28,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 import pytest
 
+from fmu_support import with_zip_bomb
 from gatetwin.cli import main
 from gatetwin.fmu import export_fmu
 from gatetwin.plant import ArxPlant, FopdtPlant, Schedule, simulate
@@ -345,6 +346,7 @@ BAD_INPUTS = {
     "no_gauge": r"A_without_3F.csv: no column level_3F_mm",
     "wrong_side": r"rmse_mm is an error metric \(lower is better\); use --fail-over rmse_mm=4",
     "other_gauge": r"no output level_5H_mm \(its level outputs: level_3F_mm\)",
+    "zip_bomb": r"bomb.fmu: its members unpack to \d+ bytes, more than the limit",
 }
 
 
@@ -372,6 +374,8 @@ def test_cli_bad_input_is_one_line_exit_2_and_writes_nothing(
         extra = ["--fail-under", "rmse_mm=4"]
     elif case == "other_gauge":
         extra = ["--gauge", "5H"]
+    elif case == "zip_bomb":
+        fmu = with_zip_bomb(fmus["right"], tmp_path / "bomb.fmu")
     args, *_ = _outputs(tmp_path)
     assert main(["validate", str(fmu), str(record), *extra, *args]) == 2
     err = capsys.readouterr().err

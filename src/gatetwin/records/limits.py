@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import stat
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -78,6 +79,19 @@ def _env_bytes(env: os._Environ[str] | dict[str, str], name: str, default: int) 
 def resolve_limits(limits: ReadLimits | None) -> ReadLimits:
     """``limits`` as given, else the defaults with the environment's overrides."""
     return ReadLimits.from_env() if limits is None else limits
+
+
+def check_unpacked_size(archive: zipfile.ZipFile, where: str,
+                        error: type[GatetwinError] = RecordError,
+                        max_bytes: int = DEFAULT_MAX_BYTES) -> None:  # fmt: skip
+    """Refuse a zip archive (an FMU, an SSP package) whose members unpack to more than
+    ``max_bytes`` in all: a zip bomb would fill the disk before anything reads it. Python's
+    zipfile stops every member at its declared size, so the declared sizes bound what
+    unpacking writes."""
+    total = sum(info.file_size for info in archive.infolist())
+    if total > max_bytes:
+        raise error(f"{where}: its members unpack to {total} bytes, more than the limit of "
+                    f"{max_bytes} bytes")  # fmt: skip
 
 
 def open_regular(path: str | Path, max_bytes: int, what: str = "a CSV record",

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from gatetwin.errors import SspError
-from gatetwin.records.limits import open_regular
+from gatetwin.records.limits import check_unpacked_size, open_regular
 from gatetwin.ssp.documents import NS, SSD_SCHEMA, read_parameter_set, schema_problems
 
 #: A signal's change at ``time_s`` is in force from the first communication point not before
@@ -228,6 +228,12 @@ class _Master:
             self.steps[c.name] = float(period)
         elif md.defaultExperiment is not None and md.defaultExperiment.stepSize:
             self.steps.setdefault("", float(md.defaultExperiment.stepSize))
+        try:
+            with zipfile.ZipFile(path) as archive:
+                check_unpacked_size(archive, f"{self.where}: component {c.name}", SspError)
+        except zipfile.BadZipFile as exc:
+            raise SspError(f"{self.where}: component {c.name}: {c.source} is not a zip "
+                           f"archive ({exc})") from None  # fmt: skip
         unzipped = extract(str(path), str(folder / f"fmu_{len(self.slaves)}"))
         try:
             slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
@@ -396,6 +402,7 @@ def _unpack(path: Path, folder: Path, where: str) -> tuple[SspSystem, dict[str, 
         with open_regular(path, sys.maxsize, "an SSP package (.ssp)", SspError) as handle, \
                 zipfile.ZipFile(handle) as zf:  # fmt: skip
             names = set(zf.namelist())
+            check_unpacked_size(zf, where, SspError)
             if "SystemStructure.ssd" not in names:
                 raise SspError(f"{where}: no SystemStructure.ssd in the package")
             ssd = zf.read("SystemStructure.ssd")

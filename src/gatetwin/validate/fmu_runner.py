@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from gatetwin.records import GAP_FACTOR, gauge_of_column
-from gatetwin.records.limits import open_regular
+from gatetwin.records.limits import check_unpacked_size, open_regular
 from gatetwin.validate.errors import ValidationError
 
 #: FMI versions the harness runs (co-simulation).
@@ -139,6 +139,7 @@ def _archive_names(fmu: Path) -> set[str]:
         with open_regular(fmu, sys.maxsize, what, ValidationError) as handle, \
                 zipfile.ZipFile(handle) as archive:  # fmt: skip
             names = archive.namelist()
+            check_unpacked_size(archive, str(fmu), ValidationError)
     except (zipfile.BadZipFile, OSError) as exc:
         raise ValidationError(f"{fmu}: not an FMU (not a readable zip archive: {exc})") from None
     for name in names:
