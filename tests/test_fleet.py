@@ -161,3 +161,17 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_gate_runs(distri
     assert done.returncode == 2 and len(lines) == 1, done.stderr[-2000:]
     assert str(out) in lines[0] and "cannot write" in lines[0]
     assert "fleet:" not in done.stderr  # no gate was started
+
+
+@pytest.mark.parametrize("address", ["x:::", "tcp://no-such-host.invalid:8786"])
+def test_a_scheduler_address_that_cannot_be_resolved_is_one_line_at_once(district, tmp_path,
+                                                                          address):  # fmt: skip
+    """Refused before a dask Client exists: one that failed half-way held the exit for 40 s
+    closing itself, then printed its TimeoutError's traceback."""
+    pytest.importorskip("distributed")
+    done = _models("--records", str(district), "--out", str(tmp_path / "out"),
+                   "--scheduler", address)  # fmt: skip
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and lines[-1].startswith("gatetwin: error:"), done.stderr
+    assert "Traceback" not in done.stderr and "cannot reach the dask scheduler" in lines[-1]
+    assert not (tmp_path / "out").exists()

@@ -132,7 +132,12 @@ def connect(address: str, timeout_s: float) -> Any:
             "--scheduler needs dask.distributed, which is not installed; install it with "
             "pip install 'gatetwin[fleet]'"
         ) from None
+    from distributed.comm import resolve_address
+
     try:
+        # an address that does not parse or resolve is refused before a Client exists: a
+        # Client that failed half-way blocks the interpreter's exit for 40 s closing itself
+        resolve_address(address)
         client = Client(address, timeout=f"{timeout_s}s", set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
         raise GatetwinError(
