@@ -149,37 +149,50 @@ def test_bad_packages_and_requests_are_one_line_without_output(package, tmp_path
         write_ssp(read_model_file(MODEL), tmp_path / "loop.zip")
 
 
+def _repacked(package: Path, dst: Path, change) -> Path:
+    """``package`` with each member's bytes passed through ``change(name, data)``."""
+    with zipfile.ZipFile(package) as src, zipfile.ZipFile(dst, "w") as out:
+        for item in src.infolist():
+            out.writestr(item, change(item.filename, src.read(item)))
+    return dst
+
+
+def _refused_line(package: Path, tmp_path: Path, capsys) -> str:
+    """simulate-ssp on ``package``: exit 2, one error line (returned), no CSV."""
+    out = tmp_path / "r.csv"
+    assert main(["simulate-ssp", str(package), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("gatetwin: error:"), err
+    assert not out.exists()
+    return err[0]
+
+
 def test_two_components_of_one_name_are_refused_before_any_is_instantiated(package, tmp_path,
                                                                           capsys):  # fmt: skip
-    twins = tmp_path / "twins.ssp"
-    with zipfile.ZipFile(package) as src, zipfile.ZipFile(twins, "w") as dst:
-        for item in src.infolist():
-            data = src.read(item)
-            if item.filename == SSD_NAME:
-                data = data.replace(b'Component name="controller"', b'Component name="plant"')
-            dst.writestr(item, data)
-    out = tmp_path / "r.csv"
-    assert main(["simulate-ssp", str(twins), "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "two components are named 'plant'" in err[0], err
-    assert not out.exists()
+    twins = _repacked(
+        package,
+        tmp_path / "twins.ssp",
+        lambda name, data: (
+            data.replace(b'Component name="controller"', b'Component name="plant"')
+            if name == SSD_NAME
+            else data
+        ),
+    )
+    assert "two components are named 'plant'" in _refused_line(twins, tmp_path, capsys)
 
 
 def test_an_fmu_that_unpacks_past_the_limit_is_refused_before_it_is_unpacked(package, tmp_path,
                                                                             capsys):  # fmt: skip
     plant = tmp_path / "plant.fmu"
     plant.write_bytes(_read(package, "resources/plant.fmu"))
-    bomb = with_zip_bomb(plant, tmp_path / "bomb.fmu")
-    bombed = tmp_path / "bombed.ssp"
-    with zipfile.ZipFile(package) as src, zipfile.ZipFile(bombed, "w") as dst:
-        for item in src.infolist():
-            data = bomb.read_bytes() if item.filename == "resources/plant.fmu" else src.read(item)
-            dst.writestr(item, data)
-    out = tmp_path / "r.csv"
-    assert main(["simulate-ssp", str(bombed), "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "component plant: its members unpack to" in err[0], err
-    assert not out.exists()
+    bomb = with_zip_bomb(plant, tmp_path / "bomb.fmu").read_bytes()
+    bombed = _repacked(
+        package,
+        tmp_path / "bombed.ssp",
+        lambda name, data: bomb if name == "resources/plant.fmu" else data,
+    )
+    line = _refused_line(bombed, tmp_path, capsys)
+    assert "component plant: its members unpack to" in line
 
 
 #: The MPC package: a short horizon keeps the build to seconds (the demo's N = 100 takes
