@@ -219,13 +219,8 @@ class ArxPlant:
 #: alone (the others assume the local, linear-in-opening form).
 ENVELOPE_EFFECTS = ("seiche",)
 
-#: The parameters that must be positive (the rest only finite): a discharge coefficient at
-#: the discharge centre and a storage area at the reference depth of 0 or less pass no water
-#: or store none, and the level then runs away while every step says OK.
+#: Lower bounds of the parameters that must be positive (the rest only finite).
 POSITIVE = (
-    "cd_small",
-    "cd_large",
-    "area_m2",
     "width_m",
     "speed_mm_s",
     "stall_depth_m",
