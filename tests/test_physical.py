@@ -362,3 +362,26 @@ def test_seiche_is_the_one_block_the_physical_and_envelope_families_carry(plant)
     assert np.count_nonzero(np.diff(np.sign(ring[t > 12.0])) != 0) >= 4  # it oscillates
     # and decays: 10 s decay time, the last 10 s lie > 90 s after the move (e^-9 of the peak)
     assert np.max(np.abs(ring[t > 110.0])) < 1e-2 * peak
+
+
+def test_the_envelope_leaves_a_level_at_the_storage_equations_rate():
+    """The secant time constant: (target − level) / T is (Q_in − Q_g(h)) / A(h̄) at the
+    present depth h for a free gate (h̄ the mid-depth, A linear in depth), however far the
+    target is; near the target it is the tangent."""
+    p = read_model_file(MODEL).plant.vector
+    rng = np.random.default_rng(7)
+    for e, q, gap_mm in zip(rng.uniform(10, 80, 50), rng.uniform(30, 90, 50),
+                            rng.uniform(-60, 60, 50), strict=True):  # fmt: skip
+        steady = steady_depth_m(e, q, p)
+        target = kernel.level_mm(steady, e, q, p)
+        tangent = kernel.time_constant_s(steady, e, q, p)
+        level = target - gap_mm
+        depth = steady - gap_mm / 1000.0
+        if depth <= kernel.DEPTH_LOW_M or abs(gap_mm) < 1e-3:
+            continue
+        tau = kernel.secant_time_constant_s(level, target, steady, tangent, e, q, p)
+        rate = (q / 3600.0 - kernel.gate_flow_m3s(depth, 0.0, e, q, p)) / \
+            kernel.storage_area_m2(0.5 * (depth + steady), p)  # fmt: skip
+        # the slope is a difference over 2e-6 m: its round-off is ~1e-10 relative
+        assert (target - level) / 1000.0 / tau == pytest.approx(rate, rel=1e-6)
+    assert kernel.secant_time_constant_s(target, target, steady, tangent, e, q, p) == tangent
