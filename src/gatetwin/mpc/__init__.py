@@ -20,77 +20,86 @@ flag, is :class:`~gatetwin.mpc.online.OnlineObserver`.
 This package controls plants; it does not identify or export them.
 """
 
-from gatetwin.mpc.controller import MpcController
-from gatetwin.mpc.demo import (
-    DemoSettings,
-    compare_controllers,
-    demo_plant,
-    demo_scenarios,
-    envelope_comparison,
-    load_demo_plant,
-    run_mpc_demo,
-    wide_scenario,
-)
-from gatetwin.mpc.discrete import DiscreteModel, discretise, fopdt_split
-from gatetwin.mpc.envelope import linearised_model
-from gatetwin.mpc.errors import ControlError
-from gatetwin.mpc.loop import ClosedLoopRun, LoopSettings, Scenario, loop_metrics, run_closed_loop
-from gatetwin.mpc.observer import DisturbanceObserver
-from gatetwin.mpc.online import AnomalySettings, OnlineEstimate, OnlineObserver
-from gatetwin.mpc.opti import OptiBackend
-from gatetwin.mpc.pi import (
-    LoopMargins,
-    PiController,
-    PiSettings,
-    PiTuning,
-    loop_margins,
-    simc_pi,
-    simc_pi_for_plant,
-)
-from gatetwin.mpc.plants import FlumeCore, FmuCore, LoopPlant, MeasurementNoise, ModelCore
-from gatetwin.mpc.qp import MpcProblem, MpcSolution, QpBackend
-from gatetwin.mpc.settings import MpcSettings, ObserverSettings
+from __future__ import annotations
 
-__all__ = [
-    "AnomalySettings",
-    "ClosedLoopRun",
-    "ControlError",
-    "DemoSettings",
-    "DiscreteModel",
-    "DisturbanceObserver",
-    "FlumeCore",
-    "FmuCore",
-    "LoopMargins",
-    "LoopPlant",
-    "LoopSettings",
-    "MeasurementNoise",
-    "ModelCore",
-    "MpcController",
-    "MpcProblem",
-    "MpcSettings",
-    "MpcSolution",
-    "ObserverSettings",
-    "OnlineEstimate",
-    "OnlineObserver",
-    "OptiBackend",
-    "PiController",
-    "PiSettings",
-    "PiTuning",
-    "QpBackend",
-    "Scenario",
-    "compare_controllers",
-    "demo_plant",
-    "demo_scenarios",
-    "discretise",
-    "envelope_comparison",
-    "fopdt_split",
-    "linearised_model",
-    "load_demo_plant",
-    "loop_margins",
-    "loop_metrics",
-    "run_closed_loop",
-    "run_mpc_demo",
-    "simc_pi",
-    "simc_pi_for_plant",
-    "wide_scenario",
-]
+import importlib
+from typing import Any
+
+#: The public names, by the submodule that defines them. They are imported on first use:
+#: the command line reads constants of :mod:`~gatetwin.mpc.online` for its help and must
+#: not pay for python-control and CasADi, which the loop and the PI import.
+_SOURCES: dict[str, tuple[str, ...]] = {
+    "controller": ("MpcController",),
+    "demo": (
+        "DemoSettings",
+        "compare_controllers",
+        "demo_plant",
+        "demo_scenarios",
+        "envelope_comparison",
+        "load_demo_plant",
+        "run_mpc_demo",
+        "wide_scenario",
+    ),
+    "discrete": (
+        "DiscreteModel",
+        "discretise",
+        "fopdt_split",
+    ),
+    "envelope": ("linearised_model",),
+    "errors": ("ControlError",),
+    "loop": (
+        "ClosedLoopRun",
+        "LoopSettings",
+        "Scenario",
+        "loop_metrics",
+        "run_closed_loop",
+    ),
+    "observer": ("DisturbanceObserver",),
+    "online": (
+        "AnomalySettings",
+        "OnlineEstimate",
+        "OnlineObserver",
+    ),
+    "opti": ("OptiBackend",),
+    "pi": (
+        "LoopMargins",
+        "PiController",
+        "PiSettings",
+        "PiTuning",
+        "loop_margins",
+        "simc_pi",
+        "simc_pi_for_plant",
+    ),
+    "plants": (
+        "FlumeCore",
+        "FmuCore",
+        "LoopPlant",
+        "MeasurementNoise",
+        "ModelCore",
+    ),
+    "qp": (
+        "MpcProblem",
+        "MpcSolution",
+        "QpBackend",
+    ),
+    "settings": (
+        "MpcSettings",
+        "ObserverSettings",
+    ),
+}
+_MODULE_OF = {name: module for module, names in _SOURCES.items() for name in names}
+
+__all__ = sorted(_MODULE_OF)
+
+
+def __getattr__(name: str) -> Any:
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
