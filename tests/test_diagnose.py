@@ -234,6 +234,8 @@ def test_diagnose_command_writes_json_and_refuses_bad_input(tmp_path, capsys):
 MODELS = Path(__file__).resolve().parents[1] / "models"
 
 
+# ~20 s; the default run keeps the model-file baseline (test_a_model_file_baseline)
+@pytest.mark.slow
 def test_a_record_where_only_the_discharge_changes_is_diagnosed_against_a_model():
     """EflowLow: Q 30 -> 50 -> 35 m³/h with the gate fixed. Against fopdt_3F's local form
     (the level jumps with level_ref(Q)), the named effect is a discharge effect and it closes

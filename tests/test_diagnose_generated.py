@@ -1,6 +1,7 @@
 """The diagnosis on generated records with a hidden effect (tests/diagnose_cases.py).
 
-63 cases (7 of each effect and 7 ``none``, fixed seeds), about a minute: in the default run.
+63 cases (7 of each effect and 7 ``none``, fixed seeds), about three minutes: marked slow
+(CI runs it with the slow subset).
 Thresholds:
 
 * the right name (effect or ``none``) in at least 90 % of the cases;
@@ -17,6 +18,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+
+import pytest
 
 from diagnose_cases import JUDGED, case_plan, draw_case
 from gatetwin.diagnose import diagnose_record
@@ -103,5 +106,6 @@ def test_every_effect_is_judged_on_its_physical_parameters():
         assert (case.truth.effects == ()) == (effect == "none")
 
 
+@pytest.mark.slow
 def test_diagnosis_names_hidden_effects_in_63_generated_cases(tmp_path, record_property):
     _run(63, tmp_path, record_property)

@@ -52,6 +52,8 @@ def serial(district, tmp_path_factory) -> Path:
     return out
 
 
+# ~40 s with the serial fleet; tests/test_fleet_routine.py keeps a fleet in the default run
+@pytest.mark.slow
 def test_every_gate_gets_a_model_set_and_the_summary_lists_it(serial):
     doc = json.loads((serial / "fleet.json").read_text())
     assert (doc["n_gates"], doc["n_ok"], doc["n_failed"]) == (3, 3, 0)
@@ -108,6 +110,7 @@ def test_fifty_gates_on_dask_write_the_serial_runs_model_files(tmp_path):
     assert _same_model_files(serial, out) == []
 
 
+@pytest.mark.slow  # ~25 s; a fleet of three gates identified
 def test_a_broken_gate_is_reported_and_the_others_are_written(district, tmp_path):
     records = tmp_path / "records"
     shutil.copytree(district, records)

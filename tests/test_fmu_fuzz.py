@@ -162,6 +162,7 @@ def _fuzz(fuzzers, case: str, seed: int, sequences: int) -> str:
     return run.stdout
 
 
+@pytest.mark.slow  # ~2 min with its sanitizer builds; CI's slow subset runs it and the long fuzzing
 @pytest.mark.parametrize("case", CASES)
 def test_random_call_sequences_find_nothing(fuzzers, case):
     _fuzz(fuzzers, case, seed=20261123, sequences=SEQUENCES[case])

@@ -112,6 +112,9 @@ def test_refusals():
         GaugeDriftMonitor().step(1.0, [])
 
 
+# ~40 s; the rule's arithmetic is held in the default run by the FMU tests of
+# test_observer_drift_fmu.py
+@pytest.mark.slow
 def test_observe_adds_the_rule_with_reference_gauges(tmp_path, capsys):
     from gatetwin.bundled import bundled_records_dir
     from gatetwin.cli import main

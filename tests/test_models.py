@@ -41,6 +41,7 @@ def _close(a, b, path="$"):
         assert a == b, path
 
 
+@pytest.mark.slow
 def test_repository_models_are_not_stale(regenerated):
     fresh = sorted(p.name for p in regenerated.glob("*.json"))
     stored = sorted(p.name for p in MODELS.glob("*.json"))

@@ -75,6 +75,7 @@ def test_demo_json_and_plots(plant, tmp_path):
         assert (tmp_path / f"{name}.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_cli_mpc_demo(tmp_path, capsys):
     if not has_compiler():
         pytest.skip("no C compiler (cc/gcc) on PATH")

@@ -111,6 +111,8 @@ def floor_errors() -> dict[tuple[str, str], tuple[float, float]]:
     return out
 
 
+# ~30 s of flume records; the estimator itself is held by the generated-noise tests here
+@pytest.mark.slow
 def test_floor_matches_the_truths_fit_on_the_flume_records(
     floor_errors: dict[tuple[str, str], tuple[float, float]],
 ) -> None:
