@@ -120,6 +120,10 @@ def _plant_and_provenance(case: str):
     return replace(PLANTS[family](), effects=effects), VALIDITY
 
 
+#: The sanitizer builds alone take over a minute: the module runs with CI's slow subset.
+pytestmark = pytest.mark.slow
+
+
 @pytest.fixture(scope="module")
 def fuzzers(tmp_path_factory) -> dict[str, Fuzzed]:
     if compiler() is None:
@@ -162,13 +166,13 @@ def _fuzz(fuzzers, case: str, seed: int, sequences: int) -> str:
     return run.stdout
 
 
-@pytest.mark.slow  # ~2 min with its sanitizer builds; CI's slow subset runs it and the long fuzzing
 @pytest.mark.parametrize("case", CASES)
 def test_random_call_sequences_find_nothing(fuzzers, case):
     _fuzz(fuzzers, case, seed=20261123, sequences=SEQUENCES[case])
 
 
-@pytest.mark.slow
+# ~8 min over the cases: run before a release (`-m long`), not on every change
+@pytest.mark.long
 @pytest.mark.parametrize("case", CASES)
 def test_long_fuzzing_finds_nothing(fuzzers, case):
     _fuzz(fuzzers, case, seed=1, sequences=SLOW_FACTOR * SEQUENCES[case])
