@@ -43,6 +43,8 @@ BUDGET = settings(
 #: The schema's bound on a physical kernel parameter: a value past it is refused.
 KERNEL_MAX = model_schema()["$defs"]["kernel_parameters"]["additionalProperties"]["maximum"]
 PAST_KERNEL_MAX = KERNEL_MAX * (1.0 + 1e-9)
+#: The schema's bound on an opening, mm (canal gates open by metres): a value past it is refused.
+PAST_OPENING_MAX = model_schema()["$defs"]["opening"]["maximum"] + 0.5
 BAD_CHARS = [chr(c) for c in range(0x20)] + ["\x7f", "\x85", "\x9f", "\ud800", "\udbff",
                                               "\udc00", "\udfff", "\ufffe", "\uffff"]  # fmt: skip
 
@@ -153,7 +155,9 @@ TYPED: list[tuple[str, tuple[Any, ...], Any]] = [
     (
         "fopdt_3F",
         ("plant", "opening_ref_mm"),
-        st.one_of(st.floats(2000.5, 1e308), st.floats(-1e308, -0.5), st.booleans(), st.text()),
+        st.one_of(
+            st.floats(PAST_OPENING_MAX, 1e308), st.floats(-1e308, -0.5), st.booleans(), st.text()
+        ),
     ),
     (
         "fopdt_3F",
