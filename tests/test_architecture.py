@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import ast
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -169,3 +171,13 @@ def test_no_call_circles_between_c_translation_units():
         assert "glue_core.c" in graph["fmi2_glue.c"]  # the glue calls its core,
         assert f"{name}.c" in graph["glue_core.c"]  # which calls the component
         assert _cycles(graph) == []
+
+
+def test_the_command_line_is_built_without_python_control():
+    """Every gatetwin command builds the whole parser first: it must not import
+    python-control (2.6 s with scipy.signal), which no command's help needs."""
+    code = ("import sys; from gatetwin.cli import build_parser; build_parser(); "
+            "print([m for m in ('control', 'scipy.signal') if m in sys.modules])")  # fmt: skip
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=60, check=True)  # fmt: skip
+    assert run.stdout.strip() == "[]"
