@@ -3,12 +3,13 @@
 A small C host (bench_controller_host.c, compiled here against the FMU's own sources) steps
 the controller FMU in a closed loop with set-point steps (rate limit active through each
 transient) and prints the doStep time percentiles, the share of samples with active
-constraints, the fallbacks, the mean qrqp iterations, ``sizeof(ModelData)`` and the heap the
-FMU takes (at instantiation; during the steps). The Python controller
-(:class:`gatetwin.mpc.MpcController`, qpOASES, then qrqp) runs the same loop in the same
-process; the ratios are printed side by side, never asserted.
+constraints, the fallbacks, the mean and largest QP iterations, ``sizeof(ModelData)`` and the
+heap the FMU takes (at instantiation; during the steps). The Python controller
+(:class:`gatetwin.mpc.MpcController`, qpOASES) runs the same loop in the same process; the
+numbers are printed side by side, never asserted.
 
-usage: python benchmarks/bench_controller_fmu.py [--horizon 100] [--steps 400] [--python-steps 400]
+usage: python benchmarks/bench_controller_fmu.py [--horizon 100] [--steps 400]
+       [--python-steps 400] [--save]
 """
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ from gatetwin.fmu.mpc_controller import export_mpc_controller
 from gatetwin.mpc import MpcController, MpcSettings, demo_plant
 
 HERE = Path(__file__).parent
+#: The host's set-point cycle, 100 samples each (bench_controller_host.c).
+SETPOINTS_MM = (190.0, 210.0, 190.0, 340.0)
 
 
 def build_host(sources: Path, out: Path) -> None:
@@ -58,7 +61,7 @@ def python_loop(settings: MpcSettings, steps: int) -> np.ndarray:
     out = np.empty(steps)
     for k in range(steps):
         start = time.perf_counter()
-        opening = mpc.step(level, 40.0, 210.0 if (k // 100) % 2 else 190.0)
+        opening = mpc.step(level, 40.0, SETPOINTS_MM[(k // 100) % len(SETPOINTS_MM)])
         out[k] = time.perf_counter() - start
         level = keep * level + (1.0 - keep) * (190.0 - 13.6 * (opening - 25.0))
     return out
@@ -69,6 +72,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--horizon", type=int, default=100)
     parser.add_argument("--steps", type=int, default=400)
     parser.add_argument("--python-steps", type=int, default=400)
+    parser.add_argument(
+        "--save", action="store_true", help="keep the numbers in docs/results/controller_fmu.json"
+    )
     args = parser.parse_args(argv)
     settings = replace(MpcSettings(), horizon=args.horizon)
     with tempfile.TemporaryDirectory() as tmp:
@@ -80,30 +86,43 @@ def main(argv: list[str] | None = None) -> None:
         host = folder / "host"
         build_host(extracted / "sources", host)
         c = run_host(host, extracted, args.steps)
-    py = {name: python_loop(replace(settings, qp_solver=name), args.python_steps)
-          for name in ("qpoases", "qrqp")}  # fmt: skip
-    print(f"horizon {args.horizon}, export + compile {export_s:.1f} s")
-    print(
-        f"C FMU doStep over {args.steps} steps: p50 {c['p50_ns'] / 1e6:.3f} ms, "
-        f"p99 {c['p99_ns'] / 1e6:.3f} ms, max {c['max_ns'] / 1e6:.3f} ms; rate, range or band "
-        f"constraints active at {100 * c['active_share']:.0f} % of samples, "
-        f"{c['fallbacks']:.0f} fallbacks, {c['mean_iterations']:.1f} qrqp iterations a step "
-        "on average"
-    )
-    for name, s in py.items():
-        p50, p99 = np.percentile(s, 50), np.percentile(s, 99)
-        print(
-            f"Python MpcController ({name}) over {args.python_steps} steps: p50 "
-            f"{p50 * 1e3:.3f} ms, p99 {p99 * 1e3:.3f} ms, max {s.max() * 1e3:.3f} ms; "
-            f"C FMU / Python p50 = {c['p50_ns'] / 1e9 / p50:.3g}, "
-            f"p99 = {c['p99_ns'] / 1e9 / p99:.3g}"
-        )
-    print(
-        f"static memory: sizeof(ModelData) = {c['sizeof_modeldata'] / 1e6:.3f} MB; heap "
-        f"through the FMI callbacks: {c['heap_at_instantiation_bytes'] / 1e6:.3f} MB at "
-        f"instantiation, {c['heap_during_steps_bytes']:.0f} bytes during the steps"
-    )
+    py = python_loop(replace(settings, qp_solver="qpoases"), args.python_steps)
+    data = {"horizon": args.horizon, "steps": args.steps, "export_s": export_s,
+            "fmu": c, "python_qpoases_ms": {"p50": float(np.percentile(py, 50)) * 1e3,
+                                            "p99": float(np.percentile(py, 99)) * 1e3,
+                                            "max": float(py.max()) * 1e3}}  # fmt: skip
+    print(report(data))
+    if args.save:
+        sys.path.insert(0, str(HERE))
+        from results import save
+
+        print(save("controller_fmu", data, "python benchmarks/bench_controller_fmu.py "
+                   + " ".join(argv if argv is not None else sys.argv[1:])))  # fmt: skip
     sys.stdout.flush()
+
+
+#: The host's phases: all samples, the +-20 mm set-point steps, the 150 mm one.
+PHASES = (("all samples", ""), ("+-20 mm steps", "small_steps_"), ("150 mm step", "large_step_"))
+
+
+def report(data: dict) -> str:
+    """The benchmark's numbers as Markdown (printed, and the README's generated block)."""
+    c, py = data["fmu"], data["python_qpoases_ms"]
+    lines = ["| samples | doStep p50 (ms) | p99 (ms) | max (ms) |", "|---|---|---|---|"]
+    for label, key in PHASES:
+        lines.append(f"| {label} | {c[key + 'p50_ns'] / 1e6:.3f} | {c[key + 'p99_ns'] / 1e6:.3f}"
+                     f" | {c[key + 'max_ns'] / 1e6:.3f} |")  # fmt: skip
+    lines.append(f"| Python `MpcController` (qpOASES), all samples | {py['p50']:.3f} | "
+                 f"{py['p99']:.3f} | {py['max']:.3f} |")  # fmt: skip
+    return "\n".join(lines) + (
+        f"\n\nHorizon {data['horizon']}, {data['steps']} samples; export with the compile "
+        f"{data['export_s']:.0f} s. Rate, range or band constraints active at "
+        f"{100 * c['active_share']:.0f} % of the samples; {c['fallbacks']:.0f} fallbacks; QP "
+        f"iterations {c['mean_iterations']:.1f} a sample on average, {c['max_iterations']:.0f} "
+        f"at most. `sizeof(ModelData)` {c['sizeof_modeldata'] / 1e6:.2f} MB, all of it "
+        f"allocated at instantiation; {c['heap_during_steps_bytes']:.0f} bytes of heap during "
+        "the steps.\n"
+    )
 
 
 if __name__ == "__main__":

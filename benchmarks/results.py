@@ -117,12 +117,20 @@ def _run_families(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n\n" + _provenance(doc) + "\n"
 
 
+def _controller_fmu_cost(doc: dict[str, Any]) -> str:
+    sys.path.insert(0, str(Path(__file__).parent))
+    from bench_controller_fmu import report
+
+    return report(doc["data"]) + "\n" + _provenance(doc) + "\n"
+
+
 #: Renderers by ``file.block``: the file's JSON in, the block's Markdown out.
 RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "run.mpc": _run_mpc,
     "run.stages": _run_stages,
     "run.envelope": _run_envelope,
     "run.families": _run_families,
+    "controller_fmu.cost": _controller_fmu_cost,
 }
 
 

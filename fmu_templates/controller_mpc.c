@@ -2,12 +2,13 @@
  * (the schedule's FOPDT re-rendered at the measured discharge, disturbance observer, condensed
  * QP) as one FMU component.
  *
- * This file only orders calls: every number is computed by the functions casadi generated from
- * the controller's Python code (mpc_generated.c, gatetwin.mpc.codegen): start, riccati,
- * correct, matrices, vectors, qp, plan, predict. Per sample, as MpcController.step: correct
- * the observer with the measured level (model of the last prediction), form the QP at the
- * measured discharge (its matrices only when the discharge changed), solve it (qrqp, bounded
- * iterations, from the last solution), take the plan's first opening, predict.
+ * This file only orders calls: every number of the controller is computed by the functions
+ * casadi generated from the controller's Python code (mpc_generated.c, gatetwin.mpc.codegen):
+ * start, riccati, correct, matrices, vectors, plan, predict; the QP they form is solved by
+ * qp_dense.c. Per sample, as MpcController.step: correct the observer with the measured level
+ * (model of the last prediction), form the QP at the measured discharge (its matrices and the
+ * Hessian's factor only when the discharge changed), solve it (bounded iterations), take the
+ * plan's first opening, predict.
  * When the solver does not converge the opening is held and solver_status is 1.
  *
  * Timing: doStep(t, h) reads the inputs at t and sets opening_mm for [t, t + h) (the sample
@@ -37,51 +38,49 @@ static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
 
 /* --- the steps of one sample --------------------------------------------------------------- */
 
-static void form_matrices(ModelData *m, double q)
+/* The QP's matrices at discharge q and the Hessian's factor (the Hessian is formed in the
+ * solver's scratch); 0 when the Hessian is not positive definite. */
+static int form_matrices(ModelData *m, double q)
 {
+    const int n = GT_MPC_NV;
     if (m->have_matrices && m->flow_matrices_m3h == q) {
-        return;
+        return 1;
     }
-    const double *in[2] = {gt_theta(m), &q};
-    double *out[2] = {m->h, m->a};
-    gt_call(m, gt_mpc_matrices, in, 2, out, 2);
+    {
+        const double *in[2] = {gt_theta(m), &q};
+        double *out[2] = {m->qp_work, m->a};
+        gt_call(m, gt_mpc_matrices, in, 2, out, 2);
+    }
+    m->have_matrices = 0;
+    if (qp_dense_factor(n, m->qp_work, m->factor, m->qp_work + n * n) != 0) {
+        return 0;
+    }
     m->flow_matrices_m3h = q;
     m->have_matrices = 1;
+    return 1;
 }
 
-/* Solve this sample's QP from the observer's estimate; returns 1 when qrqp converged, else 0.
- * A finite solution is the next call's initial guess (as the Python controller's backend
- * keeps it); the multipliers start at zero, as there (warm-started multipliers made qrqp
- * cycle to its iteration limit on the demo's transients). */
+/* Solve this sample's QP from the observer's estimate; returns 1 when it solved, else 0. */
 static int solve(ModelData *m, double q, double setpoint_mm, double *x, double *iterations,
                  double *active)
 {
-    double lam_x[GT_MPC_NV], lam_a[GT_MPC_NC], cost[2] = {0.0, 0.0};
-    int flag, i, count = 0;
-    form_matrices(m, q);
+    int status, count = 0, taken = 0;
+    *iterations = 0.0;
+    *active = 0.0;
+    if (!form_matrices(m, q)) {
+        return 0;
+    }
     {
         const double *in[6] = {gt_theta(m), &q, m->z, &m->d, &m->opening_mm, &setpoint_mm};
         double *out[5] = {m->g, m->lba, m->uba, m->lbx, m->ubx};
         gt_call(m, gt_mpc_vectors, in, 6, out, 5);
     }
-    {
-        const double *in[8] = {m->h, m->g, m->a, m->lba, m->uba, m->lbx, m->ubx, m->x};
-        double *out[4] = {x, cost, lam_a, lam_x};
-        flag = gt_call(m, gt_mpc_qp, in, 8, out, 4);
-    }
-    *iterations = cost[1];
-    for (i = 0; i < GT_MPC_NV; i++) {
-        count += lam_x[i] != 0.0;
-    }
-    for (i = 0; i < GT_MPC_NC; i++) {
-        count += lam_a[i] != 0.0;
-    }
+    status = qp_dense_solve(GT_MPC_NV, GT_MPC_NC, m->factor, m->g, m->a, m->lba, m->uba,
+                            m->lbx, m->ubx, GT_MPC_MAX_ITER, x, &taken, &count, m->qp_work,
+                            m->qp_iwork);
+    *iterations = taken;
     *active = count;
-    if (!gt_all_finite(x, GT_MPC_NV)) {
-        return 0;
-    }
-    memcpy(m->x, x, sizeof m->x);
-    return flag == 0;
+    return status == QP_DENSE_SOLVED && gt_all_finite(x, GT_MPC_NV);
 }
 
 /* The opening to hold and the level it predicts one sample ahead; x = 0 holds the opening. */
@@ -126,12 +125,12 @@ void plant_set_defaults(ModelData *m)
 }
 
 /* At rest at start_opening_mm with the level and discharge measured now, as
- * MpcController.reset: the observer's steady estimate and covariance, then one solve at rest
- * (its solution is the first warm start). */
+ * MpcController.reset: the observer's steady estimate and covariance; the QP's matrices at
+ * this discharge are formed now, so that the first step pays no more than the others. */
 PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
 {
     double q = m->real[VR_FLOW_M3H], y = m->real[VR_LEVEL], e = m->real[VR_START_OPENING_MM];
-    double x[GT_MPC_NV], zero[GT_MPC_NV], opening, level, iterations, active;
+    double zero[GT_MPC_NV], opening, level;
     if (check_parameters(m, msg) != PLANT_OK || gt_check_flow(q, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
@@ -148,8 +147,10 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
     m->opening_mm = e;
     m->flow_model_m3h = q;
     m->have_matrices = 0;
-    memset(m->x, 0, sizeof m->x);
-    solve(m, q, y, x, &iterations, &active);
+    if (!form_matrices(m, q)) {
+        plant_message(msg, "the QP's Hessian at flow_m3h = %.17g is not positive definite", q);
+        return PLANT_ERROR;
+    }
     memset(zero, 0, sizeof zero);
     plan(m, q, zero, &opening, &level);
     set_outputs(m, e, level, 0.0, 0, 0.0);
@@ -227,8 +228,8 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
         const double scalars[4] = {m->d, m->opening_mm, m->flow_model_m3h,
                                    m->flow_matrices_m3h};
         if (!gt_all_finite(scalars, 4) || !gt_all_finite(m->z, GT_GEN_NZ) ||
-            !gt_all_finite(m->p, GT_GEN_NP) || !gt_all_finite(m->x, GT_MPC_NV) ||
-            !gt_all_finite(m->h, GT_MPC_NV * GT_MPC_NV) ||
+            !gt_all_finite(m->p, GT_GEN_NP) ||
+            !gt_all_finite(m->factor, GT_MPC_NV * GT_MPC_NV) ||
             !gt_all_finite(m->a, GT_MPC_NC * GT_MPC_NV)) {
             plant_message(msg, "state of the observer or of the QP is not finite");
             return PLANT_ERROR;

@@ -8,26 +8,29 @@
 
 #include "model_config.h"
 #include "mpc_generated.h" /* casadi_int, casadi_real and the generated functions */
+#include "qp_dense.h"
 
 typedef struct {
     double time_s;          /* time of the state, s */
     double real[GT_N_REAL]; /* every Real variable, indexed by value reference */
     int initialized;        /* plant_initialize succeeded */
     int parameters_changed; /* parameters were set since they were last checked */
-    int have_matrices;      /* h and a hold the QP's matrices at flow_matrices_m3h */
+    int have_matrices;      /* factor and a hold the QP's matrices at flow_matrices_m3h */
     /* the observer: state, input disturbance (mm of opening), prior covariance of [z, d] */
     double z[GT_GEN_NZ];
     double d;
     double p[GT_GEN_NP];
     double opening_mm;        /* opening held since the last sample (the rate limit's anchor) */
     double flow_model_m3h;    /* discharge of the observer's model (the last prediction's) */
-    double flow_matrices_m3h; /* discharge h and a were formed at */
-    /* the last QP: matrices (column-major, dense) and solution (the next initial guess) */
-    double h[GT_MPC_NV * GT_MPC_NV];
+    double flow_matrices_m3h; /* discharge factor and a were formed at */
+    /* the QP's matrices at that discharge (column-major, dense): the Hessian's factor
+     * L^-T (qp_dense_factor) and the constraint rows */
+    double factor[GT_MPC_NV * GT_MPC_NV];
     double a[GT_MPC_NC * GT_MPC_NV];
-    double x[GT_MPC_NV];
-    /* scratch of one sample: the QP's vectors and the generated code's work arrays */
+    /* scratch of one sample: the QP's vectors, the solver's and the generated code's work */
     double g[GT_MPC_NV], lba[GT_MPC_NC], uba[GT_MPC_NC], lbx[GT_MPC_NV], ubx[GT_MPC_NV];
+    double qp_work[QP_DENSE_WORK(GT_MPC_NV, GT_MPC_NC)];
+    int qp_iwork[QP_DENSE_IWORK(GT_MPC_NV, GT_MPC_NC)];
     casadi_int iw[GT_GEN_SZ_IW];
     casadi_real w[GT_GEN_SZ_W];
 } ModelData;

@@ -199,8 +199,9 @@ def test_an_fmu_that_unpacks_past_the_limit_is_refused_before_it_is_unpacked(pac
 #: ~30 s), a short scenario keeps the Python MPC's run to seconds.
 MPC_HORIZON = 20
 MPC_MINUTES = 6.0
-#: The MPC FMU against the Python MPC (qrqp in both): the same QP from the same data solved
-#: to its unique solution, so the openings agree to the QP's round-off (~1e-13 mm measured
+#: The MPC FMU against the Python MPC (the FMU's dense active-set solver and qpOASES): the
+#: same QP from the same data solved to its unique solution, so the openings agree to the
+#: QP's round-off (~1e-13 mm measured
 #: on the FMU alone; here, the plant's seiche exciting the loop, isolated samples reach 3e-10
 #: mm: round-off amplified by the QP's conditioning, not a drift that grows); 1e-9 mm is far
 #: below the actuator's 1 mm resolution.

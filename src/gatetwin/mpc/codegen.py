@@ -14,8 +14,10 @@ by running the controller's own code (:func:`~gatetwin.mpc.discrete.fopdt_model`
 * ``vectors(theta, q, z, d, e, r) -> (g, lba, uba, lbx, ubx)`` — its vectors;
 * ``plan(theta, q, z, d, e, x) -> (opening, level)`` — the first opening of the plan
   (clipped to the range) and the level it predicts one sample ahead;
-* ``predict(theta, q_prev, q, z, d, P, e) -> (z, d, P)`` — the observer's prediction;
-* ``qp`` — casadi's ``qrqp`` on the dense QP (bounded iterations).
+* ``predict(theta, q_prev, q, z, d, P, e) -> (z, d, P)`` — the observer's prediction.
+
+The QP itself is solved by the FMU's own dense active-set solver (``qp_dense.c``), from the
+matrices and vectors these functions form.
 
 ``theta`` holds the schedule (knots, then ``K``, ``T``, ``L``, ``level_ref_mm`` at each
 knot) and ``opening_ref_mm``; the parameters are interpolated in ``q`` inside the
@@ -36,7 +38,7 @@ from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import fopdt_model
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.observer import DisturbanceObserver
-from gatetwin.mpc.qp import CondensedQp, MpcProblem, qp_matrices, qrqp_options
+from gatetwin.mpc.qp import CondensedQp, MpcProblem, qp_matrices
 from gatetwin.mpc.settings import MpcSettings
 from gatetwin.mpc.statespace import DiscreteModel
 
@@ -47,7 +49,7 @@ PREFIX = "gt_mpc_"
 #: Output names of the observer's functions.
 NEXT = ["z_next", "d_next", "P_next"]
 #: Names of the generated functions (without the prefix), in generation order.
-FUNCTIONS = ("start", "riccati", "correct", "matrices", "vectors", "plan", "predict", "qp")
+FUNCTIONS = ("start", "riccati", "correct", "matrices", "vectors", "plan", "predict")
 
 
 @dataclass(frozen=True)
@@ -133,7 +135,7 @@ def _sx(values: Any) -> casadi.SX:
 
 
 def build_functions(
-    n_knots: int, register: int, settings: MpcSettings, max_iter: int
+    n_knots: int, register: int, settings: MpcSettings
 ) -> tuple[dict[str, casadi.Function], Layout]:
     """The casadi Functions of the controller (see the module), and its sizes."""
     if settings.level_band_mm is None:
@@ -194,41 +196,18 @@ def build_functions(
     add("predict", [theta, q_prev_s, qs, zs, ds, ps, es],
         ["theta", "q_prev", "q", "z", "d", "P", "e"],
         [obs.state, obs.disturbance_mm, obs.covariance], NEXT)  # fmt: skip
-
-    dense = {"h": casadi.Sparsity.dense(lay.n_var, lay.n_var),
-             "a": casadi.Sparsity.dense(lay.n_con, lay.n_var)}  # fmt: skip
-    fns["qp"] = casadi.conic(PREFIX + "qp", "qrqp", dense, qrqp_options(max_iter))
     return fns, lay
 
 
-#: The line of casadi's generated qrqp after its iterations; the export adds one after it
-#: that hands the count to the caller (see :func:`generate_c`).
-_ITER_ANCHOR = "  d_qp.iter_count = d.iter;\n"
-_ITER_HOOK = (
-    "  /* gatetwin: the iteration count, in the slot after the cost (res[1][1]) */\n"
-    "  if (res[1]) res[1][1] = (casadi_real) d.iter;\n"
-)
-
-
 def generate_c(fns: dict[str, casadi.Function], folder: Path, stem: str) -> dict[str, Any]:
-    """Write ``<stem>.c`` and ``<stem>.h`` into ``folder``; return each function's work sizes.
-
-    The generated QP solver reports its iteration count in a second slot of its ``cost``
-    output (one line added after casadi's own bookkeeping; the caller gives that output
-    two doubles).
-    """
+    """Write ``<stem>.c`` and ``<stem>.h`` into ``folder``; return each function's work sizes."""
     cg = casadi.CodeGenerator(f"{stem}.c", {"with_header": True, "verbose": False})
     for name in FUNCTIONS:
         cg.add(fns[name])
-    text = cg.dump()
-    if text.count(_ITER_ANCHOR) != 1:
-        raise ControlError("mpc codegen: casadi's generated qrqp changed; cannot read its "
-                           "iteration count")  # fmt: skip
-    text = text.replace(_ITER_ANCHOR, _ITER_ANCHOR + _ITER_HOOK)
     write_generated(
         folder,
         stem,
-        text,
+        cg.dump(),
         "gatetwin.mpc.codegen",
         [f"{PREFIX}{name}" for name in FUNCTIONS],
         "the MPC controller",

@@ -4,14 +4,14 @@ master's run must equal.
 :func:`python_loop` takes the package's own plant FMU and drives it with the Python
 controller the controller FMU was generated from (the PI of
 :func:`gatetwin.mpc.demo.pi_controller`, or the :class:`~gatetwin.mpc.MpcController` with
-``linearisation="schedule"`` and casadi's ``qrqp``, the solver the MPC FMU carries), through
+``linearisation="schedule"``: both solve the same strictly convex QP to its unique
+solution, the FMU with its own dense active-set solver, Python with qpOASES), through
 :func:`gatetwin.mpc.loop.run_closed_loop`, noise-free and without actuator rounding, as the
 package's system has neither.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import tempfile
 import zipfile
 from pathlib import Path
@@ -60,7 +60,7 @@ def _controller(plant: Plant, settings: DemoSettings, kind: str) -> tuple[Any, d
             "opening_range_mm": settings.pi.opening_range_mm,
             "sample_period_s": settings.pi.sample_period_s,
         }  # fmt: skip
-    s = dataclasses.replace(settings.mpc, qp_solver="qrqp")
+    s = settings.mpc
     return MpcController(plant, s, linearisation="schedule"), {
         "level_band_mm": s.level_band_mm, "max_move_mm": s.max_move_mm,
         "opening_range_mm": s.opening_range_mm, "sample_period_s": s.sample_period_s,
