@@ -38,7 +38,7 @@ from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import fopdt_model
 from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.observer import DisturbanceObserver
-from gatetwin.mpc.qp import CondensedQp, MpcProblem, qp_matrices
+from gatetwin.mpc.qp import CondensedQp, MpcProblem, qp_matrices, qp_vectors
 from gatetwin.mpc.settings import MpcSettings
 from gatetwin.mpc.statespace import DiscreteModel
 
@@ -134,6 +134,14 @@ def _sx(values: Any) -> casadi.SX:
     return casadi.densify(sym.to_casadi(values))
 
 
+def _toeplitz(column: casadi.MX) -> casadi.MX:
+    """The lower-triangular Toeplitz matrix of ``column`` (``CondensedQp.move_gain``'s form)
+    as one indexing of it: its ``N`` values, not ``N²`` scalar expressions, in the C."""
+    n = column.shape[0]
+    j, i = np.indices((n, n))
+    return casadi.vertcat(column, 0.0)[casadi.DM(np.where(j >= i, j - i, n))]
+
+
 def build_functions(
     n_knots: int, register: int, settings: MpcSettings
 ) -> tuple[dict[str, casadi.Function], Layout]:
@@ -172,22 +180,34 @@ def build_functions(
         [obs.state, obs.disturbance_mm, obs.covariance], NEXT)  # fmt: skip
 
     qp = CondensedQp(model, settings, matrices=False)
-    mg = casadi.Function("move_gain", [theta, qs], [_sx(qp.move_gain)])
     theta_mx, q_mx = casadi.MX.sym("theta", lay.n_theta), casadi.MX.sym("q")
-    h, a = qp_matrices(mg(theta_mx, q_mx), settings)
+    move_gain = _toeplitz(casadi.Function("step_response", [theta, qs],
+                                          [_sx(qp.step_response)])(theta_mx, q_mx))  # fmt: skip
+    h, a = qp_matrices(move_gain, settings)
     fns["matrices"] = casadi.Function(PREFIX + "matrices", [theta_mx, q_mx],
                                       [casadi.densify(h), casadi.densify(a)],
                                       ["theta", "q"], ["H", "A"])  # fmt: skip
 
+    # the vectors as CondensedQp.data forms them: the held levels (O(N) per state) scalar by
+    # scalar, G S's product with them as one matrix product (N² scalar operations would
+    # make the generated C, and its compile, grow with N²)
     problem = ctl.problem(q, z, d, e, r)
-    data = qp.data(problem)
-    add("vectors", [theta, qs, zs, ds, es, rs], ["theta", "q", "z", "d", "e", "r"],
-        [data.g, data.lba, data.uba, data.lbx, data.ubx],
-        ["g", "lba", "uba", "lbx", "ubx"])  # fmt: skip
+    hold = casadi.Function("hold", [theta, qs, zs, ds, es], [_sx(qp.hold_levels(problem))])
+    mx = {n: casadi.MX.sym(n, *shape) for n, shape in
+          (("z", (lay.n_states, 1)), ("d", (1, 1)), ("e", (1, 1)), ("r", (1, 1)))}  # fmt: skip
+    vectors = qp_vectors(
+        move_gain, hold(theta_mx, q_mx, mx["z"], mx["d"], mx["e"]), mx["r"], mx["e"],
+        problem.move_bound_mm, problem.range_mm, settings,
+    )  # fmt: skip
+    fns["vectors"] = casadi.Function(
+        PREFIX + "vectors", [theta_mx, q_mx, *mx.values()],
+        [casadi.densify(casadi.MX(v)) for v in vectors], ["theta", "q", *mx],
+        ["g", "lba", "uba", "lbx", "ubx"],
+    )  # fmt: skip
 
     openings = qp.openings(problem, x)
     lo, hi = settings.opening_range_mm
-    level = qp.predicted_levels(problem, openings)[0]
+    level = qp.predicted_levels(problem, openings, samples=1)[0]
     add("plan", [theta, qs, zs, ds, es, xs], ["theta", "q", "z", "d", "e", "x"],
         [sym.clip(openings[0], lo, hi), level], ["opening", "level"])  # fmt: skip
 

@@ -117,14 +117,19 @@ class MpcSolution:
         return float(self.openings_mm[0])
 
 
-def prediction_matrix(model: DiscreteModel, horizon: int) -> np.ndarray:
-    """``G`` with ``G[j, i] = C_level A^(j−i) B``: level at ``k+1+j`` per mm of ``e_i``."""
+def markov_parameters(model: DiscreteModel, horizon: int) -> np.ndarray:
+    """``C_level A^m B`` for ``m = 0 … N−1``: level at ``k+1+m`` per mm of ``e_k``."""
     markov = sym.zeros(horizon, model.a, model.b)
     v = model.b.copy()
     for m in range(horizon):
         markov[m] = model.c_level @ v
         v = model.a @ v
-    return toeplitz(markov, np.zeros(horizon))
+    return markov
+
+
+def prediction_matrix(model: DiscreteModel, horizon: int) -> np.ndarray:
+    """``G`` with ``G[j, i] = C_level A^(j−i) B``: level at ``k+1+j`` per mm of ``e_i``."""
+    return toeplitz(markov_parameters(model, horizon), np.zeros(horizon))
 
 
 def free_response(
@@ -185,9 +190,13 @@ class CondensedQp:
         self.settings = settings
         self.has_band = settings.level_band_mm is not None
         self._dm: tuple[casadi.DM, casadi.DM] | None = None
-        self.gain = prediction_matrix(model, n)
+        markov = markov_parameters(model, n)
+        self.gain = toeplitz(markov, np.zeros(n))
+        #: level at k+1+j per mm of opening held from k on: the rows of G summed
+        self.step_response = np.cumsum(markov)
         self.cumulative = np.tril(np.ones((n, n)))
-        self.move_gain = np.cumsum(self.gain[:, ::-1], axis=1)[:, ::-1]  # G @ S
+        # G @ S: entry (j, i) sums G's row j from column i on, i.e. the step response at j − i
+        self.move_gain = toeplitz(self.step_response, np.zeros(n))
         # with matrices=False (the code generator's symbolic model) H and A are formed from
         # move_gain as casadi matrices instead: qp_matrices on an MX
         self.h, self.a = qp_matrices(self.move_gain, settings) if matrices else (None, None)
@@ -206,33 +215,20 @@ class CondensedQp:
             and np.array_equal(model.c_level, mine.c_level)
         )
 
+    def hold_levels(self, problem: MpcProblem) -> np.ndarray:
+        """Predicted levels at ``k+1 … k+N`` if the opening stayed at the previous one, mm."""
+        model = problem.model
+        free = free_response(model, self.settings.horizon, problem.state, problem.disturbance_mm)
+        # the model's input is e − e_ref
+        return free + self.step_response * (problem.previous_opening_mm - model.opening_ref_mm)
+
     def data(self, problem: MpcProblem) -> QpData:
         """QP data for the problem's state, disturbance, set-point and previous opening."""
-        s, n = self.settings, self.settings.horizon
-        e_prev = problem.previous_opening_mm
-        model = problem.model
-        free = free_response(model, n, problem.state, problem.disturbance_mm)
-        # levels if the opening stayed at e_prev (the model's input is e − e_ref)
-        hold = free + self.gain.sum(axis=1) * (e_prev - model.opening_ref_mm)
-        g = 2.0 * s.level_weight * self.move_gain.T @ (hold - problem.setpoint_mm)
-        step = np.full(n, problem.move_bound_mm)
-        lo_e, hi_e = problem.range_mm
-        range_lo, range_hi = np.full(n, lo_e - e_prev), np.full(n, hi_e - e_prev)
-        if not self.has_band:
-            return QpData(self.h, g, self.a, range_lo, range_hi, -step, step)
-        band_lo, band_hi = s.level_band_mm  # type: ignore[misc]
-        inf = np.full(n, np.inf)
-        lba = np.concatenate([range_lo, band_lo - hold, -inf])
-        uba = np.concatenate([range_hi, inf, band_hi - hold])
-        return QpData(
-            self.h,
-            np.append(g, s.slack_weight_linear),
-            self.a,
-            lba,
-            uba,
-            np.append(-step, 0.0),
-            np.append(step, np.inf),
-        )
+        vectors = qp_vectors(
+            self.move_gain, self.hold_levels(problem), problem.setpoint_mm,
+            problem.previous_opening_mm, problem.move_bound_mm, problem.range_mm, self.settings,
+        )  # fmt: skip
+        return QpData(self.h, vectors[0], self.a, *vectors[1:])
 
     def openings(self, problem: MpcProblem, x: np.ndarray) -> np.ndarray:
         """Openings (mm) from the QP's solution vector."""
@@ -244,10 +240,54 @@ class CondensedQp:
             self._dm = (casadi.DM(self.h), casadi.DM(self.a))
         return self._dm
 
-    def predicted_levels(self, problem: MpcProblem, openings_mm: np.ndarray) -> np.ndarray:
+    def predicted_levels(
+        self, problem: MpcProblem, openings_mm: np.ndarray, samples: int | None = None
+    ) -> np.ndarray:
+        """Levels at ``k+1 …`` for the planned openings, mm: the horizon's, or its first
+        ``samples`` (the generated controller needs one)."""
         model = problem.model
-        free = free_response(model, self.settings.horizon, problem.state, problem.disturbance_mm)
-        return free + self.gain @ (openings_mm - model.opening_ref_mm)
+        n = self.settings.horizon if samples is None else samples
+        free = free_response(model, n, problem.state, problem.disturbance_mm)
+        return free + self.gain[:n] @ (openings_mm - model.opening_ref_mm)
+
+
+def _stack(parts: list[Any]) -> Any:
+    """Vectors end to end: numpy, or a casadi column when any part is casadi's."""
+    if any(isinstance(p, (casadi.SX, casadi.MX)) for p in parts):
+        return casadi.vertcat(*parts)
+    return np.concatenate([np.atleast_1d(p) for p in parts])
+
+
+def _full(n: int, value: Any) -> Any:
+    if isinstance(value, (casadi.SX, casadi.MX)):
+        return casadi.repmat(value, n, 1)
+    return np.full(n, value)
+
+
+def qp_vectors(
+    move_gain: Any, hold: Any, setpoint_mm: Any, previous_opening_mm: Any, move_bound_mm: float,
+    range_mm: tuple[float, float], settings: MpcSettings,
+) -> tuple[Any, Any, Any, Any, Any]:  # fmt: skip
+    """``g``, ``lba``, ``uba``, ``lbx``, ``ubx`` of the QP from ``G S`` (``move_gain``) and
+    the levels if the opening were held (``hold``): numpy arrays, or casadi columns for
+    casadi arguments (the generated controller's, which forms ``G S``'s product as a matrix
+    product rather than ``N²`` scalar operations)."""
+    s, n = settings, settings.horizon
+    g = 2.0 * s.level_weight * (move_gain.T @ (hold - setpoint_mm))
+    step = np.full(n, move_bound_mm)
+    lo_e, hi_e = range_mm
+    range_lo, range_hi = _full(n, lo_e - previous_opening_mm), _full(n, hi_e - previous_opening_mm)
+    if s.level_band_mm is None:
+        return g, range_lo, range_hi, -step, step
+    band_lo, band_hi = s.level_band_mm
+    inf = np.full(n, np.inf)
+    return (
+        _stack([g, s.slack_weight_linear]),
+        _stack([range_lo, band_lo - hold, -inf]),
+        _stack([range_hi, inf, band_hi - hold]),
+        np.append(-step, 0.0),
+        np.append(step, np.inf),
+    )
 
 
 def qp_matrices(move_gain: Any, settings: MpcSettings) -> tuple[Any, Any]:
@@ -435,8 +475,10 @@ __all__ = [
     "QpBackend",
     "QpData",
     "free_response",
+    "markov_parameters",
     "prediction_matrix",
     "qp_matrices",
+    "qp_vectors",
     "qrqp_options",
     "set_casadi_blas_threads",
 ]
