@@ -38,6 +38,25 @@ static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
 
 /* --- the steps of one sample --------------------------------------------------------------- */
 
+/* A set-point outside the level band is followed only as far as the band's soft bound lets
+ * the plan go; the first sample with such a set-point (and each change of it) says so. */
+static PlantStatus check_setpoint(ModelData *m, double r, PlantMessage *msg)
+{
+    if (GT_MPC_BAND_LO_MM <= r && r <= GT_MPC_BAND_HI_MM) {
+        m->warned_setpoint = 0;
+        return PLANT_OK;
+    }
+    if (m->warned_setpoint && m->warned_setpoint_mm == r) {
+        return PLANT_OK;
+    }
+    m->warned_setpoint = 1;
+    m->warned_setpoint_mm = r;
+    plant_message(msg, "setpoint_mm = %.17g lies outside the level band [%g, %g] mm: the band's "
+                       "soft bound holds the level near its edge", r, GT_MPC_BAND_LO_MM,
+                  GT_MPC_BAND_HI_MM);
+    return PLANT_WARNING;
+}
+
 /* The QP's matrices at discharge q and the Hessian's factor (the Hessian is formed in the
  * solver's scratch); 0 when the Hessian is not positive definite. */
 static int form_matrices(ModelData *m, double q)
@@ -162,6 +181,7 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
 {
     double q = m->real[VR_FLOW_M3H], y = m->real[VR_LEVEL], r = m->real[VR_SETPOINT_MM];
     double x[GT_MPC_NV], opening, level, iterations, active;
+    PlantStatus band;
     int ok;
     if (!(fabs(step_s - GT_GEN_SAMPLE_PERIOD_S) <=
           GT_COMMUNICATION_POINT_RTOL * GT_GEN_SAMPLE_PERIOD_S)) {
@@ -181,6 +201,7 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
         const double *in[6] = {gt_theta(m), &m->flow_model_m3h, m->z, &m->d, m->p, &y};
         observer_step(m, gt_mpc_correct, in, 6);
     }
+    band = check_setpoint(m, r, msg);
     ok = solve(m, q, r, x, &iterations, &active);
     if (!ok) {
         memset(x, 0, sizeof x); /* no move: the opening is held */
@@ -194,10 +215,11 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     m->opening_mm = opening;
     m->time_s += step_s;
     set_outputs(m, opening, level, active, ok ? 0 : 1, iterations);
-    if (gt_finite_estimate(m, "after the step", "controller", msg) != PLANT_OK) {
+    if (gt_finite_estimate(m, "after the step", "controller", msg) != PLANT_OK ||
+        gt_finite_outputs(m, "controller", msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
-    return gt_finite_outputs(m, "controller", msg);
+    return band;
 }
 
 PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMessage *msg)

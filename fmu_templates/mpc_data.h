@@ -23,6 +23,8 @@ typedef struct {
     double opening_mm;        /* opening held since the last sample (the rate limit's anchor) */
     double flow_model_m3h;    /* discharge of the observer's model (the last prediction's) */
     double flow_matrices_m3h; /* discharge factor and a were formed at */
+    int warned_setpoint;         /* the set-point outside the band was warned about ... */
+    double warned_setpoint_mm;   /* ... and was this */
     /* the QP's matrices at that discharge (column-major, dense): the Hessian's factor
      * L^-T (qp_dense_factor) and the constraint rows */
     double factor[GT_MPC_NV * GT_MPC_NV];

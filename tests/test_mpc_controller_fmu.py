@@ -316,6 +316,28 @@ def test_a_solver_that_does_not_converge_holds_the_opening_and_says_so(plant, tm
         shutil.rmtree(folder, ignore_errors=True)
 
 
+def test_a_set_point_outside_the_level_band_is_warned_about_once_per_value(fmu):
+    """fmi2Warning with the reason at the first step with such a set-point and at each change
+    of it, nothing while it is held or back inside the band; the QP is solved throughout."""
+    from fmpy.fmi2 import fmi2OK, fmi2Warning
+
+    slave, vr, logged, folder = _start(fmu)
+    ts = SHORT.mpc.sample_period_s
+    try:
+        statuses = []
+        for k, r in enumerate([1e6, 1e6, 2e6, 200.0, 1e6]):
+            slave.setReal([vr["setpoint_mm"]], [r])
+            statuses.append(slave.fmi2DoStep(slave.component, k * ts, ts, 1))
+            assert slave.getReal([vr["solver_status"]]) == [0.0]
+        assert statuses == [fmi2Warning, fmi2OK, fmi2Warning, fmi2OK, fmi2Warning]
+        warned = [m for _, m in logged if "outside the level band" in m]
+        assert len(warned) == 3 and "setpoint_mm = 2000000" in warned[1]
+    finally:
+        slave.terminate()
+        slave.freeInstance()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def test_what_the_controller_fmu_does_not_cover_is_refused(plant, tmp_path):
     from gatetwin.fmu.mpc_controller import export_mpc_controller
 

@@ -240,6 +240,8 @@ def controller_config_header(
         f"#define GT_MPC_OPENING_MIN_MM {c_double(lo)}",
         f"#define GT_MPC_OPENING_MAX_MM {c_double(hi)}",
         f"#define GT_MPC_MAX_ITER {max_iter}",
+        f"#define GT_MPC_BAND_LO_MM {c_double(settings.level_band_mm[0])}",
+        f"#define GT_MPC_BAND_HI_MM {c_double(settings.level_band_mm[1])}",
     ]
     names = (
         "flow_m3h",
