@@ -56,6 +56,24 @@ def test_routine_gates_get_their_fopdt_and_a_still_gate_is_reported(routine_gate
     assert "1 without an informative window" in markdown
 
 
+def test_a_gate_folder_that_cannot_be_written_fails_that_gate_only(routine_gates, tmp_path,
+                                                                   capsys) -> None:  # fmt: skip
+    """A gate's place under ``--out`` taken by a file (a folder that cannot be written, even
+    by root): that gate is failed with the reason, the file is left as it was, and the
+    summary is still written (exit 1: a gate failed)."""
+    moved, _ = district_gates(2, seed=11)
+    out = tmp_path / "fleet"
+    out.mkdir()
+    (out / moved.gate).write_text("not a folder")
+    assert main(["models", "--records", str(routine_gates), "--out", str(out),
+                 "--workers", "1"]) == 1  # fmt: skip
+    doc = json.loads((out / "fleet.json").read_text())
+    entry = next(g for g in doc["gates"] if g["gate"] == moved.gate)
+    assert entry["status"] == "failed" and "cannot be written" in entry["error"]
+    assert (out / moved.gate).read_text() == "not a folder"
+    assert "1 failed" in capsys.readouterr().out
+
+
 def test_routine_gates_on_a_pool_give_the_serial_summary(routine_gates, tmp_path) -> None:
     for workers in ("1", "2"):
         assert main(["models", "--records", str(routine_gates), "--out",

@@ -4,20 +4,23 @@ Output layout under ``out``: one folder per identified gate holding its model fi
 ``schema.json`` (exactly what ``gatetwin models`` writes for one records folder), its FMUs
 under ``<gate>/fmus/`` when asked for, and the fleet summary ``fleet.json``, ``fleet.md``,
 ``fleet.html`` and ``fleet.png``. Bad input (a source that does not exist, no records) is
-refused before anything is written; a gate that fails is reported in the summary and gets
-no folder (the one an earlier run into the same ``out`` wrote for it is removed).
+refused before anything is written; a gate that fails, or whose folder cannot be written
+(read-only, disk full), is reported in the summary and gets no folder (the one an earlier
+run into the same ``out`` wrote for it is removed).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
 from pathlib import Path
 from typing import Any
 
 from gatetwin._io import write_bytes_atomic, write_json_atomic, write_text_atomic
+from gatetwin.errors import OutputError
 from gatetwin.fleet.execute import FleetSettings, Progress, run_gates
-from gatetwin.fleet.gate import GateJob
+from gatetwin.fleet.gate import GateJob, failed_summary
 from gatetwin.fleet.sources import discover_gates
 from gatetwin.fleet.summary import (
     fleet_document,
@@ -40,6 +43,35 @@ def write_gate_outputs(result: dict[str, Any], out: Path) -> list[Path]:
     for name, data in sorted(result["fmus"].items()):
         paths.append(write_bytes_atomic(folder / "fmus" / f"{name}.fmu", data))
     return paths
+
+
+def _write_or_fail(result: dict[str, Any], out: Path) -> dict[str, Any]:
+    """Write one gate's outputs; a gate whose folder cannot be written (read-only, disk full)
+    becomes a failed gate with the reason, and what was written of it is removed (its folder
+    too when this run created it), so the summary's other gates still get written."""
+    folder = out / result["gate"]
+    existed = folder.exists()
+    try:
+        write_gate_outputs(result, out)
+    except OutputError as exc:
+        if not existed:
+            shutil.rmtree(folder, ignore_errors=True)
+        elif folder.is_dir():
+            for path in _output_paths(result, folder):
+                with contextlib.suppress(OSError):
+                    path.unlink(missing_ok=True)
+        reason = f"its outputs cannot be written: {' '.join(str(exc).split())}"
+        summary = failed_summary(result["gate"], reason, result["summary"]["files"])
+        return {**result, "status": "failed", "models": {}, "fmus": {}, "routine": {},
+                "summary": summary}  # fmt: skip
+    return result
+
+
+def _output_paths(result: dict[str, Any], folder: Path) -> list[Path]:
+    """The files :func:`write_gate_outputs` writes for ``result``."""
+    return ([folder / "schema.json", *(folder / f"{n}.json" for n in result["models"])]
+            + [folder / f"routine_{n}.json" for n in result.get("routine", {})]
+            + [folder / "fmus" / f"{n}.fmu" for n in result["fmus"]])  # fmt: skip
 
 
 def _gates_written_before(out: Path) -> set[str]:
@@ -95,9 +127,9 @@ def run_fleet(sources: list[str], out: str | Path, settings: FleetSettings, *,
     jobs = [GateJob(g.gate, g.paths, fmu_backend, max_memory_mib) for g in gates]
     ours = _gates_written_before(out_dir)
     results = run_gates(jobs, settings, progress)
-    for res in results:
+    for i, res in enumerate(results):
         if res["status"] == "ok":
-            write_gate_outputs(res, out_dir)
+            results[i] = _write_or_fail(res, out_dir)
         elif res["summary"]["gate"] in ours:
             # the folder an earlier run into this --out wrote for the gate would stand beside
             # a summary that says the gate failed
