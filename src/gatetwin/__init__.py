@@ -5,7 +5,7 @@ in m³/h) gatetwin identifies FOPDT, ARX and static rating models scheduled on d
 exports them as FMI 2.0 co-simulation FMUs, validates them, runs an MPC demo on them and
 diagnoses what they miss. A virtual flume produces reference records.
 
-The names below are the public API (see README, "Python"). ``identify``, ``validate`` and
+The names below are the public API (see docs/python.md). ``identify``, ``validate`` and
 ``diagnose`` are functions here and, by their full names, the stage packages behind them:
 ``from gatetwin.validate import validate_fmu`` reaches the package.
 """

@@ -17,7 +17,7 @@ def bundled_records_dir() -> Path:
     Returns
     -------
     Path
-        A folder of records in the record format (README, "Record format"): the virtual
+        A folder of records in the record format (docs/record_format.md): the virtual
         flume's step and PRBS tests, the validation records and the static rating table
         ``static.csv``.
 

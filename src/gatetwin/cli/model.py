@@ -311,7 +311,7 @@ def add_export_controller_arguments(parser: argparse.ArgumentParser) -> None:
         "--horizon", metavar="N", type=int,
         help="mpc: prediction horizon in prediction steps (default: the model's settling "
         "time, 4 T + L, in at most 100 steps of the sample period, coarser only when 100 do "
-        "not reach T + L; the step's cost grows about as N^3, see README)",
+        "not reach T + L; the step's cost grows about as N^3)",
     )  # fmt: skip
     parser.add_argument(
         "--opening-range", metavar=("LO", "HI"), type=float, nargs=2,

@@ -31,7 +31,7 @@ Progress = Callable[[str], None]
 #: With OpenBLAS's default of a thread per core, the gates of an 8-gate district on 2
 #: processes of a 2-core machine took up to 3x their serial time (gate002: 3.3 s serially,
 #: 11.9 s on the pool), and the pool of 16 gates was no faster than the serial run
-#: (``benchmarks/bench_fleet.py``, README "Many gates").
+#: (``benchmarks/bench_fleet.py``, docs/many-gates.md).
 POOL_THREADS = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 

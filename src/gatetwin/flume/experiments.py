@@ -200,7 +200,7 @@ def write_reference_records(
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """A scenario described in JSON or TOML (see README: "Describing a flume scenario")."""
+    """A scenario described in JSON or TOML (see docs/flume.md: "Describing a flume scenario")."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")

@@ -302,7 +302,7 @@ def _mpc_rows(doc: dict[str, Any]) -> list[list[str]]:
 
 def mpc_table(doc: dict[str, Any]) -> str:
     """The MPC demo's table (one row per scenario and controller) from ``mpc.json``; the
-    README renders its MPC results with it too."""
+    docs render its MPC results with it too."""
     lines = ["| " + " | ".join(MPC_HEADER) + " |", "|" + "---|" * len(MPC_HEADER)]
     lines += ["| " + " | ".join(r) + " |" for r in _mpc_rows(doc)]
     return "\n".join(lines) + "\n"
@@ -453,7 +453,8 @@ def write_report(ctx: Any) -> None:
     report.add_section(
         "Published vs ours",
         "The reference study's Tables 2–5 next to what gatetwin measures on the bundled "
-        "(virtual-flume) records; see README for why each difference exists.",
+        "(virtual-flume) records; docs/flume.md and docs/identification.md say why each "
+        "difference exists.",
         *(Table(t.header, t.rows, caption=t.title) for t in tables),
     )
     from gatetwin.run.figures import caption

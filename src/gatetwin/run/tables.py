@@ -2,7 +2,7 @@
 
 Each function returns a :class:`Table` (header + rows of strings) from an
 :class:`~gatetwin.identify.suite.Identified`; :meth:`Table.markdown` renders it for
-``summary.md`` and the README, and the HTML report takes the same rows.
+``summary.md`` and the docs, and the HTML report takes the same rows.
 """
 
 from __future__ import annotations
