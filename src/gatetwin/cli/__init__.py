@@ -271,6 +271,11 @@ def _add_validate_arguments(parser: argparse.ArgumentParser) -> None:
         help="validate one record per task on this dask.distributed scheduler "
         "(tcp://host:8786); the FMU travels with each task, no shared folder needed",
     )  # fmt: skip
+    parser.add_argument(
+        "--map", metavar="MAP.toml",
+        help="validate an FMU that is not gatetwin's: a TOML file naming, for each record "
+        "column (opening_mm, flow_m3h, level_<G>_mm), the FMU's variable and its unit",
+    )  # fmt: skip
     parser.add_argument("--json", metavar="OUT.json", required=True, help="findings as JSON")
     parser.add_argument("--junit", metavar="OUT.xml", help="findings as JUnit XML for CI")
     parser.add_argument("--plots", metavar="DIR", help="write measured-vs-FMU plots (PNG)")
@@ -287,9 +292,12 @@ def _validate(args: argparse.Namespace, thresholds: Any) -> Any:
     """The validation, here record after record, or one record per task elsewhere."""
     from gatetwin.errors import GatetwinError
     from gatetwin.validate import validate_fmu
+    from gatetwin.validate.mapping import read_variable_map
 
+    variable_map = read_variable_map(args.map) if args.map else None
     options = dict(gauge=args.gauge, thresholds=thresholds, timeout_s=args.timeout,
-                   fail_outside_validity=args.fail_outside_validity)  # fmt: skip
+                   fail_outside_validity=args.fail_outside_validity,
+                   variable_map=variable_map)  # fmt: skip
     if args.workers < 1:
         raise GatetwinError(f"--workers: expected a whole number >= 1, got {args.workers}")
     if args.scheduler and args.workers != 1:

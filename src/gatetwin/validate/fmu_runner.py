@@ -30,6 +30,7 @@ import numpy as np
 from gatetwin.records import GAP_FACTOR, gauge_of_column
 from gatetwin.records.limits import check_unpacked_size, open_regular
 from gatetwin.validate.errors import ValidationError
+from gatetwin.validate.mapping import VariableMap
 
 #: FMI versions the harness runs (co-simulation).
 FMI_VERSIONS = ("2.0", "3.0")
@@ -95,6 +96,15 @@ class FmuInfo:
     value_references: dict[str, int] = field(repr=False)
     sha256: str = ""
     fmi_version: str = "2.0"
+    #: FMU value per record value of each mapped column (a foreign FMU's units; empty for
+    #: gatetwin's FMUs, whose variables are the record's columns)
+    scales: dict[str, float] = field(default_factory=dict, repr=False)
+    #: the variable map a foreign FMU was opened with (for the report), else None
+    variable_map: dict[str, Any] | None = None
+
+    def scale(self, column: str) -> float:
+        """FMU value per record value of ``column`` (1 for gatetwin's own FMUs)."""
+        return self.scales.get(column, 1.0)
 
     @property
     def name(self) -> str:
@@ -117,6 +127,7 @@ class FmuInfo:
             "generation_tool": self.generation_tool,
             "inputs": list(self.inputs),
             "outputs": list(self.outputs),
+            **({"variable_map": self.variable_map} if self.variable_map else {}),
         }
 
 
@@ -177,8 +188,8 @@ def _check_binary(fmu: Path, names: set[str], identifier: str, fmi_version: str)
     )
 
 
-def _check_inputs(fmu: Path, md: Any) -> None:
-    inputs = {v.name: v.type for v in md.modelVariables if v.causality == "input"}
+def _check_inputs(fmu: Path, variables: list[Any]) -> None:
+    inputs = {v.name: v.type for v in variables if v.causality == "input"}
     for name in INPUTS:
         if inputs.get(name) not in ("Real", "Float64"):  # FMI 2.0, FMI 3.0
             raise ValidationError(
@@ -187,13 +198,17 @@ def _check_inputs(fmu: Path, md: Any) -> None:
             )
 
 
-def inspect_fmu(path: str | Path) -> FmuInfo:
+def inspect_fmu(path: str | Path, variable_map: VariableMap | None = None) -> FmuInfo:
     """Check that ``path`` is an FMU the harness can run, and describe it.
 
     Parameters
     ----------
     path : str or Path
         The ``.fmu`` file.
+    variable_map : VariableMap, optional
+        For an FMU whose variables are not the record's columns: the FMU variable (and its
+        unit) behind each column (:mod:`gatetwin.validate.mapping`). The returned info then
+        names the mapped variables by their columns.
 
     Returns
     -------
@@ -204,7 +219,8 @@ def inspect_fmu(path: str | Path) -> FmuInfo:
     ValidationError
         Missing file, not a zip archive, a member with an absolute path or a ``..`` part,
         no or unreadable ``modelDescription.xml``, not FMI 2.0 or 3.0 co-simulation, no binary for
-        this platform, no Real inputs ``opening_mm`` and ``flow_m3h``.
+        this platform, no Real inputs ``opening_mm`` and ``flow_m3h`` (or, with a map, a mapped
+        variable missing or of the wrong causality or type).
     """
     fmu = Path(path)
     names = _archive_names(fmu)
@@ -218,19 +234,52 @@ def inspect_fmu(path: str | Path) -> FmuInfo:
         )
     identifier = md.coSimulation.modelIdentifier
     _check_binary(fmu, names, identifier, md.fmiVersion)
-    _check_inputs(fmu, md)
+    variables = list(md.modelVariables)
+    if variable_map is not None:
+        variables = _mapped(fmu, variables, variable_map)
+    _check_inputs(fmu, variables)
     return FmuInfo(
         path=str(fmu),
         model_identifier=identifier,
         guid=md.guid,
         generation_tool=md.generationTool or "",
         description=md.description or "",
-        inputs=tuple(v.name for v in md.modelVariables if v.causality == "input"),
-        outputs=tuple(v.name for v in md.modelVariables if v.causality == "output"),
-        value_references={v.name: v.valueReference for v in md.modelVariables},
+        inputs=tuple(v.name for v in variables if v.causality == "input"),
+        outputs=tuple(v.name for v in variables if v.causality == "output"),
+        value_references={v.name: v.valueReference for v in variables},
         sha256=hashlib.sha256(fmu.read_bytes()).hexdigest(),
         fmi_version=md.fmiVersion,
+        scales={c: variable_map.scale(c) for c in variable_map.variables} if variable_map else {},
+        variable_map=variable_map.to_dict() if variable_map else None,
     )
+
+
+@dataclass(frozen=True)
+class _Variable:
+    """A model variable as the harness sees it (a mapped one under its record column)."""
+
+    name: str
+    causality: str
+    type: str
+    valueReference: int  # noqa: N815 (fmpy's attribute name)
+
+
+def _mapped(fmu: Path, variables: list[Any], variable_map: VariableMap) -> list[_Variable]:
+    """The FMU's variables with each mapped one renamed to its record column (the FMU's own
+    variables of the columns' names, if any, step aside)."""
+    by_name = {v.name: v for v in variables}
+    taken = {*variable_map.variables, *variable_map.variables.values()}
+    out = [_Variable(v.name, v.causality, v.type, v.valueReference) for v in variables
+           if v.name not in taken]  # fmt: skip
+    for column, name in variable_map.variables.items():
+        v = by_name.get(name)
+        want = "input" if column in INPUTS else "output"
+        if v is None or v.causality != want or v.type not in ("Real", "Float64"):
+            found = "none" if v is None else f"a {v.type} {v.causality}"
+            raise ValidationError(f"{fmu}: the map's [{column}] names {name!r}, which must be "
+                                  f"a Real {want} of the FMU (found: {found})")  # fmt: skip
+        out.append(_Variable(column, v.causality, v.type, v.valueReference))
+    return out
 
 
 def static_findings(path: str | Path) -> tuple[str, ...]:
@@ -408,7 +457,9 @@ class _Session:
 
     def set_inputs(self, opening_mm: float, flow_m3h: float) -> None:
         vrs = [self.info.value_references[name] for name in INPUTS]
-        self.slave.setReal(vrs, [float(opening_mm), float(flow_m3h)])
+        scale = self.info.scale
+        self.slave.setReal(vrs, [float(opening_mm) * scale(INPUTS[0]),
+                                 float(flow_m3h) * scale(INPUTS[1])])  # fmt: skip
 
 
 class _Fmi3Slave:
@@ -529,6 +580,7 @@ def _simulate(
     from fmpy.fmi1 import FMICallException
 
     slave, vr = session.slave, [session.info.value_references[output]]
+    per_mm = session.info.scale(output)  # FMU output per mm (1 for gatetwin's FMUs)
     where = (position or Position()).values
     call, sample, time_s = Position.CALL, Position.SAMPLE, Position.TIME_S
     where[call], where[sample], where[time_s] = INITIALISE, 0, grid.start_time_s
@@ -539,7 +591,7 @@ def _simulate(
         session.set_inputs(opening[0], flow[0])
         slave.exitInitializationMode()
         where[call] = GET_REAL
-        out[0] = slave.getReal(vr)[0]
+        out[0] = slave.getReal(vr)[0] / per_mm
         t = grid.start_time_s
         for k in range(opening.size - 1):
             where[call], where[sample] = SET_REAL, k + 1
@@ -550,7 +602,7 @@ def _simulate(
                 slave.doStep(t, grid.step_s)
                 t += grid.step_s
             where[call], where[time_s] = GET_REAL, t
-            out[k + 1] = slave.getReal(vr)[0]
+            out[k + 1] = slave.getReal(vr)[0] / per_mm
         where[call] = TERMINATE
         slave.terminate()
     except FMICallException as exc:

@@ -79,6 +79,7 @@ from gatetwin.validate.isolation import (
     run_isolated,
     start_host,
 )
+from gatetwin.validate.mapping import VariableMap
 from gatetwin.validate.thresholds import Check, Threshold
 from gatetwin.validate.validity import Envelope, ValidityFinding, read_envelope, record_validity
 
@@ -469,6 +470,7 @@ def validate_fmu(
     fail_outside_validity: bool = False,
     timeout_s: float | None = None,
     isolate: bool = True,
+    variable_map: VariableMap | None = None,
 ) -> FmuValidation:
     """Validate one FMU against measured records.
 
@@ -493,6 +495,9 @@ def validate_fmu(
     isolate : bool
         Run the FMU in a child process (default). False runs it in this process, unguarded:
         an FMU that crashes or exits takes this process with it, one that hangs hangs it.
+    variable_map : VariableMap, optional
+        For an FMU that is not gatetwin's: its variable and unit behind each record column
+        (:mod:`gatetwin.validate.mapping`, ``gatetwin validate --map``).
 
     Returns
     -------
@@ -515,7 +520,7 @@ def validate_fmu(
     check_timeout(timeout_s)
     if isolate:
         start_host()  # its imports overlap with the reading and checking below
-    info = inspect_fmu(fmu_path)
+    info = inspect_fmu(fmu_path, variable_map)
     output = output_for_gauge(info, gauge)
     prepared = [prepare_inputs(info, output, _load(r)) for r in records]
     findings = static_findings(info.path)

@@ -26,6 +26,7 @@ from gatetwin.validate.harness import (
     prepare_inputs,
     validate_fmu,
 )
+from gatetwin.validate.mapping import VariableMap
 from gatetwin.validate.thresholds import Threshold
 from gatetwin.validate.validity import read_envelope
 
@@ -44,6 +45,7 @@ class RecordTask:
     thresholds: tuple[Threshold, ...]
     fail_outside_validity: bool
     timeout_s: float | None
+    variable_map: VariableMap | None = None
 
 
 def validate_record_task(task: RecordTask) -> RecordValidation:
@@ -53,7 +55,8 @@ def validate_record_task(task: RecordTask) -> RecordValidation:
         fmu.write_bytes(task.fmu_bytes)
         result = validate_fmu(fmu, [task.record], gauge=task.gauge, thresholds=task.thresholds,
                               fail_outside_validity=task.fail_outside_validity,
-                              timeout_s=task.timeout_s)  # fmt: skip
+                              timeout_s=task.timeout_s,
+                              variable_map=task.variable_map)  # fmt: skip
     return result.records[0]
 
 
@@ -74,6 +77,7 @@ def validate_fmu_spread(
     fail_outside_validity: bool = False,
     timeout_s: float | None = None,
     progress: Callable[[str], None] | None = None,
+    variable_map: VariableMap | None = None,
 ) -> FmuValidation:
     """:func:`~gatetwin.validate.harness.validate_fmu`, one record per task where
     ``settings`` says (:class:`~gatetwin.fleet.execute.FleetSettings`).
@@ -90,14 +94,15 @@ def validate_fmu_spread(
 
     if not records:
         raise ValidationError("no records to validate against")
-    info = inspect_fmu(fmu_path)
+    info = inspect_fmu(fmu_path, variable_map)
     output = output_for_gauge(info, gauge)
     loaded = [r if isinstance(r, Record) else read_record(r) for r in records]
     for rec in loaded:  # each record's gauge and grid, as validate_fmu checks them, first
         prepare_inputs(info, output, rec)
     data = Path(fmu_path).read_bytes()
     tasks = [RecordTask(Path(fmu_path).name, data, rec, gauge, tuple(thresholds),
-                        fail_outside_validity, timeout_s) for rec in loaded]  # fmt: skip
+                        fail_outside_validity, timeout_s, variable_map)
+             for rec in loaded]  # fmt: skip
 
     def report(done: int, total: int, result: Any) -> None:
         if progress and isinstance(result, RecordValidation):
