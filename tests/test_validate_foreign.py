@@ -155,3 +155,11 @@ def test_a_bad_map_is_one_line_and_nothing_written(foreign_fmu, tmp_path, capsys
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and says in err[0], err
     assert not (tmp_path / "v.json").exists()
+
+
+def test_the_python_call_takes_the_same_map(foreign_fmu, tmp_path):
+    import gatetwin
+
+    (tmp_path / "map.toml").write_text(MAP.format(length="m"), encoding="utf-8")
+    report = gatetwin.validate(foreign_fmu, _record(tmp_path), variable_map=tmp_path / "map.toml")
+    assert report.cells[0]["fit_percent"] > 90

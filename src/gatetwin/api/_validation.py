@@ -119,7 +119,8 @@ def validate(fmus: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
              *, gauge: str | None = None,
              fail_under: Mapping[str, float] | Sequence[str] = (),
              fail_over: Mapping[str, float] | Sequence[str] = (),
-             fail_outside_validity: bool = False) -> ValidationReport:  # fmt: skip
+             fail_outside_validity: bool = False,
+             variable_map: str | os.PathLike[str] | None = None) -> ValidationReport:  # fmt: skip
     """Drive FMUs with records' measured inputs through fmpy and score their free run.
 
     Parameters
@@ -137,6 +138,9 @@ def validate(fmus: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
         ``gatetwin validate --fail-under / --fail-over``.
     fail_outside_validity : bool
         Fail a record lying outside the validity the FMU states.
+    variable_map : str or PathLike, optional
+        For FMUs gatetwin did not write: a TOML file naming their variable and unit behind
+        each record column (``gatetwin validate --map``; :mod:`gatetwin.validate.mapping`).
 
     Returns
     -------
@@ -145,7 +149,8 @@ def validate(fmus: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
     Raises
     ------
     ValidationError
-        An FMU that cannot be run, a record without the gauge, a malformed threshold.
+        An FMU that cannot be run, a record without the gauge, a malformed threshold or
+        variable map.
     RecordError
         A record breaks the data-format contract.
 
@@ -158,12 +163,15 @@ def validate(fmus: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
     (True, True)
     """
     from gatetwin.validate import parse_thresholds, validate_fmu
+    from gatetwin.validate.mapping import read_variable_map
 
+    vmap = read_variable_map(os.fspath(variable_map)) if variable_map is not None else None
     paths = [os.fspath(p) for p in _many(fmus, (str, os.PathLike))]
     loaded = [r if isinstance(r, Record) else read_record(os.fspath(r))
               for r in _many(records, (str, os.PathLike, Record))]  # fmt: skip
     thresholds = parse_thresholds(_limits(fail_under), _limits(fail_over))
     return ValidationReport(tuple(
         validate_fmu(p, loaded, gauge=gauge, thresholds=thresholds,
-                     fail_outside_validity=fail_outside_validity) for p in paths
+                     fail_outside_validity=fail_outside_validity, variable_map=vmap)
+        for p in paths
     ))  # fmt: skip
