@@ -198,6 +198,8 @@ def wrong_guid(extracted: str) -> dict[str, Any]:
     slave.instantiate()
     accepted = bool(slave.component)
     slave.freeInstance()
+    del slave
+    gc.collect()  # as after every other scenario: the slave's references go before the exit
     return {"accepted": accepted}
 
 
