@@ -13,6 +13,17 @@ double kernel_steady_depth_m(const double *p, double opening_mm, double flow_m3h
     return 0.5 * (low + high);
 }
 
+double kernel_tail_steady_depth_m(const double *p, double tail_m, double opening_mm,
+                                  double flow_m3h)
+{
+    double low = GT_DEPTH_LOW_M, high = p[GT_DEPTH_MAX_INDEX];
+    int i;
+    for (i = 0; i < GT_BISECTION_STEPS; i++) {
+        gt_tail_bisection_step(low, high, tail_m, opening_mm, flow_m3h, p, &low, &high);
+    }
+    return 0.5 * (low + high);
+}
+
 void kernel_envelope_steady(const double *p, double opening_mm, double flow_m3h,
                             double *level_mm, double *time_constant_s, double *depth_m)
 {

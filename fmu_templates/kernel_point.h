@@ -7,6 +7,9 @@
 
 /* The steady depth at the gate (m): the kernel's bisection, its fixed number of steps. */
 double kernel_steady_depth_m(const double *p, double opening_mm, double flow_m3h);
+/* The same with the pool below the gate held at tail_m (m). */
+double kernel_tail_steady_depth_m(const double *p, double tail_m, double opening_mm,
+                                  double flow_m3h);
 /* Steady level at the gauge (mm) and small-signal time constant (s) at (Q, e). */
 void kernel_envelope_point(const double *p, double opening_mm, double flow_m3h,
                            double *level_mm, double *time_constant_s);

@@ -87,6 +87,10 @@ void dynamics_initialize(ModelData *m, double u_mm, double x0_mm)
     d->count = 1;
     d->change_t[0] = m->time_s;
     d->change_u[0] = u_mm;
+    d->tail_m = 0.0;
+#if GT_ENVELOPE
+    gt_tail_steady_m(m->real[VR_FLOW_M3H], KERNEL(m), &d->tail_m);
+#endif
     d->max_dead_time_s = DEAD_TIME(m)[0];
     for (k = 1; k < GT_N_KNOTS; k++) {
         if (DEAD_TIME(m)[k] > d->max_dead_time_s) {
@@ -214,6 +218,31 @@ static void piece_point(ModelData *m, double u_mm, double x_mm, double *level_mm
                               u_mm + m->real[VR_OPENING_REF_MM], m->cache.flow_m3h, KERNEL(m),
                               tau_s);
 }
+
+/* Whether the gate discharges into a pool of its own. */
+static int tail_pool(const ModelData *m)
+{
+    double has;
+    gt_has_tail(KERNEL(m), &has);
+    return has != 0.0;
+}
+
+/* A piece of an envelope FOPDT with a pool below the gate: the kernel's tail_pool_piece over
+ * its sub-steps, the steady depth at the pool's depth at the start of each
+ * (PlantSimulator._tail_pool_piece). */
+static void tail_piece(ModelData *m, double u_mm, double duration_s)
+{
+    DynamicsState *d = &m->dyn;
+    const double *p = KERNEL(m);
+    const double e = u_mm + m->real[VR_OPENING_REF_MM];
+    const double q = m->cache.flow_m3h;
+    double n, k;
+    gt_substep_count(duration_s, p, &n);
+    for (k = 0.0; k < n; k += 1.0) {
+        const double steady = kernel_tail_steady_depth_m(p, d->tail_m, e, q);
+        gt_tail_pool_piece(d->x, d->tail_m, steady, e, q, duration_s / n, p, &d->x, &d->tail_m);
+    }
+}
 #endif
 
 /* The dynamics over [t_start, t_end) with the input u held (one piece of a step); p holds
@@ -240,6 +269,11 @@ static void piece(ModelData *m, double t_start, double t_end, double u_mm,
             }
         }
 #if GT_ENVELOPE
+        if (tail_pool(m)) {
+            tail_piece(m, d->change_u[slot(d, j)], t_next - t);
+            t = t_next;
+            continue;
+        }
         piece_point(m, d->change_u[slot(d, j)], d->x, &target, &tau_s);
 #else
         target = p->gain * d->change_u[slot(d, j)];
@@ -303,9 +337,12 @@ PlantStatus dynamics_check_state(const ModelData *m, PlantMessage *msg)
                       d->count, GT_HISTORY_CAPACITY);
         return PLANT_ERROR;
     }
-    if (!isfinite(d->x) || !(isfinite(d->max_dead_time_s) && d->max_dead_time_s >= 0.0)) {
-        plant_message(msg, "state x = %g or dead-time horizon %g s is not finite and >= 0", d->x,
-                      d->max_dead_time_s);
+    if (!isfinite(d->x) || !isfinite(d->tail_m) ||
+        !(isfinite(d->max_dead_time_s) && d->max_dead_time_s >= 0.0)) {
+        plant_message(msg,
+                      "state x = %g, tail depth %g m or dead-time horizon %g s is not finite "
+                      "(and >= 0)",
+                      d->x, d->tail_m, d->max_dead_time_s);
         return PLANT_ERROR;
     }
     for (j = 0; j < GT_HISTORY_CAPACITY; j++) {

@@ -15,6 +15,7 @@ typedef struct {
     double x;                                /* deviation from level_ref, mm */
     double change_t[GT_HISTORY_CAPACITY];    /* time of each input change, s (ring buffer) */
     double change_u[GT_HISTORY_CAPACITY];    /* input deviation in force from then on, mm */
+    double tail_m; /* an envelope's pool below the gate: its depth, m (0: a free gate) */
     int head;                                /* ring position of the oldest change */
     int count;                               /* changes held, >= 1 once initialised */
     double max_dead_time_s;                  /* history horizon, fixed at initialisation */

@@ -51,7 +51,8 @@ def _dyn_sizes(config: dict[str, Any]) -> dict[str, tuple[int, int] | None]:
     """The family's dynamic state: None for a number, (fewest, most) for a list."""
     if config["family"] == "fopdt":
         history = (1, config["history_capacity"])
-        return {"x": None, "change_t": history, "change_u": history, "max_dead_time_s": None}
+        return {"x": None, "change_t": history, "change_u": history, "max_dead_time_s": None,
+                "tail_m": None}  # fmt: skip
     if config["family"] == "physical":
         return {"x": None, "depth_m": None, "tail_m": None, "gate_mm": None}
     na, nb, nk = config["arx_orders"]

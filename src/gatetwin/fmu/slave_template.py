@@ -437,14 +437,34 @@ class GatetwinPlant(GuardedSlave):
             x, target, depth, tangent, e, q, self._physical()
         )
 
+    def _tail_pool(self) -> bool:
+        """An envelope FOPDT whose gate discharges into a pool (model_fopdt.c)."""
+        return self._envelope() and bool(physical_kernel_portable.has_tail(self._physical()))
+
+    def _tail_pool_piece(self, u: float, q: float, duration_s: float) -> None:
+        """Sub-steps of the kernel's tail_pool_piece (tail_piece of model_fopdt.c)."""
+        p, d = self._physical(), self.dyn
+        e = u + self.real[self.vr_opening_ref]
+        n = int(physical_kernel_portable.substep_count(duration_s, p))
+        for _ in range(n):
+            steady = self._physical_depth(e, q, d["tail_m"])
+            d["x"], d["tail_m"] = physical_kernel_portable.tail_pool_piece(
+                d["x"], d["tail_m"], steady, e, q, duration_s / n, p
+            )
+
     def _level_offset(self, q: float) -> float:
         return 0.0 if self._envelope() else self._at("level_ref_mm", q)
 
-    def _physical_depth(self, gate_mm: float, q: float) -> float:
+    def _physical_depth(self, gate_mm: float, q: float, tail_m: float | None = None) -> float:
+        """The steady depth (kernel_point.c): the tail pool steady, or held at ``tail_m``."""
         p = self._physical()
         low, high = physical_kernel.DEPTH_LOW_M, p[physical_kernel.DEPTH_MAX_INDEX]
         for _ in range(physical_kernel.BISECTION_STEPS):
-            low, high = physical_kernel_portable.bisection_step(low, high, gate_mm, q, p)
+            if tail_m is None:
+                low, high = physical_kernel_portable.bisection_step(low, high, gate_mm, q, p)
+            else:
+                low, high = physical_kernel_portable.tail_bisection_step(low, high, tail_m,
+                                                                         gate_mm, q, p)  # fmt: skip
         return 0.5 * (low + high)
 
     def _physical_level(self, depth_m: float, gate_mm: float, q: float) -> float:
@@ -500,11 +520,16 @@ class GatetwinPlant(GuardedSlave):
                 )
 
     def _fopdt_initialize(self, u: float, x0: float) -> None:
+        tail = 0.0
+        if self._envelope():
+            tail = physical_kernel_portable.tail_steady_m(self.real[self.vr_flow],
+                                                          self._physical())  # fmt: skip
         self.dyn = {
             "x": x0,
             "change_t": [self.time_s],
             "change_u": [u],
             "max_dead_time_s": max(self._column("dead_time_s")),
+            "tail_m": tail,
         }
 
     def _fopdt_parameters(self, q: float) -> tuple[float, float]:
@@ -605,6 +630,10 @@ class GatetwinPlant(GuardedSlave):
             t_next = t1
             if j + 1 < len(times):
                 t_next = min(t1, times[j + 1] + delay)
+            if self._tail_pool():
+                self._tail_pool_piece(inputs[j], q, t_next - t)
+                t = t_next
+                continue
             if self._envelope():
                 target, tau = self._piece_point(inputs[j], d["x"], q)
             else:

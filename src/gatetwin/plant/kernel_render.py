@@ -223,8 +223,8 @@ def c_function(module: types.ModuleType, name: str, args: tuple[str, ...], n_out
     if len(results) != n_out:
         raise ValueError(f"{name}: {len(results)} outputs, declared {n_out}")
     outs = ", ".join(f"double *out{i}" for i in range(n_out))
-    signature = (f"void {prefix}{name}(" + ", ".join(f"double {a}" for a in args)
-                 + f", const double *p, {outs})")  # fmt: skip
+    signature = (f"void {prefix}{name}(" + "".join(f"double {a}, " for a in args)
+                 + f"const double *p, {outs})")  # fmt: skip
     body = [*trace.lines, *(f"    *out{i} = {_c(r)};" for i, r in enumerate(results))]
     return signature + "\n{\n" + "\n".join(body) + "\n}\n", signature + ";"
 

@@ -108,7 +108,9 @@ class FopdtPlant:
     level relaxes towards the steady level of the gate law at the delayed opening and the
     present discharge, ``T(Q, e) dy/dt = H_ss(Q, e(t - L)) - y``, with ``T`` the storage
     linearised at that steady point and ``L`` from the schedule; K is ``∂H_ss/∂e`` there
-    (see :func:`local_fopdt`). The schedule's K, T and ``level_ref_mm`` then describe the
+    (see :func:`local_fopdt`). A gate that discharges into a pool of its own adds the pool's
+    depth as a second state (:func:`~gatetwin.plant.physical_kernel.tail_pool_piece`). The
+    schedule's K, T and ``level_ref_mm`` then describe the
     operating line the step conditions were identified on (the small-signal meaning the
     paper's tables and the MPC use); the output no longer adds ``level_ref_mm``.
     """
@@ -396,11 +398,17 @@ def tangent_point(
             "level_mm": level}  # fmt: skip
 
 
-def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
-    """The kernel's bisection, run to its fixed number of steps (as the C FMU runs it)."""
+def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float],
+                   tail_m: float | None = None) -> float:  # fmt: skip
+    """The kernel's bisection, run to its fixed number of steps (as the C FMU runs it); the
+    tail pool at its steady depth for the discharge, or held at ``tail_m``."""
+    k = physical_kernel_portable
     low, high = kernel.DEPTH_LOW_M, p[kernel.DEPTH_MAX_INDEX]
     for _ in range(kernel.BISECTION_STEPS):
-        low, high = physical_kernel_portable.bisection_step(low, high, opening_mm, flow_m3h, p)
+        if tail_m is None:
+            low, high = k.bisection_step(low, high, opening_mm, flow_m3h, p)
+        else:
+            low, high = k.tail_bisection_step(low, high, tail_m, opening_mm, flow_m3h, p)
     return 0.5 * (low + high)
 
 

@@ -223,8 +223,18 @@ def bisection_step(
 ) -> tuple[float, float]:
     """One halving of the bracket of the steady depth (the gate passes the inflow into the
     tail pool at its steady depth)."""
+    return tail_bisection_step(low_m, high_m, tail_steady_m(flow_m3h, p), opening_mm, flow_m3h,
+                               p)  # fmt: skip
+
+
+def tail_bisection_step(
+    low_m: float, high_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
+    p: list[float],
+) -> tuple[float, float]:  # fmt: skip
+    """One halving of the bracket of the depth at which the gate passes the inflow into the
+    tail pool held at ``tail_m``."""
     middle = 0.5 * (low_m + high_m)
-    passing = gate_flow_m3s(middle, tail_steady_m(flow_m3h, p), opening_mm, flow_m3h, p)
+    passing = gate_flow_m3s(middle, tail_m, opening_mm, flow_m3h, p)
     below = less(passing, flow_m3h / 3600.0)
     return select(below, middle, low_m), select(below, high_m, middle)
 
@@ -249,15 +259,23 @@ def time_constant_s(depth_m: float, opening_mm: float, flow_m3h: float, p: list[
     """
     d = DEPTH_DIFFERENCE_M
     tail = tail_steady_m(flow_m3h, p)
-    upper = gate_flow_m3s(depth_m + d, tail, opening_mm, flow_m3h, p)
-    lower = gate_flow_m3s(depth_m - d, tail, opening_mm, flow_m3h, p)
     drowned = gate_flow_m3s(depth_m, tail - d, opening_mm, flow_m3h, p) - gate_flow_m3s(
         depth_m, tail + d, opening_mm, flow_m3h, p)  # fmt: skip
     outlet = tail_outflow_m3s(tail + d, p) - tail_outflow_m3s(tail - d, p)
     factor = 1.0 + select(has_tail(p), drowned / fmax(outlet, 1e-15), 0.0)
+    return pool_time_constant_s(depth_m, tail, opening_mm, flow_m3h, p) * factor
+
+
+def pool_time_constant_s(depth_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
+                         p: list[float]) -> float:  # fmt: skip
+    """The upstream pool's own time constant at depth ``depth_m`` with the tail pool held at
+    ``tail_m``: A / (∂Q_g/∂h), s."""
+    d = DEPTH_DIFFERENCE_M
+    upper = gate_flow_m3s(depth_m + d, tail_m, opening_mm, flow_m3h, p)
+    lower = gate_flow_m3s(depth_m - d, tail_m, opening_mm, flow_m3h, p)
     # a closed gate passes nothing at any depth: no finite time constant (the floor keeps the
     # division defined; the level then barely moves)
-    return storage_area_m2(depth_m, p) * (2.0 * d) / fmax(upper - lower, 1e-15) * factor
+    return storage_area_m2(depth_m, p) * (2.0 * d) / fmax(upper - lower, 1e-15)
 
 
 def secant_time_constant_s(
@@ -286,8 +304,24 @@ def secant_time_constant_s(
     central-difference step of the target, or where the gate law does not grow with the depth
     (a closed gate, the critical-flow cap), the tangent itself.
     """
-    d = DEPTH_DIFFERENCE_M
     tail = tail_steady_m(flow_m3h, p)
+    return tail_secant_time_constant_s(level_mm, target_mm, steady_m, tangent_s, tail, opening_mm,
+                                       flow_m3h, p)  # fmt: skip
+
+
+def tail_secant_time_constant_s(
+    level_mm: float,
+    target_mm: float,
+    steady_m: float,
+    tangent_s: float,
+    tail_m: float,
+    opening_mm: float,
+    flow_m3h: float,
+    p: list[float],
+) -> float:
+    """:func:`secant_time_constant_s` with the tail pool held at ``tail_m``."""
+    d = DEPTH_DIFFERENCE_M
+    tail = tail_m
     depth = fmax(steady_m - (target_mm - level_mm) / 1000.0, DEPTH_LOW_M)
     gap = steady_m - depth
     slope = (gate_flow_m3s(steady_m + d, tail, opening_mm, flow_m3h, p)
@@ -302,6 +336,38 @@ def secant_time_constant_s(
     return select(resolved, select(growing, tangent_s * ratio, tangent_s), tangent_s)
 
 
+def tail_pool_piece(
+    x_mm: float, tail_m: float, steady_m: float, opening_mm: float, flow_m3h: float,
+    dt_s: float, p: list[float],
+) -> tuple[float, float]:  # fmt: skip
+    """The envelope FOPDT of a gate that discharges into a pool of its own, over ``dt_s``
+    with the inputs held: the level ``x_mm`` and the tail pool's depth after it.
+
+    The level relaxes towards the steady level of the gate law with the tail pool held at
+    ``tail_m`` (``steady_m``: that steady depth at the gate), with the storage's secant time
+    constant (:func:`tail_secant_time_constant_s`, from the tangent of the upstream pool
+    alone); the tail pool fills with the gate's discharge at the level's depth and drains
+    through its outlet, integrated exactly for its local time constant
+    ``A_t / (∂Q_t/∂h_t − ∂Q_g/∂h_t)``. A single time constant cannot carry both pools: after
+    an inflow change the tail pool, slower than the upstream one, holds the gate back for as
+    long as it takes to fill or drain.
+    """
+    d = DEPTH_DIFFERENCE_M
+    target = level_mm(steady_m, opening_mm, flow_m3h, p)
+    tangent = pool_time_constant_s(steady_m, tail_m, opening_mm, flow_m3h, p)
+    tau = tail_secant_time_constant_s(x_mm, target, steady_m, tangent, tail_m, opening_mm,
+                                      flow_m3h, p)  # fmt: skip
+    depth = fmax(steady_m - (target - x_mm) / 1000.0, DEPTH_LOW_M)
+    passing = gate_flow_m3s(depth, tail_m, opening_mm, flow_m3h, p)
+    drowned = (gate_flow_m3s(depth, tail_m - d, opening_mm, flow_m3h, p)
+               - gate_flow_m3s(depth, tail_m + d, opening_mm, flow_m3h, p)) / (2.0 * d)  # fmt: skip
+    outlet = (tail_outflow_m3s(tail_m + d, p) - tail_outflow_m3s(tail_m - d, p)) / (2.0 * d)
+    area = fmax(p[21], AREA_MIN_M2)
+    rate = fmax((drowned + outlet) / area, 1e-12)
+    filled = (passing - tail_outflow_m3s(tail_m, p)) / area * (1.0 - exp(-rate * dt_s)) / rate
+    return target + (x_mm - target) * exp(-dt_s / tau), tail_m + filled
+
+
 def substep_count(step_s: float, p: list[float]) -> float:
     """Sub-steps of one communication step: the fewest of at most ``max_substep_s``."""
     return fmax(1.0, -floor(-step_s / p[17]))
@@ -312,6 +378,8 @@ RENDERED = (
     ("substep", ("depth_m", "tail_m", "gate_mm", "target_mm", "flow_m3h", "dt_s"), 3),
     ("tail_steady_m", ("flow_m3h",), 1),
     ("bisection_step", ("low_m", "high_m", "opening_mm", "flow_m3h"), 2),
+    ("tail_bisection_step", ("low_m", "high_m", "tail_m", "opening_mm", "flow_m3h"), 2),
+    ("has_tail", (), 1),
     ("level_mm", ("depth_m", "opening_mm", "flow_m3h"), 1),
     ("actuator_target_mm", ("command_mm",), 1),
     ("substep_count", ("step_s",), 1),
@@ -320,5 +388,10 @@ RENDERED = (
         "secant_time_constant_s",
         ("level_mm", "target_mm", "steady_m", "tangent_s", "opening_mm", "flow_m3h"),
         1,
+    ),
+    (
+        "tail_pool_piece",
+        ("x_mm", "tail_m", "steady_m", "opening_mm", "flow_m3h", "dt_s"),
+        2,
     ),
 )

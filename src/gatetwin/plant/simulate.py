@@ -24,6 +24,7 @@ from gatetwin.plant.model import (
     envelope_steady,
     interp_clamped,
     physical_kernel_portable,
+    steady_depth_m,
 )
 from gatetwin.plant.physical import PhysicalSimulator
 
@@ -86,6 +87,9 @@ class PlantSimulator:
     plant: Plant
     time_s: float = 0.0
     x: float = 0.0
+    #: Depth of the pool below the gate, m, of an envelope FOPDT whose gate discharges into one
+    #: (else 0; see :func:`~gatetwin.plant.physical_kernel.tail_pool_piece`).
+    tail_m: float = 0.0
     history_t: list[float] = field(default_factory=list)
     history_u: list[float] = field(default_factory=list)
     x_hist: list[float] = field(default_factory=list)
@@ -113,6 +117,7 @@ class PlantSimulator:
             self.envelope_memo.clear()
             if self.envelope_p is not None:
                 self.x = self._envelope_point(u, flow_m3h)[0]
+                self.tail_m = physical_kernel_portable.tail_steady_m(flow_m3h, self.envelope_p)
             else:
                 self.x = self._fopdt_parameters(flow_m3h)[0] * u
             self.history_t = [time_s]
@@ -189,6 +194,24 @@ class PlantSimulator:
             self.x, target, depth, tangent, u + self.plant.opening_ref_mm, q, self.envelope_p
         )
         return target, tau
+
+    def _tail_pool(self) -> bool:
+        """Whether the plant is an envelope FOPDT whose gate discharges into a pool."""
+        p = self.envelope_p
+        return p is not None and bool(physical_kernel_portable.has_tail(p))
+
+    def _tail_pool_piece(self, u: float, q: float, duration_s: float) -> None:
+        """An envelope FOPDT piece with a pool below the gate (``piece`` of the C FMU): the
+        sub-steps of the kernel's longest sub-step, the steady depth at the tail pool's depth
+        at the start of each."""
+        p = self.envelope_p
+        e = u + self.plant.opening_ref_mm
+        n = int(physical_kernel_portable.substep_count(duration_s, p))
+        for _ in range(n):
+            steady = steady_depth_m(e, q, p, self.tail_m)
+            self.x, self.tail_m = physical_kernel_portable.tail_pool_piece(
+                self.x, self.tail_m, steady, e, q, duration_s / n, p
+            )
 
     def _physical_terms(self, y: float) -> float:
         """``y`` plus the seiche and inflow terms (in the output blocks' order)."""
@@ -354,6 +377,10 @@ class PlantSimulator:
             t_next = t1
             if i + 1 < len(self.history_t):
                 t_next = min(t1, self.history_t[i + 1] + delay)
+            if self._tail_pool():
+                self._tail_pool_piece(self.history_u[i], q, t_next - t)
+                t = t_next
+                continue
             if self.envelope_p is not None:
                 target, tau = self._piece_point(self.history_u[i], q)
             else:
