@@ -82,7 +82,7 @@ def controller_plant(model: ModelFile) -> FopdtPlant:
     """The FOPDT a controller is tuned on: the model's, or a physical model's linearisation."""
     plant = model.plant
     if isinstance(plant, FopdtPlant):
-        return plant
+        return _extended(plant, model) if plant.envelope is not None else plant
     if not isinstance(plant, PhysicalPlant):
         raise ExportError(f"controllers are tuned on an FOPDT or a physical model; got a "
                           f"{plant.kind} model")  # fmt: skip
@@ -108,6 +108,40 @@ def controller_plant(model: ModelFile) -> FopdtPlant:
         "level_ref_mm": tuple(r["level_mm"] for r in rows),
     }
     return FopdtPlant(plant.gauge, opening, Schedule(tuple(float(q) for q in flows), values))
+
+
+def _extended(plant: FopdtPlant, model: ModelFile) -> FopdtPlant:
+    """An envelope FOPDT's schedule carried out to the validity's discharge range: a knot at
+    each end the step conditions did not reach, its K and T the nearest condition's scaled by
+    the envelope's ratio between the two discharges, its level the nearest condition's
+    moved by the envelope's difference (the gate law extrapolates where a clamped schedule
+    would hold the last condition's level: an inflow step to the range's end then moves the
+    steady level the model predicts)."""
+    s = plant.schedule
+    q_lo, q_hi = validity_envelope(model.content).get("flow_m3h", s.flow_range_m3h)
+    knots, values = list(s.flow_m3h), {k: list(v) for k, v in s.values.items()}
+    ends = [(q, 0) for q in (q_lo,) if q < knots[0]] + [(q, -1) for q in (q_hi,) if q > knots[-1]]
+    for q, i in ends:
+        near = local_fopdt(plant, knots[i], plant.opening_ref_mm)
+        far = local_fopdt(plant, float(q), plant.opening_ref_mm)
+        row = {
+            "gain_mm_per_mm": values["gain_mm_per_mm"][i] * far["gain_mm_per_mm"]
+            / near["gain_mm_per_mm"],
+            "time_constant_s": values["time_constant_s"][i] * far["time_constant_s"]
+            / near["time_constant_s"],
+            "dead_time_s": values["dead_time_s"][i],
+            "level_ref_mm": values["level_ref_mm"][i] + far["level_mm"] - near["level_mm"],
+        }
+        if not all(math.isfinite(v) for v in row.values()) or row["time_constant_s"] <= 0:
+            continue
+        at = 0 if i == 0 else len(knots)
+        knots.insert(at, float(q))
+        for key in values:
+            values[key].insert(at, float(row[key]))
+    if len(knots) == len(s.flow_m3h):
+        return plant
+    schedule = Schedule(tuple(knots), {k: tuple(v) for k, v in values.items()})
+    return replace(plant, schedule=schedule)
 
 
 def _opening_for(plant: PhysicalPlant, flow_m3h: float, level_mm: float,
