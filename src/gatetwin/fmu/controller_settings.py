@@ -125,9 +125,11 @@ def _extended(plant: FopdtPlant, model: ModelFile) -> FopdtPlant:
         near = local_fopdt(plant, knots[i], plant.opening_ref_mm)
         far = local_fopdt(plant, float(q), plant.opening_ref_mm)
         row = {
-            "gain_mm_per_mm": values["gain_mm_per_mm"][i] * far["gain_mm_per_mm"]
+            "gain_mm_per_mm": values["gain_mm_per_mm"][i]
+            * far["gain_mm_per_mm"]
             / near["gain_mm_per_mm"],
-            "time_constant_s": values["time_constant_s"][i] * far["time_constant_s"]
+            "time_constant_s": values["time_constant_s"][i]
+            * far["time_constant_s"]
             / near["time_constant_s"],
             "dead_time_s": values["dead_time_s"][i],
             "level_ref_mm": values["level_ref_mm"][i] + far["level_mm"] - near["level_mm"],
