@@ -386,6 +386,19 @@ def _fmu_scenarios(req: DemoRequest, path: Path, point: TwinPoint, loops: dict[s
     return out
 
 
+_INDICATOR_HEAD = (
+    "| scenario | controller | MAE | IAE (mean) | IAE (mm·s) | StE | IAW | "
+    "violations | reversals/h |",
+    "|---|---|---|---|---|---|---|---|---|",
+)
+
+
+def _indicator_row(scenario: str, controller: str, m: dict[str, Any]) -> str:
+    return (f"| {scenario} | {controller} | {m['mae_mm']:.1f} | {m['iae_mean_mm']:.2f} | "
+            f"{m['iae_mm_s']:.0f} | {m['ste_mm']:.2f} | {m['iaw_mm']:.0f} | "
+            f"{m['violations']} | {m['gate_reversals_per_hour']:.0f} |")  # fmt: skip
+
+
 def summary_markdown(doc: dict[str, Any]) -> str:
     """``summary.md``: the stage times, the validation and the indicators as tables."""
     lines = [f"# SWMM demo: gate {doc['plant']['gate']} of {Path(doc['plant']['inp']).name}",
@@ -406,19 +419,15 @@ def summary_markdown(doc: dict[str, Any]) -> str:
     lines += ["", f"## Closed loop at {loops['gauge']} (Clemmens et al. 1998 indicators, mm)",
               "", f"Inflow steps +{up} % (the largest of +40/30/20/10 % the gate can take) "
               f"and {round(100.0 * (INFLOW_DOWN - 1.0))} %.",
-              "", "| scenario | controller | MAE | IAE (mean) | StE | IAW | violations | "
-              "reversals/h |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+              "", *_INDICATOR_HEAD]  # fmt: skip
     for name, by in loops["scenarios"].items():
-        lines += [f"| {name} | {c} | {m['mae_mm']:.1f} | {m['iae_mean_mm']:.2f} | "
-                  f"{m['ste_mm']:.2f} | {m['iaw_mm']:.0f} | {m['violations']} | "
-                  f"{m['gate_reversals_per_hour']:.0f} |" for c, m in by.items()]  # fmt: skip
-    lines += ["", "## Controller FMUs through fmpy, SWMM as the plant (mean |error|, mm)", "",
-              "| controller FMU | " + " | ".join(loops["scenarios"]) + " |",
-              "|---|" + "---|" * len(loops["scenarios"])]  # fmt: skip
-    for kind, res in doc["controller_fmus"].items():
-        cells = [res["failed"]] if "failed" in res else [
-            f"{res[n]['iae_mean_mm']:.2f}" for n in loops["scenarios"]]  # fmt: skip
-        lines.append(f"| {kind} | " + " | ".join(cells) + " |")
+        lines += [_indicator_row(name, c, m) for c, m in by.items()]
+    lines += ["", "## Controller FMUs through fmpy, SWMM as the plant (the same indicators)", "",
+              *_INDICATOR_HEAD]  # fmt: skip
+    for name in loops["scenarios"]:
+        for kind, res in doc["controller_fmus"].items():
+            lines.append(f"| {name} | {kind} | {res['failed']} |" if "failed" in res
+                         else _indicator_row(name, kind, res[name]))  # fmt: skip
     return "\n".join(lines) + "\n"
 
 
