@@ -134,7 +134,11 @@ def _extended(plant: FopdtPlant, model: ModelFile) -> FopdtPlant:
             "dead_time_s": values["dead_time_s"][i],
             "level_ref_mm": values["level_ref_mm"][i] + far["level_mm"] - near["level_mm"],
         }
-        if not all(math.isfinite(v) for v in row.values()) or row["time_constant_s"] <= 0:
+        # the gate lifted clear of the water at the reference opening: no control there (as
+        # a physical model's linearisation drops such knots)
+        biggest = max(abs(k) for k in values["gain_mm_per_mm"])
+        if not (all(math.isfinite(v) for v in row.values()) and row["time_constant_s"] > 0
+                and abs(row["gain_mm_per_mm"]) > GAIN_FLOOR * biggest):  # fmt: skip
             continue
         at = 0 if i == 0 else len(knots)
         knots.insert(at, float(q))
