@@ -218,7 +218,8 @@ def test_controller_schedule_reaches_the_validity_range_by_the_gate_law(
     field_models: Path,
 ) -> None:
     """The step conditions cover part of the discharges the records saw; the controllers'
-    schedule is carried to the validity's ends by the envelope's gate law, so the level it
+    schedule is carried to the validity's ends by the envelope's gate law where the gate
+    controls the level there, so the level it
     predicts there at the reference opening is nearer the truth's than the last condition's
     level held flat (what a clamped schedule gives)."""
     from gatetwin.modelfile import validity_envelope
@@ -230,10 +231,12 @@ def test_controller_schedule_reaches_the_validity_range_by_the_gate_law(
     q_lo, q_hi = validity_envelope(model.content)["flow_m3h"]
     ends = [q for q in (q_lo, q_hi) if not fitted.flow_m3h[0] <= q <= fitted.flow_m3h[-1]]
     assert ends  # the records reach beyond the step conditions
-    assert extended.flow_m3h[0] == min(q_lo, fitted.flow_m3h[0])
-    assert extended.flow_m3h[-1] == max(q_hi, fitted.flow_m3h[-1])
+    # an end where the gate at the reference opening is lifted clear of the water (K = 0)
+    # gets no knot; the other does
+    carried = [q for q in ends if q in (extended.flow_m3h[0], extended.flow_m3h[-1])]
+    assert carried
     e_ref = model.plant.opening_ref_mm
-    for q in ends:
+    for q in carried:
         truth = local_fopdt(field.truth_plant(), q, e_ref)["level_mm"]
         carried, held = (s.at("level_ref_mm", q) for s in (extended, fitted))
         assert abs(carried - truth) < abs(held - truth)
