@@ -5,7 +5,9 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import math
+import re
 import subprocess
+import sys
 import types
 import warnings
 from pathlib import Path
@@ -162,12 +164,23 @@ def test_model_file_round_trip_and_bad_parameters(plant):
         plant_from_dict(bad)
     # a pool below the gate stores water, fills above its datum, drains more as it fills
     bad["parameters"] = {**plant.parameters, "tail_area_m2": -1.0}
-    with pytest.raises(ModelFileError, match="tail_area_m2 = -1.0 must be >= 0"):
+    with pytest.raises(ModelFileError, match="tail_area_m2: -1.0 is below the limit 0"):
         plant_from_dict(bad)
     for broken in ({"tail_datum_m": 0.5, "tail_depth_m": 0.1}, {"tail_exponent": 0.0}):
         bad["parameters"] = {**plant.parameters, **TAIL, **broken}
         with pytest.raises(ModelFileError, match="the pool below the gate needs"):
             plant_from_dict(bad)
+    # outside the physical domain (the C FMU's checks: test_c_fmu_refuses_impossible_...)
+    for values, _ in IMPOSSIBLE:
+        bad["parameters"] = {**plant.parameters, **values}
+        name = next(iter(values))
+        expected = "the storage area" if name == "area_m2" else f"parameters.{name}: "
+        with pytest.raises(ModelFileError, match=re.escape(expected)):
+            plant_from_dict(bad)
+    # a deep canal's linear storage area may be negative at 0.2 m, where it never runs
+    deep = {**plant.parameters, "area_m2": -50.0, "area_per_depth_m": 100.0, "depth_max_m": 4.0}
+    bad["parameters"] = deep
+    assert plant_from_dict(bad).parameters["area_m2"] == -50.0
 
 
 def test_a_step_needing_too_many_substeps_is_refused_without_change(plant):
@@ -310,36 +323,51 @@ def test_identification_finds_the_pool_below_a_submerged_gate(tmp_path):
     assert float(np.sqrt(np.mean(err**2))) < 2.0 * NOISE_MM
 
 
-def test_c_fmu_refuses_a_non_positive_parameter_with_an_error_status(plant, tmp_path):
-    """The python backend refuses it as well (``_physical_check_parameters``); refused
-    initialisations of python FMUs are driven in child processes by
-    tests/test_fmu_python_hostile.py, where a crash cannot take pytest down."""
-    backend = "c"
-    from fmpy import extract, read_model_description
+#: Parameters outside their physical domain, and what the refusal names.
+IMPOSSIBLE = [
+    ({"width_m": 0.0}, "width_m = 0 must be > 0.001"),
+    ({"width_m": 1e-300}, "width_m = 1e-300 must be > 0.001"),
+    ({"cd_small": -0.9}, "cd_small = -0.90000000000000002 must be > 0"),
+    ({"cd_large": 0.0}, "cd_large = 0 must be > 0"),
+    ({"area_m2": 0.0, "area_per_depth_m": 0.0}, "the storage area area_m2 + area_per_depth_m"),
+    ({"area_m2": -3.0, "area_per_depth_m": 1.0}, "the storage area area_m2 + area_per_depth_m"),
+]
+
+
+def test_c_fmu_refuses_impossible_parameters_with_an_error_status(plant, tmp_path):
+    """A parameter set outside the physical domain (the model file's reader refuses the same,
+    test_model_file_round_trip_and_bad_parameters) stops the C FMU's initialisation with an
+    error status and the reason logged. The python backend refuses it as well
+    (``_physical_check_parameters``); refused initialisations of python FMUs are driven in
+    child processes by tests/test_fmu_python_hostile.py, where a crash cannot take pytest
+    down."""
+    from fmpy import extract
     from fmpy.fmi1 import FMICallException
-    from fmpy.fmi2 import FMU2Slave
 
     from gatetwin.fmu import export_fmu
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from fmu_support import open_fmu
 
     try:
         find_compiler()
     except Exception:
         pytest.skip("no C compiler")
-    path = export_fmu(plant, tmp_path / "p.fmu", backend=backend, model_name="physical_3F",
+    path = export_fmu(plant, tmp_path / "p.fmu", backend="c", model_name="physical_3F",
                       provenance={})  # fmt: skip
-    md = read_model_description(str(path))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path), str(tmp_path / "x")),
-                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="p")  # fmt: skip
-    fmu.instantiate()
-    try:
-        fmu.setReal([vr["physical.width_m"]], [0.0])
-        fmu.setupExperiment(startTime=0.0)
-        fmu.enterInitializationMode()
-        with pytest.raises(FMICallException):
-            fmu.exitInitializationMode()
-    finally:
-        fmu.freeInstance()
+    unzipped = Path(extract(str(path), str(tmp_path / "x")))
+    for values, reason in IMPOSSIBLE:
+        driver = open_fmu(unzipped, "p")
+        try:
+            vrs = [driver.vr[f"physical.{k}"] for k in values]
+            driver.slave.setReal(vrs, list(values.values()))
+            driver.slave.setupExperiment(startTime=0.0)
+            driver.slave.enterInitializationMode()
+            with pytest.raises(FMICallException):
+                driver.slave.exitInitializationMode()
+            assert any(reason in m for _, m in driver.messages), (values, driver.messages)
+        finally:
+            driver.close()
 
 
 def test_seiche_is_the_one_block_the_physical_and_envelope_families_carry(plant):

@@ -52,8 +52,9 @@ from gatetwin.plant import physical_kernel
 from gatetwin.plant.effects import BLOCK_FIELDS, KINDS, parameter_specs
 from gatetwin.plant.model import (
     FLOW_RANGE_M3H,
+    LOWER_BOUNDS,
     OPENING_RANGE_MM,
-    POSITIVE,
+    STORAGE_RULE,
     ArxPlant,
     FopdtPlant,
     PhysicalPlant,
@@ -550,11 +551,14 @@ def _kernel_config_lines(desc: FmuDescription) -> list[str]:
     if desc.kernel_first is None:
         return lines
     first = desc.kernel_first
-    positive = [first + physical_kernel.INDEX[n] for n in POSITIVE]
+    bounded = [first + physical_kernel.INDEX[n] for n in LOWER_BOUNDS]
+    bounds = LOWER_BOUNDS.values()
     return lines + [
         "/* the physical kernel's parameters from VR_KERNEL_FIRST on, in kernel order */",
         f"#define VR_KERNEL_FIRST {first}",
-        "#define GT_KERNEL_POSITIVE " + ", ".join(str(vr) for vr in positive),
+        "#define GT_KERNEL_BOUNDED " + ", ".join(str(vr) for vr in bounded),
+        "#define GT_KERNEL_LOWER_BOUNDS " + ", ".join(repr(float(b)) for b in bounds),
+        f'#define GT_KERNEL_STORAGE_RULE "{STORAGE_RULE}"',
         f"#define GT_PHYSICAL_MAX_SUBSTEPS {MAX_SUBSTEPS}",
         f"#define GT_PHYSICAL_MAX_SUBSTEP_INDEX {physical_kernel.INDEX['max_substep_s']}",
     ]
@@ -606,7 +610,8 @@ def slave_config(desc: FmuDescription) -> dict[str, Any]:
         "communication_point_rtol": COMMUNICATION_POINT_RTOL,
         "effects": desc.effects,
         "kernel_first": desc.kernel_first,
-        "physical_positive": list(POSITIVE),
+        "physical_lower_bounds": LOWER_BOUNDS,
+        "physical_storage_rule": STORAGE_RULE,
         "physical_max_substeps": MAX_SUBSTEPS,
         "effect_limits": [list(row) for row in _effect_limits(desc)],
         "variables": [

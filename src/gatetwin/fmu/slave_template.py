@@ -403,12 +403,13 @@ class GatetwinPlant(GuardedSlave):
 
     def _physical_check_parameters(self) -> None:
         first = CONFIG["kernel_first"]
-        for name in CONFIG["physical_positive"]:
+        for name, bound in CONFIG["physical_lower_bounds"].items():
             vr = first + physical_kernel.INDEX[name]
-            if not self.real[vr] > 0.0:
-                raise PlantError(
-                    f"parameter {self.variables[vr]['name']} = {_g(self.real[vr])} must be > 0"
-                )
+            if not self.real[vr] > bound:
+                raise PlantError(f"parameter {self.variables[vr]['name']} = {_g(self.real[vr])} "
+                                 f"must be > {_g(bound)}")  # fmt: skip
+        if not physical_kernel_portable.storage_room_m2(self._physical()) > 0.0:
+            raise PlantError(f"the storage area {CONFIG['physical_storage_rule']}")
 
     def _envelope(self) -> bool:
         return CONFIG["family"] in ("fopdt", "arx") and CONFIG["kernel_first"] is not None

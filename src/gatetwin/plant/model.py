@@ -221,20 +221,29 @@ class ArxPlant:
 #: alone (the others assume the local, linear-in-opening form).
 ENVELOPE_EFFECTS = ("seiche",)
 
-#: Lower bounds of the parameters that must be positive (the rest only finite).
-POSITIVE = (
-    "width_m",
-    "speed_mm_s",
-    "stall_depth_m",
-    "resolution_mm",
-    "max_substep_s",
-    "flow_scale_m3h",
-    "depth_max_m",
-)
+#: Each parameter's physical domain where it has one: it must exceed this bound (the rest
+#: only be finite; the storage area has its own rule, ``physical_kernel.storage_room_m2``). A
+#: discharge coefficient is positive; a gate narrower than a millimetre is no sluice gate.
+LOWER_BOUNDS = {
+    "cd_small": 0.0,
+    "cd_large": 0.0,
+    "width_m": 1e-3,
+    "speed_mm_s": 0.0,
+    "stall_depth_m": 0.0,
+    "resolution_mm": 0.0,
+    "max_substep_s": 0.0,
+    "flow_scale_m3h": 0.0,
+    "depth_max_m": 0.0,
+}
 #: Kernel parameters added after the first model files were written, with the values those
 #: files' equations had built in (the discharge normalisation and the bisection bracket they
 #: were identified with; no tail pool: a free gate): a file without them reads as it always
 #: did.
+#: What :func:`~gatetwin.plant.physical_kernel.storage_room_m2` asks, for the messages.
+STORAGE_RULE = (
+    f"area_m2 + area_per_depth_m (h - {kernel.AREA_DEPTH_REF_M:g} m) must exceed "
+    f"{kernel.AREA_MIN_M2:g} m2 at some depth h up to depth_max_m"
+)
 FORMAT_DEFAULTS = {
     "flow_centre_m3h": 55.0,
     "flow_scale_m3h": 100.0,
@@ -262,10 +271,13 @@ def check_physical_parameters(values: dict[str, float] | list[float]) -> list[fl
             v = float(value)
         except (TypeError, ValueError):
             raise ModelFileError(f"physical: parameter {name} must be a number") from None
-        if not math.isfinite(v) or (name in POSITIVE and not v > 0):
-            rule = "finite and > 0" if name in POSITIVE else "finite"
+        bound = LOWER_BOUNDS.get(name, -math.inf)
+        if not (math.isfinite(v) and v > bound):
+            rule = f"finite and > {bound:g}" if name in LOWER_BOUNDS else "finite"
             raise ModelFileError(f"physical: parameter {name} = {value!r} must be {rule}")
         out.append(v)
+    if not physical_kernel_portable.storage_room_m2(out) > 0.0:
+        raise ModelFileError(f"physical: the storage area {STORAGE_RULE}")
     tail = dict(zip((n for n, _, _ in kernel.PARAMETERS), out, strict=True))
     if tail["tail_area_m2"] < 0.0:
         raise ModelFileError(f"physical: parameter tail_area_m2 = {tail['tail_area_m2']!r} "

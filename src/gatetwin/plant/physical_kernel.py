@@ -180,6 +180,15 @@ def storage_area_m2(depth_m: float, p: list[float]) -> float:
     return fmax(p[12] + p[13] * (depth_m - AREA_DEPTH_REF_M), AREA_MIN_M2)
 
 
+def storage_room_m2(p: list[float]) -> float:
+    """How far the linear storage area ``A0 + A1 (h − 0.2 m)`` rises above its floor at the
+    better end of the depths the model spans (``DEPTH_LOW_M`` .. ``depth_max_m``), m²: a model
+    whose pool has no storage anywhere (this is not positive) is no model of a pool."""
+    low = p[12] + p[13] * (DEPTH_LOW_M - AREA_DEPTH_REF_M)
+    high = p[12] + p[13] * (p[20] - AREA_DEPTH_REF_M)
+    return fmax(low, high) - AREA_MIN_M2
+
+
 def depth_rates(depth_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
                 p: list[float]) -> tuple[float, float]:  # fmt: skip
     """dh/dt and dh_t/dt, m/s."""
@@ -380,6 +389,7 @@ RENDERED = (
     ("bisection_step", ("low_m", "high_m", "opening_mm", "flow_m3h"), 2),
     ("tail_bisection_step", ("low_m", "high_m", "tail_m", "opening_mm", "flow_m3h"), 2),
     ("has_tail", (), 1),
+    ("storage_room_m2", (), 1),
     ("level_mm", ("depth_m", "opening_mm", "flow_m3h"), 1),
     ("actuator_target_mm", ("command_mm",), 1),
     ("substep_count", ("step_s",), 1),

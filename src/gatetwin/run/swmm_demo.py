@@ -292,14 +292,19 @@ def _criterion_text() -> str:
 
 def closed_loops(req: DemoRequest, core: SwmmCore, point_doc: dict[str, float], work: Path,
                  say: Callable[[str], None]) -> dict[str, Any]:  # fmt: skip
-    """MPC and PI on the SWMM model, designed on the output gauge's FOPDT twin."""
+    """MPC and PI on the SWMM model, designed on the output gauge's FOPDT twin with the
+    settings ``export-controller`` derives from its model file (the controller FMUs' own)."""
+    from dataclasses import replace
+
+    from gatetwin.fmu.controller_settings import controller_plant, derived_settings
     from gatetwin.modelfile import read_model_file
     from gatetwin.mpc.demo import compare_controllers, plot_runs
     from gatetwin.plants.swmm_experiments import gate_step_mm
     from gatetwin.records import read_record
 
     gauge = req.spec.gauge_names[req.spec.output_node]
-    plant = read_model_file(work / "models" / f"fopdt_{gauge}.json").plant
+    model = read_model_file(work / "models" / f"fopdt_{gauge}.json")
+    plant = controller_plant(model)
     opening, flow = point_doc["opening_mm"], point_doc["flow_m3h"]
     point = TwinPoint.of(plant, flow, opening, gate_step_mm(opening))
     series = [read_record(p) for p in sorted((work / "records").glob("*.csv"))
@@ -308,6 +313,8 @@ def closed_loops(req: DemoRequest, core: SwmmCore, point_doc: dict[str, float], 
     s = loop_settings(point, sample_period_s=req.spec.sample_period_s, noise_sd_mm=req.noise_mm,
                       gate_speed_mm_s=req.spec.gate_speed_mm_s,
                       opening_range_mm=(0.0, core.height_mm), level_band_mm=band)  # fmt: skip
+    derived = derived_settings(model, plant, s.mpc.opening_range_mm)
+    s = replace(s, mpc=derived.mpc, pi=derived.pi)
     factory = core_factory(req.spec)
     up = inflow_up_factor(plant, point, s.mpc.opening_range_mm)
     out: dict[str, Any] = {"gauge": gauge, "twin": point.__dict__, "settings": settings_summary(s),
