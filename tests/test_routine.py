@@ -298,3 +298,34 @@ def test_cli_routine_max_memory_writes_the_same_json(short_district, tmp_path) -
     assert main(["routine", str(pq), "--json", str(tmp_path / "c.json"),
                  "--max-memory", "250"]) == 2  # fmt: skip
     assert not (tmp_path / "c.json").exists()
+
+
+def test_a_long_hold_is_not_segmented_again_at_every_chunk(tmp_path, monkeypatch) -> None:
+    """Chunks that only lengthen the hold the rows before end in are held, not scanned: a
+    record of the held rows is built where the gate moves, not at every chunk of a long
+    hold (which made a history held still for days quadratic in its length), and the result
+    is still the whole history's."""
+    from gatetwin.identify import routine_chunks
+
+    gate = district_gates(1, seed=5)[0]
+    settings = RoutineSettings(days=0.5, hold_s=(7200.0, 10800.0), gaps=0)
+    write_routine_gate(gate, tmp_path, settings)
+    pq = _parquet_history(tmp_path / "routine.csv", tmp_path)
+    record = read_record(pq, test="routine")
+    whole = identify_routine(record)
+    built: list[int] = []
+    real = routine_chunks._record
+
+    def counted(history, rows, period_s):
+        built.append(rows.n_rows)
+        return real(history, rows, period_s)
+
+    monkeypatch.setattr(routine_chunks, "_record", counted)
+    rows = 500
+    chunked = routine_chunks.identify_routine_chunked(pq, chunk_rows=rows)
+    assert chunked.to_dict() == whole.to_dict()
+    n_chunks = -(-record.n_samples // rows)
+    # each move's rows (shorter than a chunk) fall in at most two chunks, and the last
+    # rows are scanned once more at the end
+    assert len(built) <= 2 * len(record.holds) + 1
+    assert len(record.holds) < 10 < n_chunks

@@ -96,20 +96,37 @@ class _Scan:
     controller: bool = False
 
 
-def _concat(path: str, held: Chunk | None, new: Chunk) -> Chunk:
-    if held is None:
-        return new
-    if set(held.levels_mm) != set(new.levels_mm):
+def _check_gauges(path: str, held: list[Chunk], new: Chunk) -> None:
+    if held and set(held[0].levels_mm) != set(new.levels_mm):
+        expected = ", ".join(sorted(held[0].levels_mm))
         raise RecordError(f"{path}: row {new.first_row + 1} of the history: gauges "
-                          f"{', '.join(sorted(new.levels_mm))}; expected "
-                          f"{', '.join(sorted(held.levels_mm))} like the rows before")  # fmt: skip
+                          f"{', '.join(sorted(new.levels_mm))}; expected {expected} like the "
+                          "rows before")  # fmt: skip
+
+
+def _lengthens_last_hold(last: Chunk, new: Chunk, period_s: float) -> bool:
+    """Whether the rows of ``new`` only lengthen the hold segment the rows before end in:
+    held throughout, logged at exactly that segment's last opening (or not logged), with no
+    gap. The segmentation then has the same segments but a longer last one, and a scan
+    would decide nothing more (an event waits for two segments after its last move)."""
+    opening = last.opening_mm[-1]
+    if not (last.hold[-1] and np.isfinite(opening) and bool(np.all(new.hold))):
+        return False
+    same = np.isnan(new.opening_mm) | (new.opening_mm == opening)
+    times = np.concatenate(([last.time_s[-1]], new.time_s))
+    return bool(np.all(same)) and not bool(np.any(is_gap(times, period_s)))
+
+
+def _concat(chunks: list[Chunk]) -> Chunk:
+    if len(chunks) == 1:
+        return chunks[0]
     return Chunk(
-        held.first_row,
-        np.concatenate((held.time_s, new.time_s)),
-        np.concatenate((held.opening_mm, new.opening_mm)),
-        np.concatenate((held.hold, new.hold)),
-        np.concatenate((held.flow_m3h, new.flow_m3h)),
-        {g: np.concatenate((v, new.levels_mm[g])) for g, v in held.levels_mm.items()},
+        chunks[0].first_row,
+        np.concatenate([c.time_s for c in chunks]),
+        np.concatenate([c.opening_mm for c in chunks]),
+        np.concatenate([c.hold for c in chunks]),
+        np.concatenate([c.flow_m3h for c in chunks]),
+        {g: np.concatenate([c.levels_mm[g] for c in chunks]) for g in chunks[0].levels_mm},
     )  # fmt: skip
 
 
@@ -241,17 +258,25 @@ def scan_routine_history(
     history = open_history(path)
     period_s = history_sample_period(history, chunk_rows)
     scan = _Scan(gauge, criteria or WindowCriteria())
-    held: Chunk | None = None
+    pending: list[Chunk] = []  # the rows held: the undecided rows, then the chunks since
     record: Record | None = None
     n_rows = 0
     for chunk in iter_chunks(history, chunk_rows):
         n_rows += chunk.n_rows
-        held = _concat(history.path, held, chunk)
+        _check_gauges(history.path, pending, chunk)
+        if pending and _lengthens_last_hold(pending[-1], chunk, period_s):
+            # the last hold only grows: nothing can be decided that was not already (a gate
+            # held for days would otherwise copy and segment its whole hold at every chunk)
+            pending.append(chunk)
+            continue
+        held = _concat([*pending, chunk])
+        pending = [held]
         if held.n_rows < 2:
             continue
         record = _record(history, held, period_s)
         scan.controller = has_level_controller(record)
-        held = _tail(held, _scan(scan, record, held.first_row, final=False))
+        pending = [_tail(held, _scan(scan, record, held.first_row, final=False))]
+    held = _concat(pending) if pending else None
     if held is not None and held.n_rows >= 2:
         record = _record(history, held, period_s)
         _scan(scan, record, held.first_row, final=True)

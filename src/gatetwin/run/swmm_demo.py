@@ -305,6 +305,8 @@ def closed_loops(req: DemoRequest, core: SwmmCore, point_doc: dict[str, float], 
     gauge = req.spec.gauge_names[req.spec.output_node]
     model = read_model_file(work / "models" / f"fopdt_{gauge}.json")
     plant = controller_plant(model)
+    # the MPC controller FMU is exported without the model's effect blocks, the PI with them
+    designs = {"mpc": replace(plant, effects=()), "pi": plant}
     opening, flow = point_doc["opening_mm"], point_doc["flow_m3h"]
     point = TwinPoint.of(plant, flow, opening, gate_step_mm(opening))
     series = [read_record(p) for p in sorted((work / "records").glob("*.csv"))
@@ -320,8 +322,9 @@ def closed_loops(req: DemoRequest, core: SwmmCore, point_doc: dict[str, float], 
     out: dict[str, Any] = {"gauge": gauge, "twin": point.__dict__, "settings": settings_summary(s),
                            "inflow_up_factor": up, "scenarios": {}}  # fmt: skip
     for scenario in canal_scenarios(point, s.setpoint_step_mm, up):
-        runs = compare_controllers(plant, scenario, plant_kind="swmm", settings=s,
-                                   core_factory=factory)  # fmt: skip
+        runs = {name: compare_controllers(design, scenario, plant_kind="swmm", settings=s,
+                                          controllers=(name,), core_factory=factory)[name]
+                for name, design in designs.items()}  # fmt: skip
         out["scenarios"][scenario.name] = {n: canal_indicators(r, point, s.loop)
                                            for n, r in runs.items()}  # fmt: skip
         plot_runs(runs, work / "loops" / f"{scenario.name}.png")
