@@ -259,7 +259,9 @@ def level_mm(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float])
 def time_constant_s(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     """Time constant of the level's answer to the gate at a steady point, s.
 
-    The envelope FOPDT relaxes towards the steady level with this time constant. A free gate:
+    The small-signal T of :func:`~gatetwin.plant.model.local_fopdt` (the MPC's and the
+    controllers' linearisation); the envelope FOPDT of a free gate relaxes with it (one with
+    a tail pool carries the pool as a state, :func:`tail_pool_piece`). A free gate:
     the storage equation linearised at (h, e, Q), A / (∂Q_g/∂h). Behind a tail pool the level
     answers with two modes; this is the first moment of that answer to a gate step (the
     single time constant whose first-order answer encloses the same area),
