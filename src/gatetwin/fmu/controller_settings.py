@@ -4,8 +4,10 @@ A controller FMU is built for the gate its model describes, so its operating poi
 sample period, horizon and weights come from that model (rules below); an explicit
 :class:`~gatetwin.mpc.demo.DemoSettings` still overrides them all.
 
-* **Plant**: an FOPDT model as it is; a physical model (which neither SIMC nor the MPC takes)
-  linearised along its discharge range at the reference opening
+* **Plant**: an FOPDT model as it is, an envelope FOPDT's schedule carried to the validity's
+  discharge range by its gate law (:func:`_extended`: a clamped schedule holds the last
+  step condition's level where the records went further); a physical model (which neither
+  SIMC nor the MPC takes) linearised along its discharge range at the reference opening
   (:func:`~gatetwin.plant.model.local_fopdt` at :data:`LINEARISATION_KNOTS` discharges: K,
   T and the steady level; no dead time: the pool answers at once, the actuator's travel is
   the rate limit) at the opening that holds the middle of the validity's level range at its
@@ -124,6 +126,8 @@ def _extended(plant: FopdtPlant, model: ModelFile) -> FopdtPlant:
     for q, i in ends:
         near = local_fopdt(plant, knots[i], plant.opening_ref_mm)
         far = local_fopdt(plant, float(q), plant.opening_ref_mm)
+        if not (abs(near["gain_mm_per_mm"]) > 0.0 and near["time_constant_s"] > 0.0):
+            continue  # the envelope gives no ratio to scale the condition's K and T by
         row = {
             "gain_mm_per_mm": values["gain_mm_per_mm"][i]
             * far["gain_mm_per_mm"]
