@@ -7,7 +7,8 @@ flow, on the nominal sample grid so the ARX FMU can follow); the C FMU, the pyth
 FMU must give the FMI 2.0 C FMU's outputs exactly: both compile the same component with the
 same flags, only the glue differs. The physical model and the envelope FOPDT are run as well
 with a pool below the gate (a submerged gate: the kernel's second state and its time
-constant's two-pool moment).
+constant's two-pool moment), and with a floor at the gauge (a far gauge's level levelling off
+at its channel's flow depth).
 """
 
 from __future__ import annotations
@@ -31,19 +32,26 @@ from fmu_support import compiler, extract_all, fmu_run, open_fmu, reference_run 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 RECORDS = sorted(p for p in bundled_records_dir().glob("*.csv") if p.stem != "static")
 TOLERANCE_MM = 1e-9
-NAMES = ("fopdt_3F", "arx_3F", "physical_3F", "fopdt_3F_submerged", "physical_3F_submerged")
-#: A pool below the flume's gate (m², m; an orifice outlet) for the submerged variants.
-TAIL = {"tail_area_m2": 1.5, "tail_depth_m": 0.12, "tail_datum_m": 0.03, "tail_exponent": 0.5}
+NAMES = ("fopdt_3F", "arx_3F", "physical_3F", "fopdt_3F_submerged", "physical_3F_submerged",
+         "fopdt_3F_floored", "physical_3F_floored")  # fmt: skip
+#: What the variants add to the bundled model: a pool below the flume's gate (m², m; an
+#: orifice outlet), and a floor at the gauge (mm: a flow depth of 150 mm at the discharge
+#: centre, rising as Q^0.6, met over 10 mm) that the bundled records' levels cross.
+VARIANTS = {
+    "_submerged": {"tail_area_m2": 1.5, "tail_depth_m": 0.12, "tail_datum_m": 0.03,
+                   "tail_exponent": 0.5},
+    "_floored": {"floor_mm": 150.0, "floor_per_q_mm": 164.0, "floor_smooth_mm": 10.0},
+}  # fmt: skip
 
 
 def _plant(name: str):
-    base, submerged = name.removesuffix("_submerged"), name.endswith("_submerged")
-    plant = read_model_file(MODELS / f"{base}.json").plant
-    if not submerged:
+    suffix = next((s for s in VARIANTS if name.endswith(s)), "")
+    plant = read_model_file(MODELS / f"{name.removesuffix(suffix)}.json").plant
+    if not suffix:
         return plant
     if plant.kind == "physical":
-        return dataclasses.replace(plant, parameters={**plant.parameters, **TAIL})
-    return dataclasses.replace(plant, envelope={**plant.envelope, **TAIL})
+        return dataclasses.replace(plant, parameters={**plant.parameters, **VARIANTS[suffix]})
+    return dataclasses.replace(plant, envelope={**plant.envelope, **VARIANTS[suffix]})
 
 
 @pytest.fixture(scope="module")

@@ -46,12 +46,18 @@ ROUNDOFF = 1e-12
 TAIL = {"tail_area_m2": 1.5, "tail_depth_m": 0.12, "tail_datum_m": 0.03, "tail_exponent": 0.5}
 
 
-@pytest.fixture(scope="module", params=["free gate", "tail pool"])
+#: A floor at the gauge: a normal depth of 150 mm at the flume's discharge centre, rising as
+#: Q^0.6 (0.6 x 150 mm / 55 m³/h per m³/h, 164 mm per 100 m³/h), met over 10 mm.
+FLOOR = {"floor_mm": 150.0, "floor_per_q_mm": 164.0, "floor_smooth_mm": 10.0}
+
+
+@pytest.fixture(scope="module", params=["free gate", "tail pool", "floor"])
 def plant(request) -> PhysicalPlant:
     free = read_model_file(MODEL).plant
     if request.param == "free gate":
         return free
-    return dataclasses.replace(free, parameters={**free.parameters, **TAIL})
+    extra = TAIL if request.param == "tail pool" else FLOOR
+    return dataclasses.replace(free, parameters={**free.parameters, **extra})
 
 
 def _random_points(n: int, seed: int = 3) -> np.ndarray:
@@ -289,6 +295,31 @@ def test_identification_recovers_a_known_plant(tmp_path):
     # a record never fitted, with Q steps and moves together, is simulated at the noise floor
     held = read_record(_synthetic_record(tmp_path / "H.csv", truth, 50.0, [20.0, 30.0, 25.0],
                                          400.0, 99))  # fmt: skip
+    e_h = reconstructed_opening(held.time_s, held.opening_mm, held.hold)
+    err = simulate(got, held.time_s, e_h, held.flow_m3h) - held.levels_mm["3F"]
+    assert float(np.sqrt(np.mean(err**2))) < 2.0 * NOISE_MM
+    # a gauge that follows the gate's pool everywhere gets no floor
+    assert got.parameters["floor_smooth_mm"] == 0.0, fit.fixed_sources["floor"]
+
+
+def test_identification_finds_the_floor_of_a_far_gauge(tmp_path):
+    """A gauge far up the pool whose level stops following the gate at low levels (the
+    channel's own depth, :data:`FLOOR`): the identification keeps a floor, and a record never
+    fitted, at a discharge between the fitted ones, with moves as large as theirs into the
+    floor's passage and back (25 -> 45 -> 25 mm at 50 m³/h: the level falls from 266 mm to
+    155 mm, where the pool alone would read 147 mm and the floor is 143 mm), is simulated at
+    the noise floor. (A far gauge at its floor does not see the gate's pool: a move larger
+    than the fitted ones extrapolates the gate law where no level measured it.)"""
+    plans = [(35.0, [15, 20, 45, 20, 15], 420.0), (60.0, [30, 40, 60, 40, 30], 400.0),
+             (80.0, [40, 50, 60, 50], 400.0)]  # fmt: skip
+    truth, _, fit = _identified(tmp_path, {**TRUTH, **FLOOR}, plans, 11)
+    got = fit.plant
+    assert got.parameters["floor_smooth_mm"] > 0.0, fit.fixed_sources["floor"]
+    # where the floor lies: within its own passage width s, its drift with Q within 10 %
+    assert abs(got.parameters["floor_mm"] - FLOOR["floor_mm"]) < FLOOR["floor_smooth_mm"]
+    assert abs(got.parameters["floor_per_q_mm"] / FLOOR["floor_per_q_mm"] - 1.0) < 0.1
+    held = read_record(_synthetic_record(tmp_path / "H.csv", truth, 50.0, [25.0, 45.0, 25.0],
+                                         400.0, 97))  # fmt: skip
     e_h = reconstructed_opening(held.time_s, held.opening_mm, held.hold)
     err = simulate(got, held.time_s, e_h, held.flow_m3h) - held.levels_mm["3F"]
     assert float(np.sqrt(np.mean(err**2))) < 2.0 * NOISE_MM

@@ -112,20 +112,25 @@ TAIL_EXPONENT_RANGE = (0.25, 10.0 / 3.0)
 #: The gate law's parameters that every gate has: a discharge coefficient that may differ
 #: between small and large openings, and the gauge's offset.
 LAW_CORE = ["cd_small", "cd_large", "offset_mm"]
+#: Evaluations per parameter allowed to a gate-law fit (five times least_squares' default: a
+#: law's evaluation is one steady solve per point, milliseconds, and the transition's
+#: parameters are weakly determined when the data see one side of it).
+LAW_EVALUATIONS = 500
 #: The gate law in nested steps, each kept only when the data ask for it (an F-test against
 #: the step below at ``SEICHE_SIGNIFICANCE``) and its discharge coefficient stays physical
 #: (in (0, 1] at every opening, :func:`_physical_law`): the core; the
 #: coefficients' and the offset's drift with discharge (a submerged or far gauge, a pool whose
 #: friction loss grows with Q); the whole transition (its place, width and shape).
-#: Evaluations per parameter allowed to a gate-law fit (five times least_squares' default: a
-#: law's evaluation is one steady solve per point, milliseconds, and the transition's
-#: parameters are weakly determined when the data see one side of it).
-LAW_EVALUATIONS = 500
 LAWS = (
     LAW_CORE,
     [*LAW_CORE, "cd_small_per_q", "cd_large_per_q", "offset_per_flow2_mm"],
     LAW,
 )
+#: The floor of a far gauge (its level, the level's drift with discharge, the smoothness of
+#: the passage), tried last with the law, storage and tail pool kept (:func:`_fit_floor`):
+#: the gate's pool drawn down at a low inflow stops reaching the gauge, whose water runs at
+#: its channel's own depth for the inflow.
+FLOOR = ["floor_mm", "floor_per_q_mm", "floor_smooth_mm"]
 #: Law parameters that start at zero (no drift with discharge, no offset, no shape).
 ZERO_START = ("cd_small_per_q", "cd_large_per_q", "cd_mid_per_q", "cd_log_width_per_q",
               "cd_log_shape", "offset_mm", "offset_per_flow2_mm", "area_per_depth_m")  # fmt: skip
@@ -291,18 +296,24 @@ def _dynamic_residuals(drives: Sequence[_Drive], p: np.ndarray,
 
 
 def _fit(names: list[str], values: dict[str, float], residual: Callable[[np.ndarray], np.ndarray],
-         max_nfev: int | None = None) -> tuple[dict[str, float], Any]:  # fmt: skip
+         max_nfev: int | None = None, bounds: dict[str, tuple[float, float]] | None = None
+         ) -> tuple[dict[str, float], Any]:  # fmt: skip
     """Least squares over ``names`` (the rest of ``values`` held); ``max_nfev`` as in
-    :func:`scipy.optimize.least_squares` (its default when None)."""
+    :func:`scipy.optimize.least_squares` (its default when None); ``bounds`` by name (none
+    where not given)."""
     index = [kernel.INDEX[n] for n in names]
     base = _vector(values)
+    box = [(bounds or {}).get(n, (-np.inf, np.inf)) for n in names]
+    lower, upper = np.array([b[0] for b in box]), np.array([b[1] for b in box])
 
     def fun(x: np.ndarray) -> np.ndarray:
         p = base.copy()
         p[index] = x
         return residual(p)
 
-    result = least_squares(fun, base[index], x_scale="jac", diff_step=1e-6, max_nfev=max_nfev)
+    x0 = np.clip(base[index], lower, upper)
+    result = least_squares(fun, x0, x_scale="jac", diff_step=1e-6, max_nfev=max_nfev,
+                           bounds=(lower, upper))  # fmt: skip
     if not result.success or not np.all(np.isfinite(result.fun)):
         raise IdentificationError(f"physical fit did not converge ({result.message})")
     return {**values, **dict(zip(names, (float(v) for v in result.x), strict=True))}, result
@@ -412,7 +423,9 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
                                    "did not converge jointly with the storage")  # fmt: skip
             values = {**staged, **{n: laws[-1][1][n] for n in LAW}}
     law, values, result = _fit_tail(law, values, result, joint, points, laws[0][1], sources)
-    fitted = law + STORAGE + (TAIL if values["tail_area_m2"] > 0.0 else [])
+    tail = TAIL if values["tail_area_m2"] > 0.0 else []
+    law, values, result = _fit_floor(law, tail, values, result, joint, points, sources)
+    fitted = law + STORAGE + tail
     p = _vector(values)
     seiche, seiche_report = _fit_seiche(drives, p, rms_dyn,
                                         seiche_periods_s(records, p, points))  # fmt: skip
@@ -489,6 +502,66 @@ def _fit_tail(law: list[str], values: dict[str, float], free: Any,
     return list(LAW_CORE), trial, fit
 
 
+def _fit_floor(law: list[str], tail: list[str], values: dict[str, float], without: Any,
+               joint: Callable[[np.ndarray], np.ndarray], points: SteadyPoints,
+               sources: dict[str, str]) -> tuple[list[str], dict[str, float], Any]:  # fmt: skip
+    """A floor at the gauge (:data:`FLOOR`), fitted with the kept ``law``, the storage and the
+    ``tail`` pool's parameters on the joint weighted residuals (``without``: that fit without
+    the floor), from :func:`_floor_start`. Kept when the law stays physical and F-tests of
+    its three parameters on those residuals and on the steady points' alone both reject the
+    gauge without a floor at ``SEICHE_SIGNIFICANCE``; then the law grows on along ``LAWS``
+    with the floor, by the F-test of :func:`_fit_law` on the joint residuals (a free gate's
+    only). Returns the law, values and least-squares result kept."""
+    names = [*law, *FLOOR]
+    n = without.fun.size
+    if n <= len(names) + len(STORAGE) + len(tail):
+        return law, values, without
+    start_values, box = _floor_start(points, values)
+    try:
+        trial, fit = _fit(names + STORAGE + tail, start_values, joint, None, box)
+    except (IdentificationError, ValueError):  # ValueError: least_squares met a non-finite start
+        sources["floor"] = "none: a floor did not converge"
+        return law, values, without
+    rss0, rss1 = 2.0 * float(without.cost), 2.0 * float(fit.cost)
+    dof = n - len(names) - len(STORAGE) - len(tail)
+    p_joint = _f_test_p(rss0, rss1, len(FLOOR), dof) if rss1 > 0.0 else 1.0
+    # a floor is a steady effect: the steady points alone must ask for it too (else the
+    # dynamic records use its parameters as free knobs for a misfit of another kind)
+    steady0, steady1 = (float(np.sum(_steady_residuals(points, _vector(v)) ** 2))
+                        for v in (values, trial))  # fmt: skip
+    dof_steady = points.flow_m3h.size - len(names)
+    p_steady = _f_test_p(steady0, steady1, len(FLOOR), dof_steady) \
+        if steady1 > 0.0 and dof_steady > 0 else 1.0  # fmt: skip
+    tests = f"F-test p = {p_joint:.2g} on all residuals, {p_steady:.2g} on the steady points"
+    if not (_physical_law(points, trial) and max(p_joint, p_steady) < SEICHE_SIGNIFICANCE):
+        sources["floor"] = f"none: the gauge follows the gate's pool ({tests})"
+        return law, values, without
+    sources["floor"] = (f"{trial['floor_mm']:.4g} mm at Q_c, "
+                        f"{trial['floor_per_q_mm']:+.3g} mm per Q_s, met over "
+                        f"{trial['floor_smooth_mm']:.3g} mm ({tests})")  # fmt: skip
+    # the law was grown without the floor, whose points it bent to fit: grow it on with it
+    for larger in (w for w in LAWS if len(w) > len(law) and not tail):
+        grown = [*larger, *FLOOR]
+        try:
+            trial2, fit2 = _fit(grown + STORAGE, trial, joint, None, box)
+        except (IdentificationError, ValueError):
+            break
+        rss2 = 2.0 * float(fit2.cost)
+        dof = n - len(grown) - len(STORAGE)
+        if not (
+            rss2 > 0.0
+            and _physical_law(points, trial2)
+            and dof > 0
+            and _f_test_p(2.0 * float(fit.cost), rss2, len(grown) - len(names), dof)
+            < SEICHE_SIGNIFICANCE
+        ):
+            break
+        names, trial, fit = grown, trial2, fit2
+        sources["gate_law"] = (f"{len(larger)} of {len(LAW)} law parameters with the floor: an "
+                               "F-test rejects the smaller law")  # fmt: skip
+    return names, trial, fit
+
+
 def _physical_tail(values: dict[str, float]) -> bool:
     """Whether a fitted tail pool is physical: it stores water, its steady depth lies above
     its datum, and its outlet's exponent lies in :data:`TAIL_EXPONENT_RANGE`."""
@@ -547,6 +620,26 @@ def _fit_law(points: SteadyPoints, fixed: dict[str, float], sources: dict[str, s
     return kept
 
 
+def _floor_start(points: SteadyPoints, values: dict[str, float]
+                 ) -> tuple[dict[str, float], dict[str, tuple[float, float]]]:  # fmt: skip
+    """A floor's start and bounds from the steady points. Start: through the lowest level the
+    gauge read at each discharge (a straight line in the discharge when there are two or
+    more), as smooth as the law without the floor misses the points by (their residuals'
+    RMS). Bounds: the floor within the points' level range R below their lowest level and up
+    to their highest, passing over at most R / 4 (a wider passage is no floor but a curvature
+    the law lacks)."""
+    flows = np.unique(points.flow_m3h)
+    lowest = np.array([points.level_mm[points.flow_m3h == q].min() for q in flows])
+    qq = (flows - values["flow_centre_m3h"]) / values["flow_scale_m3h"]
+    slope, level = np.polyfit(qq, lowest, 1) if flows.size > 1 else (0.0, float(lowest[0]))
+    lo, hi = float(points.level_mm.min()), float(points.level_mm.max())
+    span = max(hi - lo, 1e-3)
+    misses = _rms(_steady_residuals(points, _vector(values)))
+    start = {**values, "floor_mm": float(level), "floor_per_q_mm": float(slope),
+             "floor_smooth_mm": min(max(misses, 1e-3), 0.25 * span)}  # fmt: skip
+    return start, {"floor_mm": (lo - span, hi), "floor_smooth_mm": (1e-6 * span, 0.25 * span)}
+
+
 def _physical_law(points: SteadyPoints, values: dict[str, float]) -> bool:
     """Whether the discharge coefficient is physical at every opening ratio: in (0, 1] (the
     jet is no wider than the opening nor faster than the head allows) over the steady points'
@@ -581,7 +674,7 @@ def fixed_parameters(static: Any, records: dict[str, Record], gauge: str, points
         "flow_centre_m3h": centre, "flow_scale_m3h": scale,
         "depth_max_m": start.depth_bracket_m(points.level_mm, records, gauge),
         "area_m2": 1.0, "speed_mm_s": 1.0, "stall_depth_m": values_depth(points),
-        **{n: FORMAT_DEFAULTS[n] for n in TAIL},
+        **{n: FORMAT_DEFAULTS[n] for n in TAIL + FLOOR},
     }  # fmt: skip
     sources = {
         "width_m": width_from, "resolution_mm": resolution_from, "flow_centre_m3h": flow_from,

@@ -235,15 +235,15 @@ LOWER_BOUNDS = {
     "flow_scale_m3h": 0.0,
     "depth_max_m": 0.0,
 }
-#: Kernel parameters added after the first model files were written, with the values those
-#: files' equations had built in (the discharge normalisation and the bisection bracket they
-#: were identified with; no tail pool: a free gate): a file without them reads as it always
-#: did.
 #: What :func:`~gatetwin.plant.physical_kernel.storage_room_m2` asks, for the messages.
 STORAGE_RULE = (
     f"area_m2 + area_per_depth_m (h - {kernel.AREA_DEPTH_REF_M:g} m) must exceed "
     f"{kernel.AREA_MIN_M2:g} m2 at some depth h up to depth_max_m"
 )
+#: Kernel parameters added after the first model files were written, with the values those
+#: files' equations had built in (the discharge normalisation and the bisection bracket they
+#: were identified with; no tail pool: a free gate; no floor at the gauge): a file without
+#: them reads as it always did.
 FORMAT_DEFAULTS = {
     "flow_centre_m3h": 55.0,
     "flow_scale_m3h": 100.0,
@@ -252,6 +252,9 @@ FORMAT_DEFAULTS = {
     "tail_depth_m": 1.0,
     "tail_datum_m": 0.0,
     "tail_exponent": 0.5,
+    "floor_mm": 0.0,
+    "floor_per_q_mm": 0.0,
+    "floor_smooth_mm": 0.0,
 }
 
 
@@ -282,6 +285,9 @@ def check_physical_parameters(values: dict[str, float] | list[float]) -> list[fl
     if tail["tail_area_m2"] < 0.0:
         raise ModelFileError(f"physical: parameter tail_area_m2 = {tail['tail_area_m2']!r} "
                              "must be >= 0 (0: no pool below the gate)")  # fmt: skip
+    if tail["floor_smooth_mm"] < 0.0:
+        raise ModelFileError(f"physical: parameter floor_smooth_mm = {tail['floor_smooth_mm']!r} "
+                             "must be >= 0 (0: no floor)")  # fmt: skip
     if tail["tail_area_m2"] > 0.0 and not (tail["tail_depth_m"] > tail["tail_datum_m"]
                                            and tail["tail_exponent"] > 0.0):  # fmt: skip
         raise ModelFileError(

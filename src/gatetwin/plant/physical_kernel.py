@@ -9,6 +9,7 @@ the gate law, behind an actuator that moves at a speed falling with the water lo
                                                                    linear in (Q − Q_c)/Q_s)
     A(h) = max(A₀ + A₁ (h − 0.2 m), 0.05 m²)
     level at the gauge = 1000 h − o₀ − o₂ (3600 Q_g / Q_s)²      (mm; Q_g in units of Q_s)
+    with a floor:  ½ (L + F + √((L − F)² + 4 s²)),  F = F_c + F₁ (Q_in − Q_c)/Q_s
 
 The tailwater ``t`` is 0 (free underflow) unless the model has a pool below the gate
 (``tail_area_m2 > 0``): then the gate discharges into it, ``t = max(h_t, e/2)`` (the orifice's
@@ -32,7 +33,10 @@ The discharge coefficient falls from its small-opening value c₀ towards c∞ a
 grows relative to the depth, with a logistic in ln r; the critical-flow cap is the gate lifted
 clear of the water. The offset carries the gauge's datum and bed slope (o₀) and the friction
 and velocity-head difference between gauge and gate, which grows with the square of the
-discharge passing the gate (o₂).
+discharge passing the gate (o₂). A gauge far up the pool has a floor too (``floor_smooth_mm >
+0``): when the gate draws the pool down at a low inflow, the water there stops following the
+gate and runs at about its channel's own depth for the inflow, F (linear in the discharge over
+the data's range), and the level passes from the pool's to the floor over a few ``s``.
 
 The actuator moves the gate towards the command (rounded to its resolution) at
 ``v₀ · max(0.05, 1 − (h/h_stall)²)`` mm/s. One sub-step of ``dt`` seconds moves the gate
@@ -81,6 +85,14 @@ PARAMETERS = (
     ("tail_depth_m", "m", "Steady depth of the pool below the gate at Q = flow_centre_m3h, h_c"),
     ("tail_datum_m", "m", "Depth of the pool below the gate at which its outflow stops, z"),
     ("tail_exponent", "1", "Exponent of the outflow of the pool below the gate in its depth"),
+    (
+        "floor_mm",
+        "mm",
+        "Level the gauge stays above at Q = flow_centre_m3h (the channel's own "
+        "depth for the discharge, where the gate's pool no longer reaches), F",
+    ),
+    ("floor_per_q_mm", "mm", "change of F per flow_scale_m3h"),
+    ("floor_smooth_mm", "mm", "Level above F where the pool meets the floor, s; 0: no floor"),
 )
 N_PARAMETERS = len(PARAMETERS)
 #: Index of each parameter in ``p``.
@@ -248,12 +260,23 @@ def tail_bisection_step(
     return select(below, middle, low_m), select(below, high_m, middle)
 
 
+def has_floor(p: list[float]) -> bool:
+    """Whether the gauge has a floor of its own (a far gauge that the pool leaves at low
+    levels: its channel's flow depth takes over)."""
+    return less(0.0, p[27])
+
+
 def level_mm(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     """Level at the gauge, mm, for a depth at the gate and the gate's position (the offset's
-    discharge is the gate's with the tail pool at its steady depth for ``flow_m3h``)."""
+    discharge is the gate's with the tail pool at its steady depth for ``flow_m3h``); with a
+    floor, the smooth maximum of that level and the floor."""
     tail = tail_steady_m(flow_m3h, p)
     passing = gate_flow_m3s(depth_m, tail, opening_mm, flow_m3h, p) * (3600.0 / p[19])
-    return 1000.0 * depth_m - p[10] - p[11] * passing * passing
+    pool = 1000.0 * depth_m - p[10] - p[11] * passing * passing
+    floor_level = p[25] + p[26] * (flow_m3h / p[19] - p[18] / p[19])
+    gap = pool - floor_level
+    smooth = 0.5 * (pool + floor_level + sqrt(gap * gap + 4.0 * p[27] * p[27]))
+    return select(has_floor(p), smooth, pool)
 
 
 def time_constant_s(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float]) -> float:
@@ -311,7 +334,9 @@ def secant_time_constant_s(
     with ``h̄`` the mid-depth (the mean storage area over the gap, A linear in depth), so that
     ``(target − level) / T`` is the storage equation's rate at ``h`` and the first-order
     answer keeps the tangent's two-pool factor. The depth is the steady depth less the
-    level's gap (exact when the offset does not grow with discharge, ``o₂ = 0``). Within one
+    level's gap (exact when the offset does not grow with discharge, ``o₂ = 0``, and the gauge
+    has no floor; at a floor the level's gap understates the pool's, and the secant so
+    reckoned followed SWMM's far gauges better than the pool's gap did). Within one
     central-difference step of the target, or where the gate law does not grow with the depth
     (a closed gate, the critical-flow cap), the tangent itself.
     """
