@@ -148,7 +148,7 @@ def test_demo_reports_envelope_against_single_point(envelope_plant, tmp_path):
                           out_plots_dir=tmp_path)  # fmt: skip
     json.dumps(result, allow_nan=False)
     wide = result["scenarios"]["wide_range"]
-    assert set(wide) == {"mpc", "mpc_envelope"}
+    assert set(wide) == {"mpc", "mpc_envelope", "pi"}
     assert wide["mpc"]["linearisation"] == "schedule"
     assert wide["mpc_envelope"]["linearisation"] == "envelope"
     row = result["envelope_vs_single_point"]["wide_range"]
@@ -162,7 +162,7 @@ def test_demo_reports_envelope_against_single_point(envelope_plant, tmp_path):
            "envelope_vs_single_point": result["envelope_vs_single_point"]}  # fmt: skip
     rows = _mpc_rows(doc)
     assert [r[:2] for r in rows if r[0] == "wide_range"] == [
-        ["wide_range", "MPC"], ["wide_range", "MPC (envelope)"]]  # fmt: skip
+        ["wide_range", "MPC"], ["wide_range", "MPC (envelope)"], ["wide_range", "PI"]]  # fmt: skip
     summary = _mpc_markdown(doc)
     assert f"| wide_range | {row['iae_mpc']:.0f} | {row['iae_mpc_envelope']:.0f} |" in summary
 

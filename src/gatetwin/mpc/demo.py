@@ -14,8 +14,9 @@ from the bundled records), a third scenario crosses the gate's range:
 
 It is run by the single-point MPC (``mpc``: the schedule's model, linearised once at
 ``opening_ref_mm``, as in the other scenarios) and by the MPC re-linearised on the envelope
-at every sample (``mpc_envelope``, :mod:`gatetwin.mpc.envelope`); the JSON gives both
-scores and ``envelope_vs_single_point`` their IAE side by side.
+at every sample (``mpc_envelope``, :mod:`gatetwin.mpc.envelope`), and by the PI tuned at
+the demo's operating point (``pi``); the JSON gives the three scores and
+``envelope_vs_single_point`` the two MPCs' IAE side by side.
 
 Each controller runs each scenario on a fresh plant with the same noise sequence; the
 result is the JSON of :func:`run_mpc_demo` and one PNG per scenario.
@@ -370,7 +371,7 @@ def run_mpc_demo(
         "scenarios": {name: {"mpc": metrics, "pi": metrics}}, "envelope_vs_single_point"}``,
         JSON-ready; the metrics are those of :func:`gatetwin.mpc.loop.loop_metrics`. With
         an envelope model, ``scenarios["wide_range"]`` holds ``{"mpc": metrics,
-        "mpc_envelope": metrics}`` and ``envelope_vs_single_point`` their IAE and
+        "mpc_envelope": metrics, "pi": metrics}`` and ``envelope_vs_single_point`` their IAE and
         violations (:func:`envelope_comparison`; empty without an envelope).
     """
     s = settings or DemoSettings()
@@ -391,7 +392,7 @@ def run_mpc_demo(
     }
     plan = [(scenario, ("mpc", "pi")) for scenario in scenarios]
     if has_envelope(plant_model):
-        plan.append((wide_scenario(plant_model, minutes, s), ("mpc", "mpc_envelope")))
+        plan.append((wide_scenario(plant_model, minutes, s), CONTROLLERS))
     for scenario, controllers in plan:
         runs = compare_controllers(
             plant_model,
