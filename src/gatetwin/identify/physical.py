@@ -624,20 +624,22 @@ def _floor_start(points: SteadyPoints, values: dict[str, float]
                  ) -> tuple[dict[str, float], dict[str, tuple[float, float]]]:  # fmt: skip
     """A floor's start and bounds from the steady points. Start: through the lowest level the
     gauge read at each discharge (a straight line in the discharge when there are two or
-    more), as smooth as the law without the floor misses the points by (their residuals'
-    RMS). Bounds: the floor within the points' level range R below their lowest level and up
-    to their highest, passing over at most R / 4 (a wider passage is no floor but a curvature
-    the law lacks)."""
+    more), as smooth as its lower bound. Bounds: the floor within the points' level range R
+    below their lowest level and up to their highest; its passage no sharper than the law
+    without the floor misses the points by (their residuals' RMS: a sharper corner is not
+    resolved by them, and a channel's flow depth is met gradually) and no wider than R / 4
+    (a wider passage is no floor but a curvature the law lacks)."""
     flows = np.unique(points.flow_m3h)
     lowest = np.array([points.level_mm[points.flow_m3h == q].min() for q in flows])
     qq = (flows - values["flow_centre_m3h"]) / values["flow_scale_m3h"]
     slope, level = np.polyfit(qq, lowest, 1) if flows.size > 1 else (0.0, float(lowest[0]))
     lo, hi = float(points.level_mm.min()), float(points.level_mm.max())
     span = max(hi - lo, 1e-3)
-    misses = _rms(_steady_residuals(points, _vector(values)))
+    sharpest = min(max(_rms(_steady_residuals(points, _vector(values))), 1e-6 * span),
+                   0.125 * span)  # fmt: skip
     start = {**values, "floor_mm": float(level), "floor_per_q_mm": float(slope),
-             "floor_smooth_mm": min(max(misses, 1e-3), 0.25 * span)}  # fmt: skip
-    return start, {"floor_mm": (lo - span, hi), "floor_smooth_mm": (1e-6 * span, 0.25 * span)}
+             "floor_smooth_mm": sharpest}  # fmt: skip
+    return start, {"floor_mm": (lo - span, hi), "floor_smooth_mm": (sharpest, 0.25 * span)}
 
 
 def _physical_law(points: SteadyPoints, values: dict[str, float]) -> bool:
