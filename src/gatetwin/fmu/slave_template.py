@@ -458,15 +458,10 @@ class GatetwinPlant(GuardedSlave):
 
     def _physical_depth(self, gate_mm: float, q: float, tail_m: float | None = None) -> float:
         """The steady depth (kernel_point.c): the tail pool steady, or held at ``tail_m``."""
-        p = self._physical()
-        low, high = physical_kernel.DEPTH_LOW_M, p[physical_kernel.DEPTH_MAX_INDEX]
-        for _ in range(physical_kernel.BISECTION_STEPS):
-            if tail_m is None:
-                low, high = physical_kernel_portable.bisection_step(low, high, gate_mm, q, p)
-            else:
-                low, high = physical_kernel_portable.tail_bisection_step(low, high, tail_m,
-                                                                         gate_mm, q, p)  # fmt: skip
-        return 0.5 * (low + high)
+        k, p = physical_kernel_portable, self._physical()
+        if tail_m is None:
+            return k.steady_depth_m(gate_mm, q, p)
+        return k.held_steady_depth_m(tail_m, gate_mm, q, p)
 
     def _physical_level(self, depth_m: float, gate_mm: float, q: float) -> float:
         return physical_kernel.level_mm(depth_m, gate_mm, q, self._physical())

@@ -421,13 +421,9 @@ def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float],
     """The kernel's bisection, run to its fixed number of steps (as the C FMU runs it); the
     tail pool at its steady depth for the discharge, or held at ``tail_m``."""
     k = physical_kernel_portable
-    low, high = kernel.DEPTH_LOW_M, p[kernel.DEPTH_MAX_INDEX]
-    for _ in range(kernel.BISECTION_STEPS):
-        if tail_m is None:
-            low, high = k.bisection_step(low, high, opening_mm, flow_m3h, p)
-        else:
-            low, high = k.tail_bisection_step(low, high, tail_m, opening_mm, flow_m3h, p)
-    return 0.5 * (low + high)
+    if tail_m is None:
+        return k.steady_depth_m(opening_mm, flow_m3h, p)
+    return k.held_steady_depth_m(tail_m, opening_mm, flow_m3h, p)
 
 
 Plant = FopdtPlant | ArxPlant | PhysicalPlant

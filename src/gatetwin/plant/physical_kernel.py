@@ -266,6 +266,25 @@ def has_floor(p: list[float]) -> bool:
     return less(0.0, p[27])
 
 
+def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
+    """Depth at the gate at which it passes ``flow_m3h`` with the tail pool at its steady
+    depth: :func:`bisection_step` over ``[DEPTH_LOW_M, depth_max_m]`` run to its fixed
+    number of steps (as ``kernel_point.c`` runs it), m."""
+    low, high = DEPTH_LOW_M, p[DEPTH_MAX_INDEX]
+    for _ in range(BISECTION_STEPS):
+        low, high = bisection_step(low, high, opening_mm, flow_m3h, p)
+    return 0.5 * (low + high)
+
+
+def held_steady_depth_m(tail_m: float, opening_mm: float, flow_m3h: float,
+                        p: list[float]) -> float:  # fmt: skip
+    """:func:`steady_depth_m` with the tail pool held at ``tail_m``, m."""
+    low, high = DEPTH_LOW_M, p[DEPTH_MAX_INDEX]
+    for _ in range(BISECTION_STEPS):
+        low, high = tail_bisection_step(low, high, tail_m, opening_mm, flow_m3h, p)
+    return 0.5 * (low + high)
+
+
 def level_mm(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     """Level at the gauge, mm, for a depth at the gate and the gate's position (the offset's
     discharge is the gate's with the tail pool at its steady depth for ``flow_m3h``); with a
