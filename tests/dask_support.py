@@ -21,8 +21,9 @@ def _free_port() -> int:
 
 
 @contextlib.contextmanager
-def dask_cluster(folder: Path, workers: int = 2) -> Iterator[str]:
-    """The scheduler's address while the cluster runs (skips the test without distributed)."""
+def dask_cluster(folder: Path, workers: int = 2, nanny: bool = True) -> Iterator[str]:
+    """The scheduler's address while the cluster runs (skips the test without distributed);
+    ``nanny=False``: a worker process that dies stays dead."""
     pytest.importorskip("distributed")
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
@@ -32,8 +33,18 @@ def dask_cluster(folder: Path, workers: int = 2) -> Iterator[str]:
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]  # fmt: skip
     try:
         time.sleep(2.0)
-        worker = [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nworkers",
-                  "1", "--nthreads", "1", "--no-dashboard"]  # fmt: skip
+        worker = [
+            sys.executable,
+            "-m",
+            "distributed.cli.dask_worker",
+            address,
+            "--nworkers",
+            "1",
+            "--nthreads",
+            "1",
+            "--no-dashboard",
+            *([] if nanny else ["--no-nanny"]),
+        ]
         procs += [subprocess.Popen(worker, cwd=folder, stdout=subprocess.DEVNULL,
                                    stderr=subprocess.DEVNULL) for _ in range(workers)]  # fmt: skip
         yield address

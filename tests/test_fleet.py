@@ -178,3 +178,26 @@ def test_a_scheduler_address_that_cannot_be_resolved_is_one_line_at_once(distric
     assert done.returncode == 2 and lines[-1].startswith("gatetwin: error:"), done.stderr
     assert "Traceback" not in done.stderr and "cannot reach the dask scheduler" in lines[-1]
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow  # ~15 s: a scheduler, two workers, and the wait for workers that never come
+def test_jobs_of_a_scheduler_that_lost_every_worker_fail_instead_of_waiting_forever(tmp_path):
+    """Every job kills the worker that runs it (``os._exit``; no nanny restarts a worker), so
+    the scheduler is soon left with jobs and no worker: after ``connect_timeout_s`` with no
+    worker, each job left is failed, naming why, and the run returns (before, it waited
+    forever). Run in a child process under a time limit, so a regression fails rather than
+    hangs."""
+    with dask_cluster(tmp_path, nanny=False) as address:
+        code = (
+            "import json, os\n"
+            "from gatetwin.fleet.execute import FleetSettings, run_tasks\n"
+            f"s = FleetSettings(scheduler={address!r}, connect_timeout_s=3.0)\n"
+            "out = run_tasks(os._exit, [3, 3, 3], s, lambda job, exc: str(exc))\n"
+            "print(json.dumps(out))\n"
+        )
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              timeout=120)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    reasons = json.loads(done.stdout.strip().splitlines()[-1])
+    assert len(reasons) == 3
+    assert any("has had no worker for 3 s" in r for r in reasons), reasons

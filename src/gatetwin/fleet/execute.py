@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -47,7 +48,9 @@ class FleetSettings:
     workers : int
         Local processes when no scheduler is given; 1 runs every gate in this process.
     connect_timeout_s : float
-        How long to wait for the scheduler to answer and for its first worker, s.
+        How long to wait for the scheduler to answer and for its first worker, s; also how
+        long a scheduler may be left with no worker before the jobs it still holds are
+        failed (every worker died: nothing would ever run them).
     """
 
     scheduler: str | None = None
@@ -84,6 +87,8 @@ def _crashed(job: GateJob, exc: BaseException) -> dict[str, Any]:
     }
 
 
+#: How often a dask run with nothing finished asks the scheduler for its workers, s.
+WORKER_POLL_S = 1.0
 Task = Callable[[Any], Any]
 #: What a task whose process died (or could not run it) returns instead: job, exception.
 Crashed = Callable[[Any, BaseException], Any]
@@ -165,13 +170,35 @@ def _dask(task: Task, jobs: list[Any], crashed: Crashed, address: str,
             key = f"gatetwin-{task.__name__}-{k}-{os.getpid()}-{id(job)}"
             future = client.submit(task, job, pure=False, key=key)
             futures[future.key] = (future, k)
-        for future in dask_completed([f for f, _ in futures.values()], loop=client.loop):
-            k = futures[future.key][1]
-            try:
-                yield k, future.result()
-            except Exception as exc:  # a lost worker fails its job only
-                yield k, crashed(jobs[k], exc)
-            future.release()
+        pending = dask_completed([f for f, _ in futures.values()], loop=client.loop)
+        alone_since = None  # when the scheduler was first seen without a worker
+        while not pending.is_empty():
+            done = pending.next_batch(block=False)
+            for future in done:
+                k = futures.pop(future.key)[1]
+                try:
+                    yield k, future.result()
+                except Exception as exc:  # a lost worker fails its job only
+                    yield k, crashed(jobs[k], exc)
+                future.release()
+            if done:
+                continue
+            # nothing finished: wait a little, and give up on the jobs left once the
+            # scheduler has had no worker for as long as the first one was waited for
+            time.sleep(min(WORKER_POLL_S, timeout_s))
+            if client.scheduler_info().get("workers"):
+                alone_since = None
+            elif alone_since is None:
+                alone_since = time.monotonic()
+            elif time.monotonic() - alone_since > timeout_s:
+                lost = GatetwinError(
+                    f"the scheduler {address} has had no worker for {timeout_s:g} s; "
+                    "the job was lost with its worker"
+                )
+                for future, k in sorted(futures.values(), key=lambda fk: fk[1]):
+                    future.cancel()
+                    yield k, crashed(jobs[k], lost)
+                return
     finally:
         client.close()
 
