@@ -201,3 +201,22 @@ def test_jobs_of_a_scheduler_that_lost_every_worker_fail_instead_of_waiting_fore
     reasons = json.loads(done.stdout.strip().splitlines()[-1])
     assert len(reasons) == 3
     assert any("has had no worker for 3 s" in r for r in reasons), reasons
+
+
+@pytest.mark.slow  # ~30 s: three gates identified
+def test_each_gate_is_written_as_it_finishes(district, tmp_path):
+    """When a gate's progress line comes, its model files are already on disk: a run that
+    stops early (its workers lost, the process killed) keeps the gates it finished."""
+    from gatetwin.fleet import FleetSettings, run_fleet
+
+    out = tmp_path / "out"
+    seen = []
+
+    def progress(line: str) -> None:
+        if "] gate" in line:
+            gate = line.split("] ", 1)[1].split()[0]
+            seen.append((gate, any((out / gate).glob("*.json"))))
+
+    run_fleet([str(district)], out, FleetSettings(workers=1), progress=progress)
+    assert [g for g, _ in seen] == ["gate001", "gate002", "gate003"]
+    assert all(written for _, written in seen), seen

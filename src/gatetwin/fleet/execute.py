@@ -229,15 +229,21 @@ def run_tasks(task: Task, jobs: Iterable[Any], settings: FleetSettings, crashed:
 
 
 def run_gates(jobs: Iterable[GateJob], settings: FleetSettings,
-              progress: Progress | None = None) -> list[dict[str, Any]]:  # fmt: skip
-    """Run every job; the results (see :func:`identify_gate`) sorted by gate name."""
+              progress: Progress | None = None,
+              finished: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
+              ) -> list[dict[str, Any]]:  # fmt: skip
+    """Run every job; the results (see :func:`identify_gate`) sorted by gate name.
+    ``finished`` sees each result as its gate finishes (to write it then) and returns the
+    result kept."""
+    kept: dict[str, dict[str, Any]] = {}
 
     def report(k: int, n: int, res: dict[str, Any]) -> None:
+        res = kept[res["gate"]] = finished(res) if finished else res
         if progress:
             progress(_progress_line(k, n, res))
 
     results = run_tasks(identify_gate, jobs, settings, _crashed, report)
-    return sorted(results, key=lambda r: r["gate"])
+    return sorted((kept.get(r["gate"], r) for r in results), key=lambda r: r["gate"])
 
 
 def _progress_line(k: int, n: int, res: dict[str, Any]) -> str:

@@ -126,14 +126,18 @@ def run_fleet(sources: list[str], out: str | Path, settings: FleetSettings, *,
         progress(f"fleet: {len(gates)} gates, {settings.describe()}")
     jobs = [GateJob(g.gate, g.paths, fmu_backend, max_memory_mib) for g in gates]
     ours = _gates_written_before(out_dir)
-    results = run_gates(jobs, settings, progress)
-    for i, res in enumerate(results):
+
+    def finished(res: dict[str, Any]) -> dict[str, Any]:
+        """Each gate written as it finishes: a run that stops early keeps the gates done."""
         if res["status"] == "ok":
-            results[i] = _write_or_fail(res, out_dir)
-        elif res["summary"]["gate"] in ours:
+            return _write_or_fail(res, out_dir)
+        if res["summary"]["gate"] in ours:
             # the folder an earlier run into this --out wrote for the gate would stand beside
             # a summary that says the gate failed
             shutil.rmtree(out_dir / res["summary"]["gate"], ignore_errors=True)
+        return res
+
+    results = run_gates(jobs, settings, progress, finished)
     doc = fleet_document(results, settings.describe())
     paths = summary_paths(out_dir)
     png = fleet_figure_png(doc)
