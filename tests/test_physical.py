@@ -172,6 +172,13 @@ def test_model_file_round_trip_and_bad_parameters(plant):
     bad["parameters"] = {**plant.parameters, "tail_area_m2": -1.0}
     with pytest.raises(ModelFileError, match="tail_area_m2: -1.0 is below the limit 0"):
         plant_from_dict(bad)
+    # a floor's passage is a width: none below 0 (0: no floor), and a floor is a number
+    bad["parameters"] = {**plant.parameters, "floor_smooth_mm": -1.0}
+    with pytest.raises(ModelFileError, match="floor_smooth_mm: -1.0 is below the limit 0"):
+        plant_from_dict(bad)
+    bad["parameters"] = {**plant.parameters, "floor_mm": float("nan")}
+    with pytest.raises(ModelFileError, match="floor_mm"):
+        plant_from_dict(bad)
     for broken in ({"tail_datum_m": 0.5, "tail_depth_m": 0.1}, {"tail_exponent": 0.0}):
         bad["parameters"] = {**plant.parameters, **TAIL, **broken}
         with pytest.raises(ModelFileError, match="the pool below the gate needs"):
