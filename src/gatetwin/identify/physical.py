@@ -508,7 +508,7 @@ def _fit_floor(law: list[str], tail: list[str], values: dict[str, float], withou
     """A floor at the gauge (:data:`FLOOR`), fitted with the kept ``law``, the storage and the
     ``tail`` pool's parameters on the joint weighted residuals (``without``: that fit without
     the floor), from :func:`_floor_start`. Kept when the law stays physical and F-tests of
-    its three parameters on those residuals and on the steady points' alone both reject the
+    its three parameters on those residuals and on the steady points alone both reject the
     gauge without a floor at ``SEICHE_SIGNIFICANCE``; then the law grows on along ``LAWS``
     with the floor, by the F-test of :func:`_fit_law` on the joint residuals (a free gate's
     only). Returns the law, values and least-squares result kept."""
