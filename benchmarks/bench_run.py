@@ -7,7 +7,11 @@ and the command. The first run on a machine also pays numba's and Zig's one-time
 (``~/.cache``); run it twice to see both. Never asserted: the times depend on the machine
 and on what else it runs.
 
-usage: python benchmarks/bench_run.py [--json bench_run.json] [--keep DIR] [-- RUN OPTIONS]
+With ``--serial`` a second fresh run with ``--workers 1`` (every stage's pieces one after
+another in one process) follows, and each stage's time is printed beside it with the ratio.
+
+usage: python benchmarks/bench_run.py [--json bench_run.json] [--keep DIR] [--serial]
+                                      [-- RUN OPTIONS]
 """
 
 from __future__ import annotations
@@ -88,19 +92,38 @@ def main(argv: list[str] | None = None) -> int:
         help="where to write the times (default: bench_run.json)",
     )
     parser.add_argument("--keep", type=Path, help="write the run's output here and keep it")
+    parser.add_argument("--serial", action="store_true",
+                        help="then a run with --workers 1, printed beside it")  # fmt: skip
     parser.add_argument("extra", nargs="*", help="options passed on to 'gatetwin run'")
     args = parser.parse_args(argv)
     doc = {"date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
            "machine": machine(), "commit": commit(),
            **run(args.extra, args.keep.resolve() if args.keep else None)}  # fmt: skip
-    width = max(len(t) for t in doc["stages_s"])
-    for title, seconds in doc["stages_s"].items():
-        print(f"{title:<{width}}  {seconds:7.1f} s")
-    print(f"{'sum of the stages':<{width}}  {doc['stages_total_s']:7.1f} s")
-    print(f"{'whole process':<{width}}  {doc['wall_s']:7.1f} s (imports and start-up included)")
+    if args.serial:
+        doc["serial"] = run([*args.extra, "--workers", "1"], None)
+    _print(doc)
     args.json.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
     print(f"wrote {args.json}")
     return 0
+
+
+def _print(doc: dict) -> None:
+    """The stage times, and beside them the serial run's with the ratio when there is one."""
+    whole = "whole process (imports and start-up included)"
+
+    def rows(d: dict) -> dict[str, float]:
+        return {**d["stages_s"], "sum of the stages": d["stages_total_s"], whole: d["wall_s"]}
+
+    mine, serial = rows(doc), rows(doc["serial"]) if "serial" in doc else {}
+    width = max(len(t) for t in mine)
+    if serial:
+        print(f"{'':<{width}}  {'default':>9}  {'--workers 1':>11}  ratio")
+    for title, seconds in mine.items():
+        line = f"{title:<{width}}  {seconds:7.1f} s"
+        if title in serial:
+            ratio = f"{serial[title] / seconds:5.2f}x" if seconds > 0 else "–"
+            line += f"  {serial[title]:9.1f} s  {ratio}"
+        print(line)
 
 
 if __name__ == "__main__":

@@ -20,8 +20,13 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 
 @pytest.fixture(scope="module")
 def regenerated(tmp_path_factory):
+    """The bundled records identified as ``gatetwin run`` does: each gauge on a process of a
+    pool of two."""
+    from gatetwin.fleet.execute import FleetSettings
+
     out = tmp_path_factory.mktemp("models")
-    write_model_files(identify_folder(bundled_records_dir()).models, out)
+    models = identify_folder(bundled_records_dir(), fleet=FleetSettings(workers=2)).models
+    write_model_files(models, out)
     return out
 
 
@@ -49,6 +54,17 @@ def test_repository_models_are_not_stale(regenerated):
     for name in fresh:
         _close(json.loads((regenerated / name).read_text()),
                json.loads((MODELS / name).read_text()), name)  # fmt: skip
+
+
+@pytest.mark.slow
+def test_identification_here_is_the_identification_on_a_pool(regenerated, tmp_path):
+    """One gauge after another in this process gives the pool's model files to the bit (the
+    numerical libraries on one thread in both)."""
+    write_model_files(identify_folder(bundled_records_dir()).models, tmp_path)
+    names = sorted(p.name for p in regenerated.glob("*.json"))
+    assert names == sorted(p.name for p in tmp_path.glob("*.json"))
+    for name in names:
+        assert (tmp_path / name).read_bytes() == (regenerated / name).read_bytes(), name
 
 
 def test_every_model_validates_against_the_schema():

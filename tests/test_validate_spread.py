@@ -74,18 +74,23 @@ def test_a_record_that_cannot_be_validated_fails_in_one_line_without_output(fmu,
     assert not out.exists()
 
 
-def test_the_runs_matrix_on_a_pool_is_the_serial_matrix(fmu):
-    from types import SimpleNamespace
-
+def test_the_runs_matrices_on_a_pool_are_the_serial_matrices(fmu, tmp_path):
+    """``gatetwin run`` validates one FMU per task: two FMUs on two processes give, FMU by
+    FMU, the cells the serial matrix gives."""
     from gatetwin.fleet.execute import FleetSettings
-    from gatetwin.run.stages import MATRIX_FAIL_UNDER, fmu_matrix
-    from gatetwin.validate import parse_thresholds
+    from gatetwin.run.stages import MATRIX_FAIL_UNDER
+    from gatetwin.validate import parse_thresholds, validate_matrix
+    from gatetwin.validate.spread import validate_matrices
 
+    model = read_model_file(MODEL)
+    python_fmu = export_fmu(model.plant, tmp_path / "fopdt_3F_python.fmu", backend="python",
+                            model_name=model.name, provenance={})  # fmt: skip
     thresholds = parse_thresholds(MATRIX_FAIL_UNDER)
-    serial = fmu_matrix(SimpleNamespace(fleet=None), fmu, RECORDS, thresholds)
-    pooled = fmu_matrix(SimpleNamespace(fleet=FleetSettings(workers=2)), fmu, RECORDS,
-                        thresholds)  # fmt: skip
-    assert [c["record"] for c in pooled] == [p.name for p in RECORDS]
+    pairs = [(fmu, RECORDS), (python_fmu, RECORDS[:2])]
+    serial = [validate_matrix([f], records, thresholds=thresholds) for f, records in pairs]
+    pooled = validate_matrices(pairs, FleetSettings(workers=2), thresholds=thresholds)
+    assert [[c["record"] for c in cells] for cells in pooled] == [
+        [p.name for p in records] for _, records in pairs]  # fmt: skip
     assert pooled == serial
 
 

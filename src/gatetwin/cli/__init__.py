@@ -121,13 +121,15 @@ def _add_run_arguments(parser: argparse.ArgumentParser) -> None:
         default="gatetwin-out",
         help="output directory, replaced only after success (default: gatetwin-out)",
     )
-    _diagnose_cmds.add_spread_arguments(parser, "validate and diagnose")
+    _diagnose_cmds.add_spread_arguments(
+        parser, "identify the gauges, export, validate the FMUs, run the MPC demo's plants "
+        "and diagnose the records", every_cpu=True)  # fmt: skip
 
 
 def _run_run(args: argparse.Namespace) -> int:
     from gatetwin.run.pipeline import run_pipeline
 
-    fleet = _diagnose_cmds.spread_settings(args, "validate and diagnose")
+    fleet = _diagnose_cmds.spread_settings(args, "identify, validate and diagnose")
     out = run_pipeline(Path(args.out), progress=print_to_stderr, fleet=fleet)
     print_to_stderr(f"wrote {out}")
     return 0

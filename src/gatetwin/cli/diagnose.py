@@ -31,15 +31,20 @@ def add_diagnose_arguments(parser: argparse.ArgumentParser) -> None:
         "--input", choices=("command", "reconstructed"), default="command",
         help="drive the models with the commanded opening (default) or the reconstructed ramp",
     )  # fmt: skip
-    add_spread_arguments(parser, "diagnose")
+    add_spread_arguments(parser, "diagnose the records")
 
 
-def add_spread_arguments(parser: argparse.ArgumentParser, verb: str) -> None:
-    """``--workers N`` and ``--scheduler ADDRESS``: where the records' tasks run."""
+def add_spread_arguments(parser: argparse.ArgumentParser, verb: str, *,
+                         every_cpu: bool = False) -> None:  # fmt: skip
+    """``--workers N`` and ``--scheduler ADDRESS``: where the records' tasks run (by default
+    here, one after another; ``every_cpu``: on a process per CPU)."""
+    # None: a process per CPU, counted when the settings are made (not while parsing)
+    default, said = (None, "the CPUs this process may use") if every_cpu else (
+        1, "1: record after record in this process")  # fmt: skip
     parser.add_argument(
-        "--workers", metavar="N", type=int, default=1,
-        help=f"{verb} the records on N local processes, one record per task (default 1: "
-        "record after record in this process)",
+        "--workers", metavar="N", type=int, default=default,
+        help=f"{verb} on N local processes, one task each (default {said}; the same "
+        "outputs with any N)",
     )  # fmt: skip
     parser.add_argument(
         "--scheduler", metavar="ADDRESS",
@@ -51,6 +56,10 @@ def add_spread_arguments(parser: argparse.ArgumentParser, verb: str) -> None:
 def spread_settings(args: argparse.Namespace, verb: str) -> Any:
     """The :class:`~gatetwin.fleet.execute.FleetSettings` of ``--workers``/``--scheduler``;
     ``None`` for record after record in this process."""
+    if args.workers is None:  # the default of a command that spreads over every CPU
+        from gatetwin.fleet.execute import default_workers
+
+        args.workers = 1 if args.scheduler else default_workers()
     if args.workers < 1:
         raise GatetwinError(f"--workers: expected a whole number >= 1, got {args.workers}")
     if args.scheduler and args.workers != 1:

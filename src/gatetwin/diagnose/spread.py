@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING, Any
 
 from gatetwin._io import write_bytes_atomic
 from gatetwin.diagnose.workflow import DiagnosisSettings, diagnose_record
-from gatetwin.errors import GatetwinError
 
 if TYPE_CHECKING:
     from gatetwin.fleet.execute import FleetSettings
@@ -69,19 +68,14 @@ def _moved(value: Any, tmp: str, places: dict[str, str | None]) -> Any:
     return value
 
 
-def _lost(task: DiagnoseTask, exc: BaseException) -> BaseException:
-    """A task that raised or whose worker was lost: kept as the exception."""
-    del task
-    return exc
-
-
 def diagnose_records(
     tasks: Sequence[DiagnoseTask],
-    settings: FleetSettings,
+    settings: FleetSettings | None,
     progress: Callable[[str], None] | None = None,
 ) -> list[dict[str, Any]]:
     """:func:`~gatetwin.diagnose.workflow.diagnose_record` of every task, one record per task
-    where ``settings`` says; the findings in the tasks' order, the files written.
+    where ``settings`` says (``None``: one after another here); the findings in the tasks'
+    order, the files written.
 
     Raises
     ------
@@ -89,20 +83,14 @@ def diagnose_records(
         The first task (in order) that was refused (its own one-line message) or that did
         not come back from its worker; nothing is written then.
     """
-    from gatetwin.fleet.execute import run_tasks
+    from gatetwin.fleet.execute import map_tasks
 
     def report(done: int, total: int, result: Any) -> None:
         if progress and isinstance(result, tuple):
             progress(f"diagnose: [{done}/{total}] {result[0]['record']}")
 
-    results = run_tasks(diagnose_task, tasks, settings, _lost, report)
-    for task, result in zip(tasks, results, strict=True):
-        if isinstance(result, GatetwinError):
-            raise result
-        if isinstance(result, BaseException):
-            text = " ".join(str(result).split()) or type(result).__name__
-            raise GatetwinError(f"{task.record}: its diagnosis did not come back from the "
-                                f"worker ({text})")  # fmt: skip
+    results = map_tasks(diagnose_task, tasks, settings,
+                        lambda task: f"{task.record}: its diagnosis", report)  # fmt: skip
     for _, files in results:
         for path, data in files.items():
             write_bytes_atomic(Path(path), data)

@@ -12,8 +12,8 @@ chunk by :mod:`gatetwin.identify.routine_chunks` (a Parquet file or a folder of 
 """
 
 from gatetwin.fleet.district import GateTruth, district_gates, write_district
-from gatetwin.fleet.execute import FleetSettings, default_workers, run_gates
-from gatetwin.fleet.gate import GateJob, identify_gate
+from gatetwin.fleet.execute import FleetSettings, default_workers
+from gatetwin.fleet.gate import GateJob, identify_gate, run_gates
 from gatetwin.fleet.run import run_fleet
 from gatetwin.fleet.sources import GateRecords, discover_gates, is_one_records_folder
 

@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from gatetwin.errors import GatetwinError
-from gatetwin.fleet.gate import GateJob, failed_summary, identify_gate
 
 Progress = Callable[[str], None]
 
@@ -73,20 +72,6 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _crashed(job: GateJob, exc: BaseException) -> dict[str, Any]:
-    """The result of a task whose process died or could not run it."""
-    reason = f"task failed ({type(exc).__name__}: {exc})"
-    return {
-        "gate": job.gate,
-        "status": "failed",
-        "models": {},
-        "fmus": {},
-        "routine": {},
-        "summary": failed_summary(job.gate, reason, len(job.paths)),
-        "seconds": 0.0,
-    }
-
-
 #: How often a dask run with nothing finished asks the scheduler for its workers, s.
 WORKER_POLL_S = 1.0
 Task = Callable[[Any], Any]
@@ -95,9 +80,16 @@ Crashed = Callable[[Any, BaseException], Any]
 
 
 def _serial(task: Task, jobs: list[Any], crashed: Crashed) -> Iterator[tuple[int, Any]]:
+    """In this process, its numerical libraries on one thread as in a pool's processes
+    (:data:`POOL_THREADS`): a multi-threaded BLAS splits its sums differently, and a fit's
+    last digits, then its stopping point, would depend on the cores and on the mode."""
+    from threadpoolctl import threadpool_limits
+
     del crashed  # in this process an exception is the caller's, as in any serial code
     for k, job in enumerate(jobs):
-        yield k, task(job)
+        with threadpool_limits(limits=1):
+            result = task(job)
+        yield k, result
 
 
 @contextlib.contextmanager
@@ -228,29 +220,32 @@ def run_tasks(task: Task, jobs: Iterable[Any], settings: FleetSettings, crashed:
     return results
 
 
-def run_gates(jobs: Iterable[GateJob], settings: FleetSettings,
-              progress: Progress | None = None,
-              finished: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
-              ) -> list[dict[str, Any]]:  # fmt: skip
-    """Run every job; the results (see :func:`identify_gate`) sorted by gate name.
-    ``finished`` sees each result as its gate finishes (to write it then) and returns the
-    result kept."""
-    kept: dict[str, dict[str, Any]] = {}
-
-    def report(k: int, n: int, res: dict[str, Any]) -> None:
-        res = kept[res["gate"]] = finished(res) if finished else res
-        if progress:
-            progress(_progress_line(k, n, res))
-
-    results = run_tasks(identify_gate, jobs, settings, _crashed, report)
-    return sorted((kept.get(r["gate"], r) for r in results), key=lambda r: r["gate"])
+def _kept(job: Any, exc: BaseException) -> BaseException:
+    """A task that raised or whose worker was lost: kept as the exception."""
+    del job
+    return exc
 
 
-def _progress_line(k: int, n: int, res: dict[str, Any]) -> str:
-    head = f"fleet: [{k}/{n}] {res['gate']}"
-    if res["status"] == "no_window":
-        return f"{head} no informative window: {res['summary']['error']}"
-    if res["status"] != "ok":
-        return f"{head} FAILED: {res['summary']['error']}"
-    histories = f", routine histories: {len(res['routine'])}" if res.get("routine") else ""
-    return f"{head} ok, {len(res['models'])} models{histories} in {res['seconds']:.1f} s"
+def map_tasks(task: Task, jobs: Iterable[Any], settings: FleetSettings | None,
+              what: Callable[[Any], str],
+              progress: Callable[[int, int, Any], None] | None = None,
+              error: type[GatetwinError] = GatetwinError) -> list[Any]:  # fmt: skip
+    """:func:`run_tasks` for work that must all succeed: the results in the jobs' order
+    (``settings`` ``None``: one after another in this process).
+
+    Raises
+    ------
+    GatetwinError
+        The first job (in order) that was refused, with its own one-line message, or that
+        did not come back from its worker (an ``error``; ``what(job)`` names it, as
+        "NAME: its task").
+    """
+    jobs = list(jobs)
+    results = run_tasks(task, jobs, settings or FleetSettings(), _kept, progress)
+    for job, result in zip(jobs, results, strict=True):
+        if isinstance(result, GatetwinError):
+            raise result
+        if isinstance(result, BaseException):
+            text = " ".join(str(result).split()) or type(result).__name__
+            raise error(f"{what(job)} did not come back from the worker ({text})")
+    return results

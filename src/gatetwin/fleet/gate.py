@@ -14,11 +14,13 @@ import json
 import tempfile
 import time
 import warnings
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from gatetwin.errors import GatetwinError
+from gatetwin.fleet.execute import FleetSettings, Progress, run_tasks
 
 #: Model-file families, by the prefix of the model name.
 FAMILIES = ("fopdt", "physical", "arx")
@@ -279,3 +281,45 @@ def _export_fmus(models: dict[str, dict[str, Any]], backend: str) -> dict[str, b
             )
             out[name] = path.read_bytes()
     return out
+
+
+def _crashed(job: GateJob, exc: BaseException) -> dict[str, Any]:
+    """The result of a task whose process died or could not run it."""
+    reason = f"task failed ({type(exc).__name__}: {exc})"
+    return {
+        "gate": job.gate,
+        "status": "failed",
+        "models": {},
+        "fmus": {},
+        "routine": {},
+        "summary": failed_summary(job.gate, reason, len(job.paths)),
+        "seconds": 0.0,
+    }
+
+
+def run_gates(jobs: Iterable[GateJob], settings: FleetSettings,
+              progress: Progress | None = None,
+              finished: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
+              ) -> list[dict[str, Any]]:  # fmt: skip
+    """Run every job; the results (see :func:`identify_gate`) sorted by gate name.
+    ``finished`` sees each result as its gate finishes (to write it then) and returns the
+    result kept."""
+    kept: dict[str, dict[str, Any]] = {}
+
+    def report(k: int, n: int, res: dict[str, Any]) -> None:
+        res = kept[res["gate"]] = finished(res) if finished else res
+        if progress:
+            progress(_progress_line(k, n, res))
+
+    results = run_tasks(identify_gate, jobs, settings, _crashed, report)
+    return sorted((kept.get(r["gate"], r) for r in results), key=lambda r: r["gate"])
+
+
+def _progress_line(k: int, n: int, res: dict[str, Any]) -> str:
+    head = f"fleet: [{k}/{n}] {res['gate']}"
+    if res["status"] == "no_window":
+        return f"{head} no informative window: {res['summary']['error']}"
+    if res["status"] != "ok":
+        return f"{head} FAILED: {res['summary']['error']}"
+    histories = f", routine histories: {len(res['routine'])}" if res.get("routine") else ""
+    return f"{head} ok, {len(res['models'])} models{histories} in {res['seconds']:.1f} s"

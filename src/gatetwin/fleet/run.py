@@ -19,8 +19,8 @@ from typing import Any
 
 from gatetwin._io import write_bytes_atomic, write_json_atomic, write_text_atomic
 from gatetwin.errors import OutputError
-from gatetwin.fleet.execute import FleetSettings, Progress, run_gates
-from gatetwin.fleet.gate import GateJob, failed_summary
+from gatetwin.fleet.execute import FleetSettings, Progress
+from gatetwin.fleet.gate import GateJob, failed_summary, run_gates
 from gatetwin.fleet.sources import discover_gates
 from gatetwin.fleet.summary import (
     fleet_document,

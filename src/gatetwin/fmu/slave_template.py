@@ -112,6 +112,8 @@ class GatetwinPlant(GuardedSlave):
         self.warned_validity: list[str] = []
         self.parameters_changed = True
         self.dyn: dict[str, Any] = {"x": 0.0}
+        #: the last steady point of the envelope: ((opening, discharge, *kernel), point)
+        self.steady_point: tuple[tuple[float, ...], tuple[float, float, float]] = ((), (0, 0, 0))
         self.fx: dict[str, float] = {}
         for v in self.variables:
             self._register(v)
@@ -419,15 +421,20 @@ class GatetwinPlant(GuardedSlave):
         return self._envelope_steady(u, q)[:2]
 
     def _envelope_steady(self, u: float, q: float) -> tuple[float, float, float]:
-        """The same and the steady depth at the gate, m (kernel_envelope_steady)."""
+        """The same and the steady depth at the gate, m (kernel_envelope_steady); the
+        bisection only when the opening, the discharge or a parameter changed (as
+        ``piece_point`` of model_fopdt.c keeps its point while they are held)."""
         p = self._physical()
         e = u + self.real[self.vr_opening_ref]
-        depth = self._physical_depth(e, q)
-        return (
-            physical_kernel_portable.level_mm(depth, e, q, p),
-            physical_kernel_portable.time_constant_s(depth, e, q, p),
-            depth,
-        )
+        key = (e, q, *p)
+        if self.steady_point[0] != key:
+            depth = self._physical_depth(e, q)
+            self.steady_point = (key, (
+                physical_kernel_portable.level_mm(depth, e, q, p),
+                physical_kernel_portable.time_constant_s(depth, e, q, p),
+                depth,
+            ))  # fmt: skip
+        return self.steady_point[1]
 
     def _piece_point(self, u: float, x: float, q: float) -> tuple[float, float]:
         """A piece from the level x with u held: the target and the storage's secant time

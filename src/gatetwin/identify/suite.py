@@ -416,25 +416,49 @@ def _rows(ident: Identified) -> str:
     return "/".join(sorted({res.rows for res in ident.prbs.values()}))
 
 
-def identify_folder(folder: Path, progress: Any = None) -> Identified:
+def identify_folder(folder: Path, progress: Any = None, fleet: Any = None) -> Identified:
     """Identify every record of ``folder`` and build the model files."""
-    return identify_records(sorted(folder.glob("*.csv")), str(folder), progress)
+    return identify_records(sorted(folder.glob("*.csv")), str(folder), progress, fleet)
 
 
-def identify_records(paths: list[Path], where: str, progress: Any = None) -> Identified:
+def identify_records(paths: list[Path], where: str, progress: Any = None,
+                     fleet: Any = None) -> Identified:  # fmt: skip
     """Identify the records ``paths`` (one gate's records and its static table) and build
-    the model files; ``where`` names them in errors."""
+    the model files; ``where`` names them in errors. ``fleet``
+    (:class:`~gatetwin.fleet.execute.FleetSettings`) fits each gauge's models as one task
+    where it says; the models are the same."""
+    from gatetwin.fleet.execute import map_tasks
+
     ident = load_records(paths, where, progress)
     gauges = sorted({g for s in ident.steps.values() for g in s.gauges})
-    for gauge in gauges:
-        if progress:
-            progress(f"      identifying physical_{gauge} from every record")
-        physical = physical_model(ident, gauge)
-        doc = fopdt_model(ident, gauge, physical)
-        ident.models[doc["name"]] = doc
-        ident.models[physical["name"]] = physical
-        ident.held_out[gauge] = doc["provenance"]["metrics"]["held_out"]
-    if ident.prbs:
-        doc = arx_model(ident, physical=ident.models.get(f"physical_{ident.arx_gauge}"))
+    # the discrete model's gauge first: its task fits the discrete model too, the longest
+    gauges.sort(key=lambda g: not (ident.prbs and g == ident.arx_gauge))
+    if progress:
+        for gauge in gauges:
+            progress(f"      identifying physical_{gauge} and fopdt_{gauge} from every record")
+    found = map_tasks(gauge_models, [(ident, g) for g in gauges], fleet,
+                      lambda job: f"{where}: gauge {job[1]}'s models")  # fmt: skip
+    docs = {name: doc for found_docs in found for name, doc in found_docs.items()}
+    for gauge in sorted(gauges):
+        for name in (f"fopdt_{gauge}", f"physical_{gauge}"):
+            ident.models[name] = docs.pop(name)
+        ident.held_out[gauge] = ident.models[f"fopdt_{gauge}"]["provenance"]["metrics"][
+            "held_out"]  # fmt: skip
+    ident.models.update(docs)  # the discrete model
+    if ident.prbs and ident.arx_gauge not in gauges:
+        doc = arx_model(ident)
         ident.models[doc["name"]] = doc
     return ident
+
+
+def gauge_models(job: tuple[Identified, str]) -> dict[str, dict[str, Any]]:
+    """The model files of one gauge (a task): its physical model, the FOPDT across its
+    envelope and, at the discrete model's gauge, the discrete model."""
+    ident, gauge = job
+    physical = physical_model(ident, gauge)
+    fopdt = fopdt_model(ident, gauge, physical)
+    docs = {physical["name"]: physical, fopdt["name"]: fopdt}
+    if ident.prbs and gauge == ident.arx_gauge:
+        arx = arx_model(ident, physical=physical)
+        docs[arx["name"]] = arx
+    return docs

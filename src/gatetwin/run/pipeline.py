@@ -55,8 +55,10 @@ class PipelineContext:
     progress : callable
         Takes one line of progress text.
     fleet : FleetSettings or None
-        Where the per-record work of validation and diagnosis runs, one record per task
-        (a local process pool or a dask scheduler); ``None`` for record after record here.
+        Where the stages' independent pieces run, one per task (each gauge's models, each
+        model's FMUs, each FMU's validation, each plant of the MPC demo, each record's
+        diagnosis): a local process pool or a dask scheduler; ``None`` for one after another
+        here. The outputs do not depend on it.
     """
 
     out_dir: Path
@@ -140,7 +142,7 @@ def identify_models(ctx: PipelineContext) -> None:
     from gatetwin.identify.suite import identify_folder
     from gatetwin.modelfile import write_model_files
 
-    ident = identify_folder(ctx.records_dir, ctx.progress)
+    ident = identify_folder(ctx.records_dir, ctx.progress, ctx.fleet)
     ctx.results["ident"] = ident
     written = write_model_files(ident.models, ctx.out_dir / "models")
     ctx.results["model_paths"] = [p for p in written if p.name != "schema.json"]
@@ -155,10 +157,9 @@ def export_fmus(ctx: PipelineContext) -> None:
     """Export every model with both backends, ``fmus/c/NAME.fmu`` and
     ``fmus/python/NAME.fmu`` (FMI 2.0), and as FMI 3.0, ``fmus/fmi3/NAME.fmu`` (C); the C FMUs
     for every platform when Zig's C compiler is installed (else the host's)."""
-    from gatetwin.fmu import export_fmu
+    from gatetwin._io import write_bytes_atomic
+    from gatetwin.fleet.execute import map_tasks
     from gatetwin.fmu.platforms import platforms_of, zig_available
-    from gatetwin.fmu.provenance import fmu_provenance
-    from gatetwin.modelfile import read_model_file
 
     if zig_available():
         platforms = "all"
@@ -169,18 +170,41 @@ def export_fmus(ctx: PipelineContext) -> None:
         platforms = "host"
         ctx.progress("      C FMUs carry the host's binary only: pip install 'gatetwin[cross]' "
                      "adds Windows, macOS and 64-bit ARM")  # fmt: skip
+    paths = ctx.results["model_paths"]
+    for path in paths:
+        ctx.progress(f"      exporting {path.stem} (C and python, FMI 2.0; C, FMI 3.0)")
+    built = map_tasks(export_model_fmus, [(str(p), platforms) for p in paths], ctx.fleet,
+                      lambda job: f"{Path(job[0]).stem}: its export")  # fmt: skip
     fmus: dict[str, list[Path]] = {folder: [] for folder, _, _ in FMU_KINDS}
-    for path in ctx.results["model_paths"]:
-        model = read_model_file(path)
-        for folder, backend, version in FMU_KINDS:
-            out = ctx.out_dir / "fmus" / folder / f"{model.name}.fmu"
-            ctx.progress(f"      exporting {model.name} ({backend}, FMI {version})")
-            built = export_fmu(model.plant, out, backend=backend, model_name=model.name,
-                               provenance=fmu_provenance(model), fmi_version=version,
-                               platforms=platforms if backend == "c" else "host")  # fmt: skip
-            fmus[folder].append(built)
+    for path, files in zip(paths, built, strict=True):
+        for folder, data in files.items():
+            out = ctx.out_dir / "fmus" / folder / f"{path.stem}.fmu"
+            write_bytes_atomic(out, data)
+            fmus[folder].append(out)
     ctx.results["fmus"] = fmus
     _cross_checks(ctx, fmus["c"])
+
+
+def export_model_fmus(job: tuple[str, str]) -> dict[str, bytes]:
+    """The FMUs of one model file (a task): each of :data:`FMU_KINDS` by its folder, the C
+    ones for ``platforms`` (``"all"`` or ``"host"``), built in a private folder."""
+    import tempfile
+
+    from gatetwin.fmu import export_fmu
+    from gatetwin.fmu.provenance import fmu_provenance
+    from gatetwin.modelfile import read_model_file
+
+    path, platforms = job
+    model = read_model_file(path)
+    files = {}
+    with tempfile.TemporaryDirectory(prefix="gatetwin-export-") as tmp:
+        for folder, backend, version in FMU_KINDS:
+            out = Path(tmp) / folder / f"{model.name}.fmu"
+            export_fmu(model.plant, out, backend=backend, model_name=model.name,
+                       provenance=fmu_provenance(model), fmi_version=version,
+                       platforms=platforms if backend == "c" else "host")  # fmt: skip
+            files[folder] = out.read_bytes()
+    return files
 
 
 #: The record whose inputs drive the run's cross-check packages (gate moves and inflow steps).
@@ -282,9 +306,10 @@ def run_pipeline(
     records_dir : path, optional
         Input directory (default: the bundled records, :func:`bundled_records_dir`).
     fleet : FleetSettings, optional
-        Validate and diagnose one record per task on a local process pool or a dask
-        scheduler (:class:`~gatetwin.fleet.execute.FleetSettings`); the outputs are those
-        of the default, record after record in this process.
+        Run the stages' independent pieces as tasks on a local process pool or a dask
+        scheduler (:class:`~gatetwin.fleet.execute.FleetSettings`, see
+        :class:`PipelineContext`); the outputs are those of the default, one after another
+        in this process.
 
     Returns
     -------

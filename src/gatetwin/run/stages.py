@@ -20,20 +20,24 @@ def validate_all(ctx: Any) -> None:
     """Validate every exported FMU against every bundled record; ``validation.json``."""
     from gatetwin._io import write_json_atomic
     from gatetwin.validate import matrix_markdown, parse_thresholds
+    from gatetwin.validate.spread import validate_matrices
 
     thresholds = parse_thresholds(MATRIX_FAIL_UNDER)
     pairs, outside = applicable_pairs(ctx)
-    cells: list[dict[str, Any]] = []
-    for backend, fmus in ctx.results["fmus"].items():
-        n_pairs = sum(len(v) for v in pairs.values())
+    n_pairs = sum(len(v) for v in pairs.values())
+    jobs = [(backend, fmu) for backend, fmus in ctx.results["fmus"].items() for fmu in fmus]
+    for backend in ctx.results["fmus"]:
         ctx.progress(f"      {backend}: {n_pairs} applicable FMU × record pair(s)")
-        for fmu in fmus:
-            records = [ctx.records_dir / f"{r}.csv" for r in pairs[fmu.stem]]
-            for cell in fmu_matrix(ctx, fmu, records, thresholds):
-                cells.append({"backend": backend, **cell})
-                if cell["failure_cause"]:
-                    ctx.progress(f"      {backend} {cell['fmu']} on {cell['record']}: FMU run "
-                                 f"failed: {cell['failure_cause']}")  # fmt: skip
+    found = validate_matrices(
+        [(fmu, [ctx.records_dir / f"{r}.csv" for r in pairs[fmu.stem]]) for _, fmu in jobs],
+        ctx.fleet, thresholds=thresholds)  # fmt: skip
+    cells: list[dict[str, Any]] = []
+    for (backend, _), fmu_cells in zip(jobs, found, strict=True):
+        for cell in fmu_cells:
+            cells.append({"backend": backend, **cell})
+            if cell["failure_cause"]:
+                ctx.progress(f"      {backend} {cell['fmu']} on {cell['record']}: FMU run "
+                             f"failed: {cell['failure_cause']}")  # fmt: skip
     ctx.results["validation"] = cells
     write_json_atomic(ctx.out_dir / "validation.json", {
         "thresholds": list(MATRIX_FAIL_UNDER), "matrix": cells, "outside_validity": outside,
@@ -54,17 +58,6 @@ def validate_all(ctx: Any) -> None:
         + skipped
         + "\n"
     )
-
-
-def fmu_matrix(ctx: Any, fmu: Any, records: list[Any], thresholds: Any) -> list[dict[str, Any]]:
-    """One FMU's matrix cells: here, or one record per task where ``ctx.fleet`` says."""
-    from gatetwin.validate import validate_matrix
-    from gatetwin.validate.harness import matrix_cells
-    from gatetwin.validate.spread import validate_fmu_spread
-
-    if ctx.fleet is None or not records:
-        return validate_matrix([fmu], records, thresholds=thresholds)
-    return matrix_cells(validate_fmu_spread(fmu, records, ctx.fleet, thresholds=thresholds))
 
 
 #: What the fit / floor pair and the validity column of the matrix mean.
@@ -189,18 +182,22 @@ MPC_MINUTES = 30.0
 
 def mpc_demo(ctx: Any) -> None:
     """MPC against PI on the exported FOPDT (3F) and on the flume: ``mpc.json``."""
-    from gatetwin._io import write_json_atomic
+    from gatetwin._io import write_bytes_atomic, write_json_atomic
+    from gatetwin.fleet.execute import map_tasks
     from gatetwin.modelfile import read_model_file
-    from gatetwin.mpc import run_mpc_demo
 
-    model = read_model_file(ctx.out_dir / "models" / "fopdt_3F.json")
+    model_path = ctx.out_dir / "models" / "fopdt_3F.json"
+    model = read_model_file(model_path)
     scenarios: dict[str, Any] = {}
     runs: dict[str, Any] = {}
     envelope: dict[str, Any] = {}
     for kind in MPC_PLANTS:
         ctx.progress(f"      {kind}: {MPC_MINUTES:g} simulated minutes per scenario")
-        result = run_mpc_demo(model.plant, plant_kind=kind, minutes=MPC_MINUTES,
-                              out_plots_dir=ctx.out_dir / "figures" / f"mpc_{kind}")  # fmt: skip
+    found = map_tasks(mpc_demo_task, [(str(model_path), kind) for kind in MPC_PLANTS],
+                      ctx.fleet, lambda job: f"the MPC demo on the {job[1]}")  # fmt: skip
+    for kind, (result, plots) in zip(MPC_PLANTS, found, strict=True):
+        for name, data in plots.items():
+            write_bytes_atomic(ctx.out_dir / "figures" / f"mpc_{kind}" / name, data)
         runs[kind] = {k: v for k, v in result.items() if k != "scenarios"}
         for name, pair in result["scenarios"].items():
             scenarios[f"{kind}_{name}"] = {**pair, "plant": kind}
@@ -211,6 +208,22 @@ def mpc_demo(ctx: Any) -> None:
     write_json_atomic(ctx.out_dir / "mpc.json", doc)
     ctx.results["mpc"] = doc
     ctx.results.setdefault("summary_sections", []).append(_mpc_markdown(doc))
+
+
+def mpc_demo_task(job: tuple[str, str]) -> tuple[dict[str, Any], dict[str, bytes]]:
+    """The MPC demo of a model file on one kind of plant (a task): its result and its plots
+    (file name: bytes), drawn in a private folder."""
+    import tempfile
+    from pathlib import Path
+
+    from gatetwin.modelfile import read_model_file
+    from gatetwin.mpc import run_mpc_demo
+
+    path, kind = job
+    with tempfile.TemporaryDirectory(prefix="gatetwin-mpc-") as tmp:
+        result = run_mpc_demo(read_model_file(path).plant, plant_kind=kind,
+                              minutes=MPC_MINUTES, out_plots_dir=tmp)  # fmt: skip
+        return result, {p.name: p.read_bytes() for p in sorted(Path(tmp).iterdir())}
 
 
 #: Controller FMUs ``gatetwin run`` builds for the MPC demo's model (``controllers/``).
@@ -226,33 +239,33 @@ def closed_loop_artefacts(ctx: Any) -> None:
     ``loop.ssp`` (plant FMU + PI FMU, the demo's
     set-point scenario), run by gatetwin's SSP master next to the Python loop it packs; both
     IAEs go into ``mpc.json`` (``closed_loop_ssp``)."""
-    from gatetwin._io import write_json_atomic
-    from gatetwin.fmu.controller import export_controller
-    from gatetwin.fmu.observer_fmu import export_observer
+    from pathlib import Path
+
+    from gatetwin._io import write_bytes_atomic, write_json_atomic
+    from gatetwin.fleet.execute import map_tasks
     from gatetwin.modelfile import read_model_file
     from gatetwin.mpc.demo import DemoSettings, demo_scenarios
     from gatetwin.mpc.loop import loop_metrics
     from gatetwin.ssp import simulate_ssp, write_ssp
     from gatetwin.ssp.reference import python_loop
 
-    model = read_model_file(ctx.out_dir / "models" / f"fopdt_{FAMILY_GAUGE}.json")
-    folder = ctx.out_dir / "controllers"
-    built = [export_controller(model, kind, folder / f"{model.name}_{kind}.fmu",
-                               without_effects=kind == "mpc")
-             for kind in CONTROLLER_KINDS]  # fmt: skip
-    observers = ctx.out_dir / "observers"
-    built.append(export_observer(model.plant, observers / f"{model.name}_observer.fmu",
-                                 without_effects=True))  # fmt: skip
-    physical = read_model_file(ctx.out_dir / "models" / f"physical_{FAMILY_GAUGE}.json")
-    built.append(export_observer(physical.plant, observers / f"{physical.name}_observer.fmu",
-                                 without_effects=True))  # fmt: skip
+    models = ctx.out_dir / "models"
+    fopdt, physical = (models / f"{k}_{FAMILY_GAUGE}.json" for k in ("fopdt", "physical"))
+    model = read_model_file(fopdt)
     references = sorted(path.stem.removeprefix("physical_")
-                        for path in (ctx.out_dir / "models").glob("physical_*.json")
-                        if path.stem != physical.name)  # fmt: skip
-    built.append(export_observer(physical.plant,
-                                 observers / f"{physical.name}_observer_gauges.fmu",
-                                 without_effects=True, reference_gauges=references))  # fmt: skip
-    ctx.progress(f"      controllers/, observers/: {', '.join(p.name for p in built)}")
+                        for path in models.glob("physical_*.json")
+                        if path != physical)  # fmt: skip
+    jobs = [(str(fopdt), f"controllers/{fopdt.stem}_{kind}.fmu",
+             {"controller": kind, "without_effects": kind == "mpc"})
+            for kind in CONTROLLER_KINDS]  # fmt: skip
+    jobs += [(str(fopdt), f"observers/{fopdt.stem}_observer.fmu", {"without_effects": True}),
+             (str(physical), f"observers/{physical.stem}_observer.fmu", {"without_effects": True}),
+             (str(physical), f"observers/{physical.stem}_observer_gauges.fmu",
+              {"without_effects": True, "reference_gauges": references})]  # fmt: skip
+    built = map_tasks(closed_loop_fmu_task, jobs, ctx.fleet, lambda job: f"{job[1]}: its export")
+    for (_, name, _), data in zip(jobs, built, strict=True):
+        write_bytes_atomic(ctx.out_dir / name, data)
+    ctx.progress(f"      controllers/, observers/: {', '.join(Path(j[1]).name for j in jobs)}")
     settings = DemoSettings()
     scenario = demo_scenarios(MPC_MINUTES, settings)[0]
     package = write_ssp(model, ctx.out_dir / "loop.ssp", controller="pi", scenario=scenario,
@@ -272,6 +285,29 @@ def closed_loop_artefacts(ctx: Any) -> None:
     write_json_atomic(ctx.out_dir / "mpc.json", doc)
     ctx.progress(f"      loop.ssp ({scenario.name}, PI, noise-free): IAE {iae_ssp:.1f} mm·s by "
                  f"the SSP master, {iae_python:.1f} mm·s by the Python loop")  # fmt: skip
+
+
+def closed_loop_fmu_task(job: tuple[str, str, dict[str, Any]]) -> bytes:
+    """One controller or observer FMU of a model file (a task), built in a private folder:
+    ``(model file, name, options)``, a controller where the options name its kind, else
+    the observer with those options; the FMU's bytes."""
+    import tempfile
+    from pathlib import Path
+
+    from gatetwin.fmu.controller import export_controller
+    from gatetwin.fmu.observer_fmu import export_observer
+    from gatetwin.modelfile import read_model_file
+
+    path, name, options = job
+    model = read_model_file(path)
+    with tempfile.TemporaryDirectory(prefix="gatetwin-export-") as tmp:
+        out = Path(tmp) / Path(name).name
+        if "controller" in options:
+            options = dict(options)
+            export_controller(model, options.pop("controller"), out, **options)
+        else:
+            export_observer(model.plant, out, **options)
+        return out.read_bytes()
 
 
 MPC_COLUMNS = ("iae", "max_dev_mm", "settling_s", "travel_mm", "violations",
@@ -336,7 +372,7 @@ def diagnose_records(ctx: Any) -> None:
     """Diagnose the bundled records: ``diagnose.json``, augmented models and their FMUs
     (one record per task where ``ctx.fleet`` says; the same outputs)."""
     from gatetwin._io import write_json_atomic
-    from gatetwin.diagnose import DiagnosisSettings, diagnose_record
+    from gatetwin.diagnose import DiagnosisSettings
     from gatetwin.diagnose.spread import DiagnoseTask, diagnose_records
 
     plots = str(ctx.out_dir / "figures" / "diagnose")
@@ -345,11 +381,7 @@ def diagnose_records(ctx: Any) -> None:
                           str(ctx.out_dir / "models" / f"{m}.json") if m else None, plots,
                           str(ctx.out_dir / "diagnose" / f"{r}_{m or 'own'}"),
                           DiagnosisSettings()) for r, m in chosen]  # fmt: skip
-    if ctx.fleet is None:
-        found = [diagnose_record(t.record, t.model, plots_dir=t.plots_dir, fmu_dir=t.fmu_dir)
-                 for t in tasks]  # fmt: skip
-    else:
-        found = diagnose_records(tasks, ctx.fleet)
+    found = diagnose_records(tasks, ctx.fleet)
     results = []
     for (record, model), res in zip(chosen, found, strict=True):
         results.append({**res, "record": record,

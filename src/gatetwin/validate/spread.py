@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from gatetwin.errors import GatetwinError
 from gatetwin.records import Record, read_record
 from gatetwin.validate.errors import ValidationError
 from gatetwin.validate.fmu_runner import inspect_fmu, output_for_gauge, static_findings
@@ -60,13 +59,6 @@ def validate_record_task(task: RecordTask) -> RecordValidation:
     return result.records[0]
 
 
-def _lost(task: RecordTask, exc: BaseException) -> BaseException:
-    """A task that raised or did not come back: kept as the exception, raised once all are
-    in."""
-    del task
-    return exc
-
-
 def validate_fmu_spread(
     fmu_path: str | Path,
     records: Sequence[str | Path | Record],
@@ -90,7 +82,7 @@ def validate_fmu_spread(
     RecordError
         A record breaks the data-format contract.
     """
-    from gatetwin.fleet.execute import run_tasks
+    from gatetwin.fleet.execute import map_tasks
 
     if not records:
         raise ValidationError("no records to validate against")
@@ -108,13 +100,61 @@ def validate_fmu_spread(
         if progress and isinstance(result, RecordValidation):
             progress(f"validate: [{done}/{total}] {result.record}")
 
-    results = run_tasks(validate_record_task, tasks, settings, _lost, report)
-    for task, result in zip(tasks, results, strict=True):
-        if isinstance(result, GatetwinError):  # the record's own one-line refusal
-            raise result
-        if isinstance(result, BaseException):
-            text = " ".join(str(result).split()) or type(result).__name__
-            raise ValidationError(f"{task.record.path or 'a record'}: its validation did not "
-                                  f"come back from the worker ({text})")  # fmt: skip
+    results = map_tasks(validate_record_task, tasks, settings,
+                        lambda task: f"{task.record.path or 'a record'}: its validation",
+                        report, ValidationError)  # fmt: skip
     return FmuValidation(info, static_findings(info.path), tuple(thresholds), tuple(results),
                          read_envelope(info.path))  # fmt: skip
+
+
+@dataclass(frozen=True)
+class MatrixTask:
+    """What a worker needs to validate one FMU against its records: the FMU itself, the
+    records' paths (read by the same paths there), the thresholds."""
+
+    fmu_name: str
+    fmu_bytes: bytes
+    records: tuple[str, ...]
+    thresholds: tuple[Threshold, ...]
+
+
+def validate_matrix_task(task: MatrixTask) -> list[dict[str, Any]]:
+    """:func:`~gatetwin.validate.harness.validate_matrix` of the task's FMU (written to a
+    private folder first) against its records."""
+    from gatetwin.validate.harness import validate_matrix
+
+    with tempfile.TemporaryDirectory(prefix="gatetwin-validate-") as tmp:
+        fmu = Path(tmp) / task.fmu_name
+        fmu.write_bytes(task.fmu_bytes)
+        return validate_matrix([fmu], list(task.records), thresholds=task.thresholds)
+
+
+def validate_matrices(
+    pairs: Sequence[tuple[str | Path, Sequence[str | Path]]],
+    settings: FleetSettings | None,
+    *,
+    thresholds: Sequence[Threshold] = (),
+    progress: Callable[[str], None] | None = None,
+) -> list[list[dict[str, Any]]]:
+    """The matrix cells of every (FMU, records) pair, one FMU per task where ``settings``
+    says (``None``: one after another here); in the pairs' order. Each FMU's static
+    validation runs once, with its records, as in the serial matrix.
+
+    Raises
+    ------
+    ValidationError
+        As :func:`~gatetwin.validate.harness.validate_matrix`, for the first FMU (in order)
+        that failed so, or whose worker was lost.
+    """
+    from gatetwin.fleet.execute import map_tasks
+
+    tasks = [MatrixTask(Path(fmu).name, Path(fmu).read_bytes(), tuple(map(str, records)),
+                        tuple(thresholds)) for fmu, records in pairs]  # fmt: skip
+
+    def report(done: int, total: int, result: Any) -> None:
+        if progress and isinstance(result, list) and result:
+            progress(f"validate: [{done}/{total}] {result[0]['fmu']}")
+
+    return map_tasks(validate_matrix_task, tasks, settings,
+                     lambda task: f"{task.fmu_name}: its validation", report,
+                     ValidationError)  # fmt: skip
