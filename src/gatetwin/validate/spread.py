@@ -10,8 +10,9 @@ read, here first: what cannot be validated fails in one line before any work is 
 
 from __future__ import annotations
 
+import contextlib
 import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -47,11 +48,18 @@ class RecordTask:
     variable_map: VariableMap | None = None
 
 
+@contextlib.contextmanager
+def _private_fmu(name: str, data: bytes) -> Iterator[Path]:
+    """The FMU ``data`` as the file ``name`` in a private folder, removed afterwards."""
+    with tempfile.TemporaryDirectory(prefix="gatetwin-validate-") as tmp:
+        fmu = Path(tmp) / name
+        fmu.write_bytes(data)
+        yield fmu
+
+
 def validate_record_task(task: RecordTask) -> RecordValidation:
     """Validate ``task.record`` against the FMU (written to a private folder first)."""
-    with tempfile.TemporaryDirectory(prefix="gatetwin-validate-") as tmp:
-        fmu = Path(tmp) / task.fmu_name
-        fmu.write_bytes(task.fmu_bytes)
+    with _private_fmu(task.fmu_name, task.fmu_bytes) as fmu:
         result = validate_fmu(fmu, [task.record], gauge=task.gauge, thresholds=task.thresholds,
                               fail_outside_validity=task.fail_outside_validity,
                               timeout_s=task.timeout_s,
@@ -123,9 +131,7 @@ def validate_matrix_task(task: MatrixTask) -> list[dict[str, Any]]:
     private folder first) against its records."""
     from gatetwin.validate.harness import validate_matrix
 
-    with tempfile.TemporaryDirectory(prefix="gatetwin-validate-") as tmp:
-        fmu = Path(tmp) / task.fmu_name
-        fmu.write_bytes(task.fmu_bytes)
+    with _private_fmu(task.fmu_name, task.fmu_bytes) as fmu:
         return validate_matrix([fmu], list(task.records), thresholds=task.thresholds)
 
 
@@ -134,7 +140,6 @@ def validate_matrices(
     settings: FleetSettings | None,
     *,
     thresholds: Sequence[Threshold] = (),
-    progress: Callable[[str], None] | None = None,
 ) -> list[list[dict[str, Any]]]:
     """The matrix cells of every (FMU, records) pair, one FMU per task where ``settings``
     says (``None``: one after another here); in the pairs' order. Each FMU's static
@@ -150,11 +155,6 @@ def validate_matrices(
 
     tasks = [MatrixTask(Path(fmu).name, Path(fmu).read_bytes(), tuple(map(str, records)),
                         tuple(thresholds)) for fmu, records in pairs]  # fmt: skip
-
-    def report(done: int, total: int, result: Any) -> None:
-        if progress and isinstance(result, list) and result:
-            progress(f"validate: [{done}/{total}] {result[0]['fmu']}")
-
     return map_tasks(validate_matrix_task, tasks, settings,
-                     lambda task: f"{task.fmu_name}: its validation", report,
-                     ValidationError)  # fmt: skip
+                     lambda task: f"{task.fmu_name}: its validation",
+                     error=ValidationError)  # fmt: skip
