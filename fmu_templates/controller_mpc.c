@@ -79,6 +79,31 @@ static int form_matrices(ModelData *m, double q)
     return 1;
 }
 
+/* The QP's layout (gatetwin.mpc.qp): the moves of the horizon's N samples, then the band's
+ * slack; rows of N each, the opening's range, the band's lower and upper bound. */
+#define GT_MPC_N (GT_MPC_NV - 1)
+typedef char gt_mpc_layout_is_n_moves_and_3n_rows[(GT_MPC_NC == 3 * GT_MPC_N) ? 1 : -1];
+
+/* The active set of this sample's QP as the next sample's guess: a constraint on move j, or
+ * on the opening or level j samples ahead, becomes the one on j - 1 (those on j = 0 are
+ * this sample's own); the slack's bound stays. */
+static void expect_shifted(ModelData *m, const int *active, int count)
+{
+    int i, kept = 0;
+    for (i = 0; i < count && kept < GT_MPC_NV; i++) {
+        const int k = active[i], item = k >> 1, side = k & 1;
+        const int row = item - GT_MPC_NV;
+        const int base = item < GT_MPC_NV ? 0 : GT_MPC_NV + (row / GT_MPC_N) * GT_MPC_N;
+        const int j = item < GT_MPC_NV ? item : row % GT_MPC_N;
+        if (item == GT_MPC_N) {
+            m->expected[kept++] = k;
+        } else if (j > 0) {
+            m->expected[kept++] = 2 * (base + j - 1) + side;
+        }
+    }
+    m->n_expected = kept;
+}
+
 /* Solve this sample's QP from the observer's estimate; returns 1 when it solved, else 0. */
 static int solve(ModelData *m, double q, double setpoint_mm, double *x, double *iterations,
                  double *active)
@@ -95,11 +120,16 @@ static int solve(ModelData *m, double q, double setpoint_mm, double *x, double *
         gt_call(m, gt_mpc_vectors, in, 6, out, 5);
     }
     status = qp_dense_solve(GT_MPC_NV, GT_MPC_NC, m->factor, m->g, m->a, m->lba, m->uba,
-                            m->lbx, m->ubx, GT_MPC_MAX_ITER, x, &taken, &count, m->qp_work,
-                            m->qp_iwork);
+                            m->lbx, m->ubx, m->expected, m->n_expected, GT_MPC_MAX_ITER, x,
+                            &taken, &count, m->qp_work, m->qp_iwork);
     *iterations = taken;
     *active = count;
-    return status == QP_DENSE_SOLVED && gt_all_finite(x, GT_MPC_NV);
+    if (status != QP_DENSE_SOLVED || !gt_all_finite(x, GT_MPC_NV)) {
+        m->n_expected = 0;
+        return 0;
+    }
+    expect_shifted(m, m->qp_iwork, count);
+    return 1;
 }
 
 /* The opening to hold and the level it predicts one sample ahead; x = 0 holds the opening. */
@@ -166,6 +196,7 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
     m->opening_mm = e;
     m->flow_model_m3h = q;
     m->have_matrices = 0;
+    m->n_expected = 0;
     if (!form_matrices(m, q)) {
         plant_message(msg, "the QP's Hessian at flow_m3h = %.17g is not positive definite", q);
         return PLANT_ERROR;
@@ -256,6 +287,10 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
             plant_message(msg, "state of the observer or of the QP is not finite");
             return PLANT_ERROR;
         }
+    }
+    if (!(0 <= m->n_expected && m->n_expected <= GT_MPC_NV)) {
+        plant_message(msg, "state of the QP's warm start is out of range");
+        return PLANT_ERROR;
     }
     if (!m->parameters_changed && check_parameters(m, msg) != PLANT_OK) {
         return PLANT_ERROR;

@@ -31,6 +31,9 @@ typedef struct {
     double a[GT_MPC_NC * GT_MPC_NV];
     /* scratch of one sample: the QP's vectors, the solver's and the generated code's work */
     double g[GT_MPC_NV], lba[GT_MPC_NC], uba[GT_MPC_NC], lbx[GT_MPC_NV], ubx[GT_MPC_NV];
+    /* the last sample's active constraints, shifted a sample on: the next QP's first guess */
+    int expected[GT_MPC_NV];
+    int n_expected;
     double qp_work[QP_DENSE_WORK(GT_MPC_NV, GT_MPC_NC)];
     int qp_iwork[QP_DENSE_IWORK(GT_MPC_NV, GT_MPC_NC)];
     casadi_int iw[GT_GEN_SZ_IW];

@@ -24,12 +24,19 @@ enum {
  * or not finite. */
 int qp_dense_factor(int n, const double *h, double *j, double *work);
 
-/* Solve the QP from the factor j of H; infinite bounds are no constraints. x receives the
- * solution; iterations the additions and drops taken (at most max_iter); n_active the
- * constraints active at the end. Returns a QP_DENSE_* status. */
+/* Constraint k of the QP (the numbering of first and of the active set): k / 2 is the
+ * variable (k / 2 < n) or the row of A (k / 2 - n), k % 2 the side (0 the lower bound, 1 the
+ * upper). */
+
+/* Solve the QP from the factor j of H; infinite bounds are no constraints. first[0 ..
+ * n_first - 1] (first may be NULL when n_first is 0) are constraints expected to be active,
+ * tried before the others (any index is safe: those that are not constraints are passed
+ * over). x receives the solution; iterations the additions and drops taken (at most
+ * max_iter); n_active the constraints active at the end, and iwork[0 .. n_active - 1] those
+ * constraints. Returns a QP_DENSE_* status. */
 int qp_dense_solve(int n, int m, const double *j, const double *g, const double *a,
                    const double *lba, const double *uba, const double *lbx, const double *ubx,
-                   int max_iter, double *x, int *iterations, int *n_active, double *work,
-                   int *iwork);
+                   const int *first, int n_first, int max_iter, double *x, int *iterations,
+                   int *n_active, double *work, int *iwork);
 
 #endif

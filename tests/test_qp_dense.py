@@ -45,8 +45,14 @@ def _ptr(a):
     return a.ctypes.data_as(_I if a.dtype == np.int32 else _P)
 
 
-def _solve(lib, h, g, a, lba, uba, lbx, ubx, max_iter=1000):
-    """(status, x, iterations, active) from the C solver; raises when H is refused."""
+def _solve(lib, h, g, a, lba, uba, lbx, ubx, max_iter=1000, first=()):
+    """(status, x, iterations, active) from the C solver, the constraints ``first`` tried
+    first; raises when H is refused."""
+    return _solve_with_set(lib, h, g, a, lba, uba, lbx, ubx, max_iter, first)[:4]
+
+
+def _solve_with_set(lib, h, g, a, lba, uba, lbx, ubx, max_iter=1000, first=()):
+    """(status, x, iterations, active, the active constraints) from the C solver."""
     n, m = len(g), a.shape[0]
     factor = np.zeros((n, n), order="F")
     work = np.zeros(2 * n * n + 5 * n + 2 + 2 * m)
@@ -58,11 +64,12 @@ def _solve(lib, h, g, a, lba, uba, lbx, ubx, max_iter=1000):
     it, active = ctypes.c_int(), ctypes.c_int()
     vectors = [np.ascontiguousarray(v, dtype=float) for v in (g, lba, uba, lbx, ubx)]
     a_f = np.asfortranarray(a, dtype=float)
+    expected = np.asarray(first, dtype=np.int32)
     status = lib.qp_dense_solve(n, m, _ptr(factor), _ptr(vectors[0]), _ptr(a_f),
-                                *(_ptr(v) for v in vectors[1:]), max_iter, _ptr(x),
-                                ctypes.byref(it), ctypes.byref(active), _ptr(work),
-                                _ptr(iwork))  # fmt: skip
-    return status, x, it.value, active.value
+                                *(_ptr(v) for v in vectors[1:]), _ptr(expected), len(expected),
+                                max_iter, _ptr(x), ctypes.byref(it), ctypes.byref(active),
+                                _ptr(work), _ptr(iwork))  # fmt: skip
+    return status, x, it.value, active.value, iwork[: active.value].tolist()
 
 
 def _qpoases(h, g, a, lba, uba, lbx, ubx):
@@ -106,9 +113,10 @@ def test_random_qps_give_qpoases_solution(solver):
     assert active_seen > 200  # the draws do exercise constraints
 
 
-def test_the_demo_mpcs_qps_give_qpoases_solution_after_a_large_set_point_step(solver):
-    """The demo MPC (N = 30) from rest at 190 mm with a set-point of 350 mm, the step at which
-    the rate limit holds the plan for most of the horizon."""
+def _demo_step_qp():
+    """The demo MPC's QP (N = 30) from rest at 190 mm with a set-point of 350 mm, the step at
+    which the rate limit holds the plan for most of the horizon: (h, g, a, lba, uba, lbx,
+    ubx)."""
     from gatetwin.mpc import MpcSettings, demo_plant
     from gatetwin.mpc.discrete import discretise
     from gatetwin.mpc.observer import DisturbanceObserver
@@ -120,11 +128,42 @@ def test_the_demo_mpcs_qps_give_qpoases_solution_after_a_large_set_point_step(so
     obs.reset(model, 25.0, 190.0)
     qp = CondensedQp(model, s)
     data = qp.data(MpcProblem(model, obs.state, obs.disturbance_mm, 350.0, 25.0, s))
-    args = (data.h, data.g, data.a, data.lba, data.uba, data.lbx, data.ubx)
+    return data.h, data.g, data.a, data.lba, data.uba, data.lbx, data.ubx
+
+
+def test_the_demo_mpcs_qps_give_qpoases_solution_after_a_large_set_point_step(solver):
+    """The demo MPC (N = 30) from rest at 190 mm with a set-point of 350 mm, the step at which
+    the rate limit holds the plan for most of the horizon."""
+    args = _demo_step_qp()
     status, x, iterations, active = _solve(solver, *args)
     want = _qpoases(*args)
     assert status == SOLVED and active >= 10 and iterations >= active
     assert np.max(np.abs(x - want)) <= RTOL * np.max(np.abs(want))
+
+
+def test_constraints_named_first_change_the_path_not_the_solution(solver):
+    """Any list of constraints to try first (the real ones, indices that name no constraint,
+    repeats, infinite bounds) leaves the solution qpOASES's."""
+    rng = np.random.default_rng(20261128)
+    for _ in range(200):
+        qp = _random_qp(rng, int(rng.integers(1, 30)), int(rng.integers(0, 40)))
+        n_con = 2 * (len(qp[1]) + len(qp[2]))
+        first = rng.integers(-3, n_con + 3, size=int(rng.integers(0, 2 * len(qp[1]))))
+        status, x, *_ = _solve(solver, *qp, first=first)
+        want = _qpoases(*qp)
+        assert status == SOLVED
+        assert np.max(np.abs(x - want)) <= RTOL * max(1.0, np.max(np.abs(want)))
+
+
+def test_the_active_set_named_first_is_added_once_each(solver):
+    """The demo MPC's QP after a large set-point step: given its own active set, the solver
+    adds each of those constraints once, none dropped, and lands on the same solution."""
+    args = _demo_step_qp()
+    status, x, iterations, active, found = _solve_with_set(solver, *args)
+    assert status == SOLVED and iterations >= active >= 10
+    status, x_warm, warm_iterations, warm_active, _ = _solve_with_set(solver, *args, first=found)
+    assert status == SOLVED and warm_iterations == warm_active == active
+    assert np.max(np.abs(x_warm - x)) <= RTOL * np.max(np.abs(x))
 
 
 def test_an_infeasible_qp_is_reported(solver):
