@@ -95,17 +95,6 @@ def test_identify_folder_takes_a_str_and_refuses_a_missing_folder(tmp_path):
         identify_folder(str(tmp_path / "nowhere"))
 
 
-@pytest.mark.slow
-def test_identify_folder_writes_what_gatetwin_models_writes(tmp_path):
-    # the bundled folder: ~10 s of identification, twice
-    identify_folder(str(RECORDS)).save(tmp_path / "api")
-    assert main(["models", "--out", str(tmp_path / "cli")]) == 0
-    names = sorted(p.name for p in (tmp_path / "cli").iterdir())
-    assert names == sorted(p.name for p in (tmp_path / "api").iterdir())
-    for name in names:
-        assert (tmp_path / "api" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes()
-
-
 def test_a_model_set_is_a_read_only_mapping_naming_what_it_lacks(fopdt):
     models = gatetwin.ModelSet({"fopdt_3F": fopdt})
     assert dict(models) == {"fopdt_3F": fopdt}

@@ -20,8 +20,8 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 
 @pytest.fixture(scope="module")
 def regenerated(tmp_path_factory):
-    """The bundled records identified as ``gatetwin run`` does: each gauge on a process of a
-    pool of two."""
+    """The bundled records identified as ``gatetwin run`` does (each gauge on a process of a
+    pool of two) and written as ``gatetwin models`` writes them."""
     from gatetwin.fleet.execute import FleetSettings
 
     out = tmp_path_factory.mktemp("models")
@@ -30,39 +30,48 @@ def regenerated(tmp_path_factory):
     return out
 
 
-def _close(a, b, path="$"):
+def assert_close_json(a, b, path="$"):
     """Equal structure and strings; numbers to 1e-6 (platform round-off, far below any SE)."""
     if isinstance(a, dict):
         assert isinstance(b, dict) and sorted(a) == sorted(b), path
         for k in a:
-            _close(a[k], b[k], f"{path}.{k}")
+            assert_close_json(a[k], b[k], f"{path}.{k}")
     elif isinstance(a, list):
         assert isinstance(b, list) and len(a) == len(b), path
         for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            _close(x, y, f"{path}[{i}]")
+            assert_close_json(x, y, f"{path}[{i}]")
     elif isinstance(a, float) or isinstance(b, float):
         assert np.isclose(a, b, rtol=1e-6, atol=1e-6), f"{path}: {a} != {b}"
     else:
         assert a == b, path
 
 
+#: the two tests that share the identification run on one worker (``--dist loadgroup``)
+shares_the_identification = pytest.mark.xdist_group("identification")
+
+
 @pytest.mark.slow
+@shares_the_identification
 def test_repository_models_are_not_stale(regenerated):
     fresh = sorted(p.name for p in regenerated.glob("*.json"))
     stored = sorted(p.name for p in MODELS.glob("*.json"))
     assert fresh == stored, "run `gatetwin models --out models` and commit the result"
     for name in fresh:
-        _close(json.loads((regenerated / name).read_text()),
+        assert_close_json(json.loads((regenerated / name).read_text()),
                json.loads((MODELS / name).read_text()), name)  # fmt: skip
 
 
 @pytest.mark.slow
+@shares_the_identification
 def test_identification_here_is_the_identification_on_a_pool(regenerated, tmp_path):
-    """One gauge after another in this process gives the pool's model files to the bit (the
-    numerical libraries on one thread in both)."""
-    write_model_files(identify_folder(bundled_records_dir()).models, tmp_path)
-    names = sorted(p.name for p in regenerated.glob("*.json"))
-    assert names == sorted(p.name for p in tmp_path.glob("*.json"))
+    """The API's ``identify_folder`` of the folder's name (one gauge after another in this
+    process) saves the pool's model files to the bit (the numerical libraries on one thread
+    in both)."""
+    import gatetwin
+
+    gatetwin.identify_folder(str(bundled_records_dir())).save(tmp_path)
+    names = sorted(p.name for p in regenerated.iterdir())
+    assert names == sorted(p.name for p in tmp_path.iterdir())
     for name in names:
         assert (tmp_path / name).read_bytes() == (regenerated / name).read_bytes(), name
 

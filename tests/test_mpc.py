@@ -98,6 +98,19 @@ def test_cli_mpc_demo(tmp_path, capsys):
     assert err.startswith("gatetwin: error:") and err.count("\n") == 1
 
 
+@pytest.mark.slow
+def test_the_demo_plant_is_the_fopdt_the_run_identifies():
+    """Without a model file the demo identifies gauge 3F only; its plant is the one of the
+    whole folder's identification (models/fopdt_3F.json, kept fresh by test_models.py: to
+    1e-6, platform round-off)."""
+    from gatetwin.mpc.demo import load_demo_plant
+    from gatetwin.plant.model import plant_to_dict
+    from test_models import MODELS, assert_close_json
+
+    stored = json.loads((MODELS / "fopdt_3F.json").read_text())["plant"]
+    assert_close_json(plant_to_dict(load_demo_plant()), stored, "fopdt_3F.plant")
+
+
 def test_demo_plant_levels_are_the_flumes_at_the_reference_opening(plant):
     core = FlumeCore(FlumeConfig())
     level = core.start(plant.opening_ref_mm, 40.0)

@@ -451,6 +451,13 @@ def identify_records(paths: list[Path], where: str, progress: Any = None,
     return ident
 
 
+def gauge_fopdt(job: tuple[Identified, str]) -> dict[str, Any]:
+    """The FOPDT model file of one gauge (a task), as :func:`gauge_models` fits it: on the
+    gauge's physical model."""
+    ident, gauge = job
+    return fopdt_model(ident, gauge, physical_model(ident, gauge))
+
+
 def gauge_models(job: tuple[Identified, str]) -> dict[str, dict[str, Any]]:
     """The model files of one gauge (a task): its physical model, the FOPDT across its
     envelope and, at the discrete model's gauge, the discrete model."""

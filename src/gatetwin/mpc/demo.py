@@ -116,12 +116,16 @@ def demo_plant(config: FlumeConfig | None = None, *, opening_ref_mm: float = 25.
 
 def load_demo_plant(model_path: str | Path | None = None) -> FopdtPlant:
     """The plant of a model file (must be FOPDT); without one, the scheduled FOPDT of gauge
-    3F identified from the bundled records (the model ``gatetwin run`` exports)."""
+    3F identified from the bundled records (the model ``gatetwin run`` exports; only that
+    gauge is identified)."""
     if model_path is None:
         from gatetwin.bundled import bundled_records_dir
-        from gatetwin.identify.suite import identify_folder
+        from gatetwin.fleet.execute import map_tasks
+        from gatetwin.identify.suite import gauge_fopdt, load_folder
 
-        doc = identify_folder(bundled_records_dir()).models["fopdt_3F"]
+        ident = load_folder(bundled_records_dir())
+        [doc] = map_tasks(gauge_fopdt, [(ident, "3F")], None,
+                          lambda job: f"gauge {job[1]}'s FOPDT")  # fmt: skip
         return plant_from_dict(doc["plant"])  # type: ignore[return-value]
     from gatetwin.modelfile import read_model_file
 
