@@ -144,17 +144,28 @@ floor = math.floor
 
 
 # -- the model -----------------------------------------------------------------------------------
-def discharge_coefficient(ratio: float, flow_m3h: float, p: list[float]) -> float:
-    """Cd at opening ratio ``e/h`` and discharge ``flow_m3h``."""
+def cd_law(flow_m3h: float, p: list[float]) -> tuple[float, float, float, float, float]:
+    """What Cd's curve over the opening ratio is at the discharge ``flow_m3h``: its small- and
+    large-opening values, the middle and width of the transition, its shape (a solve at one
+    discharge computes them once)."""
     # written as Q/Q_s − Q_c/Q_s: with Q_s a power of ten the same arithmetic at any scale
     qq = flow_m3h / p[19] - p[18] / p[19]
     c_small = p[0] + p[1] * qq
     c_large = p[2] + p[3] * qq
     middle = p[4] + p[5] * qq
-    width = exp(p[6] + p[7] * qq)
-    shape = exp(p[8])
+    return c_small, c_large, middle, exp(p[6] + p[7] * qq), exp(p[8])
+
+
+def law_discharge_coefficient(ratio: float, law: tuple[float, float, float, float, float]) -> float:
+    """Cd at opening ratio ``e/h`` on the curve ``law`` (:func:`cd_law`)."""
+    c_small, c_large, middle, width, shape = law
     z = (log(fmax(ratio, RATIO_MIN)) - middle) / width
     return c_large + (c_small - c_large) * exp(-shape * log(1.0 + exp(z)))
+
+
+def discharge_coefficient(ratio: float, flow_m3h: float, p: list[float]) -> float:
+    """Cd at opening ratio ``e/h`` and discharge ``flow_m3h``."""
+    return law_discharge_coefficient(ratio, cd_law(flow_m3h, p))
 
 
 def has_tail(p: list[float]) -> bool:
@@ -179,9 +190,16 @@ def tail_outflow_m3s(tail_m: float, p: list[float]) -> float:
 def gate_flow_m3s(depth_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
                   p: list[float]) -> float:  # fmt: skip
     """Discharge under the gate, m³/s (underflow against the tailwater, capped at critical)."""
+    return law_gate_flow_m3s(depth_m, tail_m, opening_mm, cd_law(flow_m3h, p), p)
+
+
+def law_gate_flow_m3s(depth_m: float, tail_m: float, opening_mm: float,
+                      law: tuple[float, float, float, float, float],
+                      p: list[float]) -> float:  # fmt: skip
+    """:func:`gate_flow_m3s` with Cd's curve at the discharge given (:func:`cd_law`)."""
     h = fmax(depth_m, DEPTH_MIN_M)
     e = fmax(opening_mm, 0.0) / 1000.0
-    cd = discharge_coefficient(e / h, flow_m3h, p)
+    cd = law_discharge_coefficient(e / h, law)
     tailwater = select(has_tail(p), fmax(tail_m, 0.5 * e), 0.0)
     free = cd * p[9] * e * sqrt(2.0 * G * fmax(h - tailwater, 0.0))
     critical = p[9] * sqrt(G) * 0.5443310539518174 * h * sqrt(h)  # (2/3)^1.5 h^1.5
@@ -254,10 +272,22 @@ def tail_bisection_step(
 ) -> tuple[float, float]:  # fmt: skip
     """One halving of the bracket of the depth at which the gate passes the inflow into the
     tail pool held at ``tail_m``."""
-    middle = 0.5 * (low_m + high_m)
-    passing = gate_flow_m3s(middle, tail_m, opening_mm, flow_m3h, p)
+    c_small, c_large, middle, width, shape = cd_law(flow_m3h, p)
+    return law_bisection_step(low_m, high_m, tail_m, opening_mm, flow_m3h, c_small, c_large,
+                              middle, width, shape, p)  # fmt: skip
+
+
+def law_bisection_step(
+    low_m: float, high_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
+    c_small: float, c_large: float, middle: float, width: float, shape: float, p: list[float],
+) -> tuple[float, float]:  # fmt: skip
+    """:func:`tail_bisection_step` with Cd's curve at the discharge given, as :func:`cd_law`
+    returns it."""
+    half = 0.5 * (low_m + high_m)
+    law = (c_small, c_large, middle, width, shape)
+    passing = law_gate_flow_m3s(half, tail_m, opening_mm, law, p)
     below = less(passing, flow_m3h / 3600.0)
-    return select(below, middle, low_m), select(below, high_m, middle)
+    return select(below, half, low_m), select(below, high_m, half)
 
 
 def has_floor(p: list[float]) -> bool:
@@ -270,18 +300,19 @@ def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     """Depth at the gate at which it passes ``flow_m3h`` with the tail pool at its steady
     depth: :func:`bisection_step` over ``[DEPTH_LOW_M, depth_max_m]`` run to its fixed
     number of steps (as ``kernel_point.c`` runs it), m."""
-    low, high = DEPTH_LOW_M, p[DEPTH_MAX_INDEX]
-    for _ in range(BISECTION_STEPS):
-        low, high = bisection_step(low, high, opening_mm, flow_m3h, p)
-    return 0.5 * (low + high)
+    return held_steady_depth_m(tail_steady_m(flow_m3h, p), opening_mm, flow_m3h, p)
 
 
 def held_steady_depth_m(tail_m: float, opening_mm: float, flow_m3h: float,
                         p: list[float]) -> float:  # fmt: skip
-    """:func:`steady_depth_m` with the tail pool held at ``tail_m``, m."""
+    """:func:`steady_depth_m` with the tail pool held at ``tail_m``, m (what depends on the
+    discharge alone computed once, as :func:`tail_bisection_step` computes it at each
+    halving: the same operations on the same numbers)."""
+    c_small, c_large, middle, width, shape = cd_law(flow_m3h, p)
     low, high = DEPTH_LOW_M, p[DEPTH_MAX_INDEX]
     for _ in range(BISECTION_STEPS):
-        low, high = tail_bisection_step(low, high, tail_m, opening_mm, flow_m3h, p)
+        low, high = law_bisection_step(low, high, tail_m, opening_mm, flow_m3h, c_small, c_large,
+                                       middle, width, shape, p)  # fmt: skip
     return 0.5 * (low + high)
 
 
@@ -432,8 +463,23 @@ def substep_count(step_s: float, p: list[float]) -> float:
 RENDERED = (
     ("substep", ("depth_m", "tail_m", "gate_mm", "target_mm", "flow_m3h", "dt_s"), 3),
     ("tail_steady_m", ("flow_m3h",), 1),
-    ("bisection_step", ("low_m", "high_m", "opening_mm", "flow_m3h"), 2),
-    ("tail_bisection_step", ("low_m", "high_m", "tail_m", "opening_mm", "flow_m3h"), 2),
+    ("cd_law", ("flow_m3h",), 5),
+    (
+        "law_bisection_step",
+        (
+            "low_m",
+            "high_m",
+            "tail_m",
+            "opening_mm",
+            "flow_m3h",
+            "c_small",
+            "c_large",
+            "middle",
+            "width",
+            "shape",
+        ),
+        2,
+    ),  # fmt: skip
     ("has_tail", (), 1),
     ("storage_room_m2", (), 1),
     ("level_mm", ("depth_m", "opening_mm", "flow_m3h"), 1),
