@@ -203,17 +203,8 @@ def kernel_simulator() -> tuple[Callable[..., Any], Callable[..., Any]]:
     from numba import njit
 
     k = numba_kernel(kernel.__name__)
-    substep, bisect, level = k.substep, k.bisection_step, k.level_mm
+    substep, depth0, level = k.substep, k.steady_depth_m, k.level_mm
     target_of, count_of, tail0 = k.actuator_target_mm, k.substep_count, k.tail_steady_m
-    low0, high_index = kernel.DEPTH_LOW_M, kernel.DEPTH_MAX_INDEX
-    n_bisect = kernel.BISECTION_STEPS
-
-    @njit(cache=False)
-    def depth0(e: float, q: float, p: np.ndarray) -> float:
-        low, high = low0, p[high_index]
-        for _ in range(n_bisect):
-            low, high = bisect(low, high, e, q, p)
-        return 0.5 * (low + high)
 
     advance = njit(cache=True)(blocks.seiche_advance)
     at_rest = njit(cache=True)(blocks.seiche_equilibrium)
@@ -698,10 +689,7 @@ def _conductance_m2s(points: SteadyPoints, values: dict[str, float]) -> np.ndarr
     out = []
     for e, q in zip(points.opening_mm, points.flow_m3h, strict=True):
         gate = kernel.actuator_target_mm(float(e), p)
-        low, high = kernel.DEPTH_LOW_M, p[kernel.DEPTH_MAX_INDEX]
-        for _ in range(kernel.BISECTION_STEPS):
-            low, high = kernel.bisection_step(low, high, gate, float(q), p)
-        h, tail = 0.5 * (low + high), kernel.tail_steady_m(float(q), p)
+        h, tail = kernel.steady_depth_m(gate, float(q), p), kernel.tail_steady_m(float(q), p)
         upper = kernel.gate_flow_m3s(h + d, tail, gate, float(q), p)
         lower = kernel.gate_flow_m3s(h - d, tail, gate, float(q), p)
         out.append((upper - lower) / (2.0 * d))

@@ -257,31 +257,12 @@ def substep(
     return depth_end, tail_end, gate_end
 
 
-def bisection_step(
-    low_m: float, high_m: float, opening_mm: float, flow_m3h: float, p: list[float]
-) -> tuple[float, float]:
-    """One halving of the bracket of the steady depth (the gate passes the inflow into the
-    tail pool at its steady depth)."""
-    return tail_bisection_step(low_m, high_m, tail_steady_m(flow_m3h, p), opening_mm, flow_m3h,
-                               p)  # fmt: skip
-
-
-def tail_bisection_step(
-    low_m: float, high_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
-    p: list[float],
-) -> tuple[float, float]:  # fmt: skip
-    """One halving of the bracket of the depth at which the gate passes the inflow into the
-    tail pool held at ``tail_m``."""
-    c_small, c_large, middle, width, shape = cd_law(flow_m3h, p)
-    return law_bisection_step(low_m, high_m, tail_m, opening_mm, flow_m3h, c_small, c_large,
-                              middle, width, shape, p)  # fmt: skip
-
-
 def law_bisection_step(
     low_m: float, high_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
     c_small: float, c_large: float, middle: float, width: float, shape: float, p: list[float],
 ) -> tuple[float, float]:  # fmt: skip
-    """:func:`tail_bisection_step` with Cd's curve at the discharge given, as :func:`cd_law`
+    """One halving of the bracket of the depth at which the gate passes the inflow into the
+    tail pool held at ``tail_m``, with Cd's curve at the discharge given as :func:`cd_law`
     returns it."""
     half = 0.5 * (low_m + high_m)
     law = (c_small, c_large, middle, width, shape)
@@ -298,16 +279,15 @@ def has_floor(p: list[float]) -> bool:
 
 def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     """Depth at the gate at which it passes ``flow_m3h`` with the tail pool at its steady
-    depth: :func:`bisection_step` over ``[DEPTH_LOW_M, depth_max_m]`` run to its fixed
+    depth: :func:`law_bisection_step` over ``[DEPTH_LOW_M, depth_max_m]`` run to its fixed
     number of steps (as ``kernel_point.c`` runs it), m."""
     return held_steady_depth_m(tail_steady_m(flow_m3h, p), opening_mm, flow_m3h, p)
 
 
 def held_steady_depth_m(tail_m: float, opening_mm: float, flow_m3h: float,
                         p: list[float]) -> float:  # fmt: skip
-    """:func:`steady_depth_m` with the tail pool held at ``tail_m``, m (what depends on the
-    discharge alone computed once, as :func:`tail_bisection_step` computes it at each
-    halving: the same operations on the same numbers)."""
+    """:func:`steady_depth_m` with the tail pool held at ``tail_m``, m (Cd's curve at the
+    discharge computed once, not at each halving)."""
     c_small, c_large, middle, width, shape = cd_law(flow_m3h, p)
     low, high = DEPTH_LOW_M, p[DEPTH_MAX_INDEX]
     for _ in range(BISECTION_STEPS):
