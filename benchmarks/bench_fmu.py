@@ -16,8 +16,14 @@ Two measurements, printed with their ratios (never asserted):
 2. The same FMUs through fmpy's FMU2Slave (setReal + doStep + getReal per step): steps per
    second, next to fmpy's own overhead (an empty loop and a getReal-only loop).
 
-usage: python benchmarks/bench_fmu.py [--model MODEL.json] [--n-c 5000000] [--n-python 20000]
-       [--n-fmpy 20000] [--repeat 5]
+``--families`` instead times the C FMU of every family in one run (the test plant's bare-able
+FOPDT and the bundled ``models/`` fopdt_3F, arx_3F and physical_3F, whose envelopes derive a
+steady point from the opening) beside the bare FOPDT: per setReal + doStep + getReal with the
+opening held, changed every 7 steps, changed at every step, and moving by 0.1 mm at every
+step (a controller's output; the discharge held), each with its ratio to the bare step.
+
+usage: python benchmarks/bench_fmu.py [--model MODEL.json | --families] [--n-c 5000000]
+       [--n-python 20000] [--n-fmpy 20000] [--repeat 5]
 """
 
 from __future__ import annotations
@@ -63,10 +69,11 @@ def test_plant() -> FopdtPlant:
     )
 
 
-def build(folder: Path, plant: Any) -> dict[str, Path]:
-    """Export and extract both FMUs; return backend -> extracted folder."""
+def build(folder: Path, plant: Any, backends: tuple[str, ...] = ("c", "python")) -> dict[str, Path]:
+    """Export and extract the FMUs; return backend -> extracted folder."""
     out = {}
-    for backend in ("c", "python"):
+    folder.mkdir(parents=True, exist_ok=True)
+    for backend in backends:
         fmu = export_fmu(
             plant,
             folder / f"bench_{backend}.fmu",
@@ -104,11 +111,12 @@ def libpython() -> tuple[Path | None, str]:
 
 
 def run_host(
-    host: Path, args: list[str], n: int, lib: Path | None = None, env: dict[str, str] | None = None
-) -> dict[str, float]:
+    host: Path, args: list[str], n: int, lib: Path | None = None, env: dict[str, str] | None = None,
+    step_s: float | None = None,
+) -> dict[str, float]:  # fmt: skip
     extra = [str(lib)] if lib else []
     done = subprocess.run(
-        [str(host), *args, str(STEP_S), str(n), *extra],
+        [str(host), *args, str(step_s or STEP_S), str(n), *extra],
         capture_output=True,
         text=True,
         env=env,
@@ -180,6 +188,51 @@ def empty_loop_ns(n: int) -> float:
     return (time.perf_counter() - start) / n * 1e9
 
 
+def build_host(cc: str, sources: Path, out: Path) -> Path:
+    """bench_host.c compiled against an FMU's FMI headers."""
+    subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-I", str(sources),
+                    "-o", str(out), str(HERE / "bench_host.c"), "-ldl"], check=True)  # fmt: skip
+    return out
+
+
+#: The cases of --families: bench_host's keys and what they are.
+CASES = (("set_doStep_get_ns", "held 7 steps"), ("set_every_step_ns", "new at every step"),
+         ("moving_ns", "moving 0.1 mm/step"))  # fmt: skip
+
+
+def families(cc: str, n: int, repeat: int) -> None:
+    """The C FMU of every family beside the bare FOPDT, in one run (printed as Markdown)."""
+    models = Path(__file__).resolve().parents[1] / "models"
+    plants = {"fopdt (test plant)": test_plant(),
+              **{name: read_model_file(models / f"{name}.json").plant
+                 for name in ("fopdt_3F", "arx_3F", "physical_3F")}}  # fmt: skip
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        fmus = {name: build(folder / f"fmu{i}", plant, ("c",))["c"]
+                for i, (name, plant) in enumerate(plants.items())}  # fmt: skip
+        host = build_host(cc, next(iter(fmus.values())) / "sources", folder / "bench_host")
+        bare_cmd = bare_command(cc, folder, test_plant(), n)
+        runs: dict[str, list[dict[str, float]]] = {name: [] for name in plants}
+        bare_runs = []
+        for _ in range(repeat):  # interleaved: a load change touches every case alike
+            bare_runs.append(run_bare(bare_cmd))
+            for name, plant in plants.items():
+                step_s = getattr(plant, "sample_period_s", 1.0)
+                runs[name].append(run_host(host, host_args(fmus[name], plant.gauge), n,
+                                           step_s=step_s))  # fmt: skip
+    bare = min(bare_runs)
+    print(
+        f"C FMUs, setReal + doStep + getReal, ns per step (fastest of {repeat} runs of "
+        f"N = {n:,}; Q = {FLOW_M3H:g} m3/h held); the bare FOPDT (bench_bare.c) {bare:.1f} ns\n"
+    )
+    print("| FMU | " + " | ".join(f"{what} (ns) | x bare" for _, what in CASES) + " |")
+    print("|---|" + "---|---|" * len(CASES))
+    for name in plants:
+        best = {key: min(r[key] for r in runs[name]) for key, _ in CASES}
+        cells = " | ".join(f"{best[key]:.1f} | {best[key] / bare:.1f}" for key, _ in CASES)
+        print(f"| {name} | {cells} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n-c", type=int, default=5_000_000, help="doSteps timed, C FMU")
@@ -188,37 +241,29 @@ def main() -> None:
                         help="C timings: runs of each, the fastest kept (a shared machine "
                         "only ever slows a run down)")  # fmt: skip
     parser.add_argument("--n-fmpy", type=int, default=20_000, help="steps through fmpy")
-    parser.add_argument(
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument(
         "--model",
         metavar="MODEL.json",
         help="time this model file's FMUs instead of the FOPDT test plant",
     )
+    which.add_argument(
+        "--families",
+        action="store_true",
+        help="time the C FMU of every family (and models/) beside the bare FOPDT",
+    )
     args = parser.parse_args()
+    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    if args.families:
+        families(cc, args.n_c, args.repeat)
+        return
     plant = read_model_file(args.model).plant if args.model else test_plant()
     global STEP_S
     STEP_S = getattr(plant, "sample_period_s", STEP_S)  # an ARX steps at its sample period
-    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         fmus = build(folder, plant)
-        host = folder / "bench_host"
-        subprocess.run(
-            [
-                cc,
-                "-std=c99",
-                "-O2",
-                "-Wall",
-                "-Wextra",
-                "-Werror",
-                "-I",
-                str(fmus["c"] / "sources"),
-                "-o",
-                str(host),
-                str(HERE / "bench_host.c"),
-                "-ldl",
-            ],
-            check=True,
-        )
+        host = build_host(cc, fmus["c"] / "sources", folder / "bench_host")
         what = args.model or "FOPDT test plant, 3 knots"
         print(f"{what}: Q = 47 m3/h, opening 18/23 mm alternating every 7 steps, step {STEP_S} s")
         print(f"\n1. C host (dlopen of the FMU binary, {sys.platform})")
@@ -237,6 +282,8 @@ def main() -> None:
         every = c_ns["set_every_step_ns"]
         print(f"               the same, a new opening at every step {every:10.1f} ns   "
               f"({every / c_ns['set_doStep_get_ns']:.2f} x the above)")  # fmt: skip
+        moving = c_ns["moving_ns"]
+        print(f"               the same, the opening moving 0.1 mm a step {moving:10.1f} ns")
         if not args.model:
             bare = min(bare_runs)
             ratio = c_ns["set_doStep_get_ns"] / bare

@@ -4,8 +4,10 @@
  *
  * LIBPYTHON (for pythonfmu FMUs) is loaded first with RTLD_GLOBAL: pythonfmu's binary takes
  * the Python C API from the process instead of linking libpython itself.
- * Prints three lines: doStep alone with held inputs; setReal + doStep + getReal per step with
- * the opening changed every 7 steps; the same with the opening changed at every step.
+ * Prints four lines: doStep alone with held inputs; setReal + doStep + getReal per step with
+ * the opening changed every 7 steps; the same with the opening changed at every step between
+ * 18 and 23 mm; the same with the opening moving by 0.1 mm at every step (a controller's
+ * output: 18.0, 18.1, ... 22.9 mm, then back to 18 mm).
  */
 #define _POSIX_C_SOURCE 199309L
 #include <dlfcn.h>
@@ -122,6 +124,17 @@ int main(int argc, char **argv)
             t += step_s;
         }
         printf("set_every_step_ns %.2f\n", (now_ns() - start) / n);
+        start = now_ns();
+        for (k = 0; k < n; k++) {
+            values[0] = 18.0 + 0.1 * (double)(k % 50); /* 0.1 mm per step */
+            fmi2SetReal(c, inputs, 2, values);
+            if (fmi2DoStep(c, t, step_s, fmi2True) != fmi2OK) {
+                return 1;
+            }
+            fmi2GetReal(c, &output, 1, &level);
+            t += step_s;
+        }
+        printf("moving_ns %.2f\n", (now_ns() - start) / n);
         printf("level %.6f\n", level);
         fmi2FreeInstance(c);
     }
