@@ -16,11 +16,12 @@ Two measurements, printed with their ratios (never asserted):
 2. The same FMUs through fmpy's FMU2Slave (setReal + doStep + getReal per step): steps per
    second, next to fmpy's own overhead (an empty loop and a getReal-only loop).
 
-``--families`` instead times the C FMU of every family in one run (the test plant's bare-able
-FOPDT and the bundled ``models/`` fopdt_3F, arx_3F and physical_3F, whose envelopes derive a
-steady point from the opening) beside the bare FOPDT: per setReal + doStep + getReal with the
-opening held, changed every 7 steps, changed at every step, and moving by 0.1 mm at every
-step (a controller's output; the discharge held), each with its ratio to the bare step.
+``--families`` instead times the C FMU of every family in one run (the test plant's FOPDT,
+the twin of the bare step, and the bundled ``models/`` fopdt_3F and arx_3F, whose envelopes
+derive a steady point from the opening, and physical_3F) beside the bare FOPDT: per
+setReal + doStep + getReal with the opening held, changed every 7 steps, changed at every
+step, and moving by 0.1 mm at every step (a controller's output; the discharge held), each
+with its ratio to the bare step.
 
 usage: python benchmarks/bench_fmu.py [--model MODEL.json | --families] [--n-c 5000000]
        [--n-python 20000] [--n-fmpy 20000] [--repeat 5]

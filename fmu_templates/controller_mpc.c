@@ -112,6 +112,7 @@ static int solve(ModelData *m, double q, double setpoint_mm, double *x, double *
     *iterations = 0.0;
     *active = 0.0;
     if (!form_matrices(m, q)) {
+        m->n_expected = 0;
         return 0;
     }
     {

@@ -11,7 +11,8 @@
  * expects an active set (the last sample's, shifted) names it, and those of its constraints
  * that are violated are added first, in its order, before the search over all constraints.
  * That saves the search (one pass over A) at each of them and the drops of constraints the
- * search would have picked wrongly; the solution is the same.
+ * search would have picked wrongly; the solution is the same (to round-off: another order of
+ * additions is another factorisation).
  * One iteration (an addition or a drop) costs O(n^2 + mn): one pass over A, two over J, and
  * a Householder reflection (addition) or Givens rotations (drop) of J's and R's columns. The caller bounds the iterations; the iterates
  * before the last are not feasible, so a stopped solve is a failure, not an approximation.

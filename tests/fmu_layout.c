@@ -66,6 +66,7 @@ int main(int argc, char **argv)
 #endif
 #ifdef GATETWIN_MPC_DATA_H
     INT_FIELD(have_matrices);
+    INT_FIELD(n_expected);
 #endif
 #ifdef GATETWIN_PLANT_DATA_H
     INT_FIELD(warned_validity);

@@ -155,6 +155,23 @@ def test_constraints_named_first_change_the_path_not_the_solution(solver):
         assert np.max(np.abs(x - want)) <= RTOL * max(1.0, np.max(np.abs(want)))
 
 
+def test_the_constraints_named_first_are_added_first_in_their_order(solver):
+    """H = I and every upper bound binding (x = -g beyond it, so adding one bound moves no
+    other variable): named in a shuffled order, with indices that name no constraint among
+    them, the bounds are added in that order, one iteration each; the search alone adds
+    them by violation."""
+    rng = np.random.default_rng(5)
+    n = 20
+    g = -10.0 * np.ones(n) + rng.normal(size=n)
+    qp = (np.eye(n), g, np.zeros((0, n)), np.zeros(0), np.zeros(0), -np.ones(n), np.ones(n))
+    upper = [2 * i + 1 for i in rng.permutation(n)]
+    status, x, iterations, active, order = _solve_with_set(solver, *qp, first=[-1, *upper, 99])
+    assert (status, iterations, active) == (SOLVED, n, n) and np.array_equal(x, np.ones(n))
+    assert order == upper
+    _, _, _, _, searched = _solve_with_set(solver, *qp)
+    assert searched == [2 * int(i) + 1 for i in np.argsort(g)] != upper
+
+
 def test_the_active_set_named_first_is_added_once_each(solver):
     """The demo MPC's QP after a large set-point step: given its own active set, the solver
     adds each of those constraints once, none dropped, and lands on the same solution."""

@@ -144,7 +144,11 @@ floor = math.floor
 
 
 # -- the model -----------------------------------------------------------------------------------
-def cd_law(flow_m3h: float, p: list[float]) -> tuple[float, float, float, float, float]:
+#: Cd's curve over the opening ratio at one discharge (:func:`cd_law`).
+CdLaw = tuple[float, float, float, float, float]
+
+
+def cd_law(flow_m3h: float, p: list[float]) -> CdLaw:
     """What Cd's curve over the opening ratio is at the discharge ``flow_m3h``: its small- and
     large-opening values, the middle and width of the transition, its shape (a solve at one
     discharge computes them once)."""
@@ -156,16 +160,11 @@ def cd_law(flow_m3h: float, p: list[float]) -> tuple[float, float, float, float,
     return c_small, c_large, middle, exp(p[6] + p[7] * qq), exp(p[8])
 
 
-def law_discharge_coefficient(ratio: float, law: tuple[float, float, float, float, float]) -> float:
+def law_discharge_coefficient(ratio: float, law: CdLaw) -> float:
     """Cd at opening ratio ``e/h`` on the curve ``law`` (:func:`cd_law`)."""
     c_small, c_large, middle, width, shape = law
     z = (log(fmax(ratio, RATIO_MIN)) - middle) / width
     return c_large + (c_small - c_large) * exp(-shape * log(1.0 + exp(z)))
-
-
-def discharge_coefficient(ratio: float, flow_m3h: float, p: list[float]) -> float:
-    """Cd at opening ratio ``e/h`` and discharge ``flow_m3h``."""
-    return law_discharge_coefficient(ratio, cd_law(flow_m3h, p))
 
 
 def has_tail(p: list[float]) -> bool:
@@ -194,7 +193,7 @@ def gate_flow_m3s(depth_m: float, tail_m: float, opening_mm: float, flow_m3h: fl
 
 
 def law_gate_flow_m3s(depth_m: float, tail_m: float, opening_mm: float,
-                      law: tuple[float, float, float, float, float],
+                      law: CdLaw,
                       p: list[float]) -> float:  # fmt: skip
     """:func:`gate_flow_m3s` with Cd's curve at the discharge given (:func:`cd_law`)."""
     h = fmax(depth_m, DEPTH_MIN_M)
