@@ -120,9 +120,8 @@ def _plant_and_provenance(case: str):
     return replace(PLANTS[family](), effects=effects), VALIDITY
 
 
-#: The sanitizer builds alone take over a minute: the module runs with CI's slow subset, on
-#: one worker (``--dist loadgroup``), which builds them once.
-pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("fuzz")]
+#: The sanitizer builds alone take over a minute: the module runs with CI's slow subset.
+pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")

@@ -46,12 +46,7 @@ def assert_close_json(a, b, path="$"):
         assert a == b, path
 
 
-#: the two tests that share the identification run on one worker (``--dist loadgroup``)
-shares_the_identification = pytest.mark.xdist_group("identification")
-
-
 @pytest.mark.slow
-@shares_the_identification
 def test_repository_models_are_not_stale(regenerated):
     fresh = sorted(p.name for p in regenerated.glob("*.json"))
     stored = sorted(p.name for p in MODELS.glob("*.json"))
@@ -62,7 +57,6 @@ def test_repository_models_are_not_stale(regenerated):
 
 
 @pytest.mark.slow
-@shares_the_identification
 def test_identification_here_is_the_identification_on_a_pool(regenerated, tmp_path):
     """The API's ``identify_folder`` of the folder's name (one gauge after another in this
     process) saves the pool's model files to the bit (the numerical libraries on one thread
