@@ -129,6 +129,13 @@ def test_the_runs_diagnosis_stage_on_a_pool_writes_the_serial_outputs(
     pool = _diagnose_stage(tmp_path / "pool", stage_records, FleetSettings(workers=2))
     assert pool[0] == serial[0]
     assert pool[1] == serial[1] and serial[1]
+    # the files diagnose.json names are the output folder's, named from it: the run
+    # writes into a work folder it renames at the end, whose name must not leak
+    assert "OUT" not in serial[0]
+    named = [path for d in json.loads(serial[0])["diagnoses"]
+             for path in [*d["plots"], d["augmented_model"], *(f["path"] for f in d["fmus"])]
+             if path is not None]  # fmt: skip
+    assert named and set(named) <= set(serial[1])
 
 
 @pytest.mark.slow

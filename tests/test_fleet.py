@@ -149,6 +149,38 @@ def test_pool_processes_run_their_numerical_libraries_on_one_thread(monkeypatch)
         "3" if k == "OMP_NUM_THREADS" else None for k in names]  # fmt: skip
 
 
+def test_a_shared_pool_serves_every_call_and_is_replaced_when_it_loses_a_process():
+    """Inside ``shared_pool`` the calls run on the same processes (what lets the stages of
+    ``gatetwin run`` import and compile once); jobs that kill their process fail alone, and
+    the next call gets a new pool instead of a broken one."""
+    import os
+
+    from gatetwin.fleet.execute import FleetSettings, run_tasks, shared_pool
+
+    settings = FleetSettings(workers=2)
+    with shared_pool(settings):
+        first = set(run_tasks(_pid, range(6), settings, _kept_reason))
+        second = set(run_tasks(_pid, range(6), settings, _kept_reason))
+        died = run_tasks(os._exit, [3, 3], settings, _kept_reason)
+        after = set(run_tasks(_pid, range(6), settings, _kept_reason))
+    assert len(first) == 2 and first == second and os.getpid() not in first
+    assert all("terminated abruptly" in r for r in died), died
+    assert after and not after & first
+
+
+def _pid(_job: object) -> int:
+    """This process's id, after 0.3 s: long enough that both processes of a pool take jobs."""
+    import os
+    import time
+
+    time.sleep(0.3)
+    return os.getpid()
+
+
+def _kept_reason(_job: object, exc: BaseException) -> str:
+    return str(exc)
+
+
 @pytest.mark.parametrize("where", ["under a file", "under /proc"])
 def test_an_output_that_cannot_be_written_is_refused_before_any_gate_runs(district, tmp_path,
                                                                          where):  # fmt: skip

@@ -170,3 +170,23 @@ def test_floor_formula_and_threshold_side() -> None:
     assert under.fails_when == "below" and under.text == "fit_vs_floor >= -5"
     with pytest.raises(ValueError, match="use --fail-under fit_vs_floor=-5"):
         parse_thresholds([], ["fit_vs_floor=-5"])
+
+
+def test_a_records_floor_is_computed_once_and_never_served_for_other_content():
+    """The floor is kept per record content (validating many FMUs asks for the same records'
+    floors again and again): a second read of the file gets the kept result, while a record
+    whose levels differ, or another gauge, gets its own."""
+    from dataclasses import replace
+
+    from gatetwin.bundled import bundled_records_dir
+    from gatetwin.records import read_record
+
+    path = bundled_records_dir() / "A.csv"
+    first, again = read_record(path), read_record(path)
+    assert record_noise_floor(again, "3F") is record_noise_floor(first, "3F")
+    doubled = 2.0 * np.asarray(first.levels_mm["3F"])  # twice the noise around the holds
+    other = replace(first, levels_mm={**first.levels_mm, "3F": doubled})
+    changed = record_noise_floor(other, "3F")
+    # the floor scales with the level (quadratic fits, scale-free correlations): round-off
+    assert changed.sigma_mm == pytest.approx(2 * record_noise_floor(first, "3F").sigma_mm, rel=1e-6)
+    assert record_noise_floor(first, "2E") != record_noise_floor(first, "3F")

@@ -19,6 +19,7 @@ import os
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any
 
@@ -105,19 +106,55 @@ def spawn_environment(values: Mapping[str, str]) -> Iterator[None]:
             os.environ.pop(key, None)
 
 
+#: The local pools :func:`shared_pool` keeps open, by number of workers.
+_SHARED: dict[int, ProcessPoolExecutor] = {}
+
+
+@contextlib.contextmanager
+def shared_pool(settings: FleetSettings | None) -> Iterator[None]:
+    """Within the block, local pools of ``settings.workers`` processes are one pool, started
+    at its first task and shut down at the end: the stages of ``gatetwin run`` share its
+    processes, so each process imports the libraries and compiles the numba kernels once
+    instead of once per stage. Nothing changes where there is no local pool (serial, dask).
+    A pool that loses a process is replaced at the next call."""
+    workers = settings.workers if settings and not settings.scheduler else 1
+    if workers <= 1 or workers in _SHARED:
+        yield
+        return
+    context = multiprocessing.get_context("spawn")
+    _SHARED[workers] = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+    try:
+        yield
+    finally:
+        _SHARED.pop(workers).shutdown(cancel_futures=True)
+
+
 def _pool(task: Task, jobs: list[Any], crashed: Crashed,
           workers: int) -> Iterator[tuple[int, Any]]:  # fmt: skip
+    if workers in _SHARED:
+        yield from _submitted(_SHARED[workers], task, jobs, crashed, workers)
+        return
     # spawn: a fresh interpreter per worker, no fork of this process's threads or locks
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context) as pool:
-        with spawn_environment(POOL_THREADS):  # the pool spawns its processes on submit
-            futures = {pool.submit(task, job): k for k, job in enumerate(jobs)}
-        for future in as_completed(futures):
-            k = futures[future]
-            try:
-                yield k, future.result()
-            except Exception as exc:  # a dead worker fails its job only
-                yield k, crashed(jobs[k], exc)
+        yield from _submitted(pool, task, jobs, crashed, workers)
+
+
+def _submitted(pool: ProcessPoolExecutor, task: Task, jobs: list[Any], crashed: Crashed,
+               workers: int) -> Iterator[tuple[int, Any]]:  # fmt: skip
+    with spawn_environment(POOL_THREADS):  # the pool spawns its processes on submit
+        futures = {pool.submit(task, job): k for k, job in enumerate(jobs)}
+    for future in as_completed(futures):
+        k = futures[future]
+        try:
+            yield k, future.result()
+        except Exception as exc:  # a dead worker fails its job only
+            if isinstance(exc, BrokenProcessPool) and _SHARED.get(workers) is pool:
+                pool.shutdown(wait=False, cancel_futures=True)
+                _SHARED[workers] = ProcessPoolExecutor(
+                    max_workers=workers, mp_context=multiprocessing.get_context("spawn")
+                )
+            yield k, crashed(jobs[k], exc)
 
 
 def connect(address: str, timeout_s: float) -> Any:

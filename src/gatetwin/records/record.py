@@ -12,9 +12,13 @@ This module does not identify anything; it only reads, checks and segments.
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
+import pickle
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -214,6 +218,37 @@ class _Columns:
 
 
 # --------------------------------------------------------------------------- public API
+
+
+_Result = TypeVar("_Result")
+#: Results each :func:`per_record_memo` function keeps (a record's floor or step fits are a
+#: few floats; the oldest result goes first).
+MEMO_SIZE = 256
+
+
+def content_digest(record: Record) -> bytes:
+    """A digest of everything ``record`` holds (arrays, segments, metadata, path): equal
+    for two reads of the same file, different as soon as one value differs."""
+    return hashlib.blake2b(pickle.dumps(record, protocol=5), digest_size=16).digest()
+
+
+def per_record_memo(func: Callable[..., _Result]) -> Callable[..., _Result]:
+    """``func(record, *args)`` computed once per record content and ``args`` (hashable) in
+    this process: for what depends on the measured record only, which validating many FMUs
+    against the same records asks for again and again. ``func``'s results must not be
+    mutated by its callers."""
+    memo: dict[tuple[bytes, tuple[Any, ...]], _Result] = {}
+
+    @functools.wraps(func)
+    def cached(record: Record, *args: Any) -> _Result:
+        key = (content_digest(record), args)
+        if key not in memo:
+            if len(memo) >= MEMO_SIZE:
+                del memo[next(iter(memo))]
+            memo[key] = func(record, *args)
+        return memo[key]
+
+    return cached
 
 
 def read_record(

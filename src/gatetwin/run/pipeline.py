@@ -22,6 +22,7 @@ from typing import Any
 
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.errors import PipelineError
+from gatetwin.fleet.execute import shared_pool
 from gatetwin.records import detect_table_kind, read_record, read_static_table
 from gatetwin.run import stages as _stages
 from gatetwin.run.outdir import (
@@ -331,7 +332,8 @@ def run_pipeline(
     work = make_work_dir(target)
     try:
         ctx = PipelineContext(out_dir=work, records_dir=inputs, progress=say, fleet=fleet)
-        times = _run_stages(ctx, stages, say)
+        with shared_pool(fleet):
+            times = _run_stages(ctx, stages, say)
         _write_stage_times(work, times, say)
         (work / MARKER).write_text("written by gatetwin run\n", encoding="utf-8")
         (work / RUN_PID_FILE).unlink()

@@ -6,6 +6,7 @@ Each stage is a plain ``stage(ctx)`` on the pipeline's context (see
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
 #: The run's pass criterion for the validation matrix: a free-running linear model of a
@@ -381,7 +382,7 @@ def diagnose_records(ctx: Any) -> None:
                           str(ctx.out_dir / "models" / f"{m}.json") if m else None, plots,
                           str(ctx.out_dir / "diagnose" / f"{r}_{m or 'own'}"),
                           DiagnosisSettings()) for r, m in chosen]  # fmt: skip
-    found = diagnose_records(tasks, ctx.fleet)
+    found = _output_relative(diagnose_records(tasks, ctx.fleet), ctx.out_dir)
     results = []
     for (record, model), res in zip(chosen, found, strict=True):
         results.append({**res, "record": record,
@@ -396,6 +397,18 @@ def diagnose_records(ctx: Any) -> None:
                       {"diagnoses": results, "not_diagnosed": skipped})  # fmt: skip
     ctx.results["diagnose"] = results
     ctx.results.setdefault("summary_sections", []).append(_diagnose_markdown(results))
+
+
+def _output_relative(value: Any, out_dir: Any) -> Any:
+    """``value`` with every path under ``out_dir`` (the run's work folder, renamed at the
+    end) written relative to the output folder, in strings nested in dicts and lists."""
+    if isinstance(value, str):
+        return value.replace(f"{out_dir}{os.sep}", "")
+    if isinstance(value, dict):
+        return {k: _output_relative(v, out_dir) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_output_relative(v, out_dir) for v in value]
+    return value
 
 
 def not_diagnosed(ctx: Any) -> list[dict[str, str]]:

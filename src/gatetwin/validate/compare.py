@@ -23,6 +23,7 @@ from gatetwin.errors import IdentificationError
 from gatetwin.identify import identify_step
 from gatetwin.identify.serial import finite_or_none
 from gatetwin.records import Record
+from gatetwin.records.record import per_record_memo
 from gatetwin.validate.errors import ValidationError
 
 
@@ -226,6 +227,11 @@ def _fopdt_parameters(record: Record, gauge: str, step_index: int) -> tuple[dict
     }, (f"fit warning: {note}" if note else "")
 
 
+#: The measured side of :func:`compare_steps`: the same for every FMU validated against the
+#: record, so fitted once per record content in a process.
+_measured_parameters = per_record_memo(_fopdt_parameters)
+
+
 def compare_steps(
     record: Record, gauge: str, simulated_mm: np.ndarray
 ) -> tuple[StepComparison, ...]:
@@ -252,7 +258,8 @@ def compare_steps(
     as_simulated = replace(record, levels_mm={gauge: simulated})
     out = []
     for k, step in enumerate(record.steps):
-        measured, why_measured = _fopdt_parameters(record, gauge, k)
+        measured, why_measured = _measured_parameters(record, gauge, k)
+        measured = dict(measured)
         fmu, why_fmu = _fopdt_parameters(as_simulated, gauge, k)
         notes = [f"measured: {why_measured}" if why_measured else "",
                  f"FMU: {why_fmu}" if why_fmu else ""]  # fmt: skip
