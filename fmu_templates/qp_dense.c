@@ -13,8 +13,9 @@
  * That saves the search (one pass over A) at each of them and the drops of constraints the
  * search would have picked wrongly; the solution is the same (to round-off: another order of
  * additions is another factorisation).
- * One iteration (an addition or a drop) costs O(n^2 + mn): one pass over A, two over J, and
- * a Householder reflection (addition) or Givens rotations (drop) of J's and R's columns. The caller bounds the iterations; the iterates
+ * One iteration (an addition or a drop) costs O(n^2 + mn): one pass over A, one over J (the
+ * primal step, which the reflection reuses), and a Householder reflection (addition) or Givens
+ * rotations (drop) of J's and R's columns. The caller bounds the iterations; the iterates
  * before the last are not feasible, so a stopped solve is a failure, not an approximation.
  *
  * Constraint k of the 2(n + m) one-sided constraints n_k'x >= b_k: k / 2 is the variable
@@ -237,9 +238,11 @@ static void drop(int n, int q, int l, double *jm, double *rr, int *act, double *
 
 /* Add constraint p with d = J' n_p: one Householder reflection of J's columns q..n-1 maps
  * d's tail (positions q..n-1) to a multiple of position q; R gains column q = d[0..q].
- * w is scratch of n doubles. */
+ * z holds J2 d2, the iteration's primal step, on entry: the reflection's J2 v is that less
+ * sigma J's column q (v is d's tail less sigma e_q), one column instead of a pass over J2;
+ * z is overwritten. */
 static void add(int n, int q, int p, double *d, double *jm, double *rr, int *act, int *held,
-                double *w)
+                double *z)
 {
     double tail = 0.0, sigma, vv;
     int c, i, k;
@@ -251,20 +254,15 @@ static void add(int n, int q, int p, double *d, double *jm, double *rr, int *act
     vv = 2.0 * (tail - sigma * d[q]);
     d[q] -= sigma;
     if (vv > 0.0) {
-        for (i = 0; i < n; i++) {
-            w[i] = 0.0;
-        }
-        for (c = q; c < n; c++) { /* w = J2 v */
-            const double *col = jm + (size_t)n * (size_t)c;
-            for (i = 0; i < n; i++) {
-                w[i] += col[i] * d[c];
-            }
+        const double *column_q = jm + (size_t)n * (size_t)q;
+        for (i = 0; i < n; i++) { /* w = J2 v = z - sigma J e_q, kept in z */
+            z[i] -= sigma * column_q[i];
         }
         for (c = q; c < n; c++) { /* J2 <- J2 - (2 / v'v) w v' */
             double *col = jm + (size_t)n * (size_t)c;
             const double f = 2.0 * d[c] / vv;
             for (i = 0; i < n; i++) {
-                col[i] -= f * w[i];
+                col[i] -= f * z[i];
             }
         }
     }
