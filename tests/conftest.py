@@ -5,7 +5,25 @@ from __future__ import annotations
 
 import pytest
 
+import build_cache
 from fmu_support import compiler, export_all, gatetwin_fmus, model_description_problem
+
+
+@pytest.fixture(scope="session", autouse=True)
+def compiled_binaries_are_reused():
+    """The session's FMU binaries come from :mod:`build_cache` where the same build was made
+    before (same compiler, flags and sources, byte for byte)."""
+    if not build_cache.available():
+        yield
+        return
+    from gatetwin.fmu import c_build, controller
+
+    build_cache.prune()
+    cached = build_cache.cached(c_build.compile_shared, c_build.CFLAGS, c_build.find_compiler)
+    with pytest.MonkeyPatch.context() as patch:
+        for module in (c_build, controller):
+            patch.setattr(module, "compile_shared", cached)
+        yield
 
 
 @pytest.fixture(scope="session", autouse=True)
