@@ -13,9 +13,9 @@
  * That saves the search (one pass over A) at each of them and the drops of constraints the
  * search would have picked wrongly; the solution is the same (to round-off: another order of
  * additions is another factorisation).
- * One iteration (an addition or a drop) costs O(n^2 + mn): one pass over A, one over J (the
- * primal step, which the reflection reuses), and a Householder reflection (addition) or Givens
- * rotations (drop) of J's and R's columns. The caller bounds the iterations; the iterates
+ * One iteration (an addition or a drop) costs O(n^2 + mn): one pass over A, two over J (d =
+ * J' n_p, and the primal step z = J2 d2, which the reflection reuses), and a Householder
+ * reflection (addition) or Givens rotations (drop) of J's and R's columns. The caller bounds the iterations; the iterates
  * before the last are not feasible, so a stopped solve is a failure, not an approximation.
  *
  * Constraint k of the 2(n + m) one-sided constraints n_k'x >= b_k: k / 2 is the variable

@@ -2,16 +2,18 @@
 options, and each export compiled it again (in the default run, 124 compiles took 243 s of
 about 1,000 s of test time; ``models/fopdt_3F.json``'s binary was built 17 times).
 
-:func:`cached_compile_shared` stands in for :func:`gatetwin.fmu.c_build.compile_shared`
-during the session (``conftest.py``). A build is keyed by everything that decides its output:
+:func:`cached` wraps :func:`gatetwin.fmu.c_build.compile_shared` for the session
+(``conftest.py``). A build is keyed by everything that decides what the binary computes:
 the compiler's command and ``--version`` text, the flags, the files compiled and every file
 of the sources folder (the headers they include) byte for byte, and the binary's name. A
 key seen before gets the binary compiled then, copied; any difference compiles again. So a
 test of a missing or failing compiler still meets it, and a changed template is rebuilt.
-Entries live in a folder of the system's temporary directory shared by the xdist workers
-and by later sessions (CI's slow and default runs), each key behind a file lock so that two
-workers do not build it twice; entries unused for two days are removed at the session's
-start. Without ``fcntl`` (Windows) nothing is cached.
+Entries live in the user's cache folder (``$XDG_CACHE_HOME`` or ``~/.cache``,
+``gatetwin-test-builds``, mode 0700; a folder another user could write is not used),
+shared by the xdist workers and by later sessions (CI's slow and default runs), each key
+behind a file lock so that two workers do not build it twice. Entries are removed two days
+after they were built, so a changed linker or C library is picked up by then. Without
+``fcntl`` (Windows) nothing is cached.
 """
 
 from __future__ import annotations
@@ -20,12 +22,14 @@ import contextlib
 import hashlib
 import os
 import shutil
+import stat
 import subprocess
-import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterator
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 try:
     import fcntl
@@ -33,23 +37,36 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
 #: Where the binaries are kept (one folder per user).
-FOLDER = Path(tempfile.gettempdir()) / f"gatetwin-test-builds-{getattr(os, 'getuid', int)()}"
-#: Entries not used for this long are removed at a session's start, s.
+FOLDER = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "gatetwin-test-builds"
+#: Entries are removed this long after they were built, s.
 MAX_AGE_S = 2 * 86400.0
 
 
 def available() -> bool:
-    return fcntl is not None
+    """Whether binaries are cached here: ``fcntl``, and a cache folder only this user can
+    write (created so)."""
+    if fcntl is None:
+        return False
+    try:
+        FOLDER.mkdir(mode=0o700, parents=True, exist_ok=True)
+        info = FOLDER.stat()
+    except OSError:
+        return False
+    return info.st_uid == os.getuid() and not info.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
 
 
 def prune(now: float | None = None) -> None:
-    """Remove the entries (and their locks) not used for :data:`MAX_AGE_S`."""
+    """Remove the entries built more than :data:`MAX_AGE_S` ago that no one holds (their
+    lock files stay: removing one would let two builds of a key run at once)."""
     now = time.time() if now is None else now
     for entry in FOLDER.glob("*.bin"):
-        with contextlib.suppress(OSError):
+        with contextlib.suppress(OSError), open(entry.with_suffix(".lock"), "a+b") as lock:
+            try:
+                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                continue  # in use
             if now - entry.stat().st_mtime > MAX_AGE_S:
                 entry.unlink()
-                entry.with_suffix(".lock").unlink(missing_ok=True)
 
 
 @cache
@@ -84,23 +101,30 @@ def _locked(key: str) -> Iterator[Path]:
             fcntl.flock(lock, fcntl.LOCK_UN)
 
 
-def cached(compile_shared: Callable[..., None], cflags: tuple[str, ...],
-           find_compiler: Callable[[], list[str]]) -> Callable[..., None]:  # fmt: skip
-    """``compile_shared`` (same signature) that serves a build seen before from the cache."""
+def _copy(source: Path, target: Path) -> None:
+    """``source`` to ``target`` (mode included) through a new file renamed into place."""
+    part = target.with_name(f".{target.name}.{os.getpid()}.{threading.get_ident()}.part")
+    shutil.copy2(source, part)
+    os.replace(part, target)
+
+
+def cached(c_build: Any) -> Callable[..., None]:
+    """``c_build.compile_shared`` (same signature) serving a build seen before from the
+    cache; the flags and the compiler are ``c_build``'s at each call."""
+    compile_shared = c_build.compile_shared
 
     def compile_cached(sources_dir: Path, c_files: tuple[str, ...], out: Path,
                        extra_flags: tuple[str, ...] = (),
                        compiler: list[str] | None = None) -> None:  # fmt: skip
-        command = compiler or find_compiler()
-        key = build_key(command, (*cflags, *extra_flags), sources_dir, c_files, out)
+        command = compiler or c_build.find_compiler()
+        key = build_key(command, (*c_build.CFLAGS, *extra_flags), sources_dir, c_files, out)
         with _locked(key) as entry:
-            if entry.is_file():
-                shutil.copyfile(entry, out)
-                os.utime(entry)
+            try:
+                _copy(entry, Path(out))
                 return
+            except FileNotFoundError:
+                pass
             compile_shared(sources_dir, c_files, out, extra_flags, command)
-            part = entry.with_suffix(f".{os.getpid()}.part")
-            shutil.copyfile(out, part)
-            os.replace(part, entry)
+            _copy(Path(out), entry)
 
     return compile_cached

@@ -19,7 +19,7 @@ def compiled_binaries_are_reused():
     from gatetwin.fmu import c_build, controller
 
     build_cache.prune()
-    cached = build_cache.cached(c_build.compile_shared, c_build.CFLAGS, c_build.find_compiler)
+    cached = build_cache.cached(c_build)
     with pytest.MonkeyPatch.context() as patch:
         for module in (c_build, controller):
             patch.setattr(module, "compile_shared", cached)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -24,7 +25,9 @@ def test_a_build_is_reused_only_while_compiler_flags_and_every_source_byte_are_t
     sources.mkdir()
     (sources / "a.c").write_text('#include "a.h"\n')
     (sources / "a.h").write_text("#define N 1\n")
-    compile_cached = build_cache.cached(compile_shared, ("-O3",), lambda: ["true"])
+    c_build = SimpleNamespace(compile_shared=compile_shared, CFLAGS=("-O3",),
+                              find_compiler=lambda: ["true"])  # fmt: skip
+    compile_cached = build_cache.cached(c_build)
     out = [tmp_path / f"build{k}" / "gate.so" for k in range(6)]  # the name is in the key
     for path in out:
         path.parent.mkdir()

@@ -152,8 +152,11 @@ def test_pool_processes_run_their_numerical_libraries_on_one_thread(monkeypatch)
 def test_a_shared_pool_serves_every_call_and_is_replaced_when_it_loses_a_process():
     """Inside ``shared_pool`` the calls run on the same processes (what lets the stages of
     ``gatetwin run`` import and compile once); jobs that kill their process fail alone, and
-    the next call gets a new pool instead of a broken one."""
+    the next call gets a new pool instead of a broken one, also when a process died while
+    the pool was idle."""
     import os
+    import signal
+    import time
 
     from gatetwin.fleet.execute import FleetSettings, run_tasks, shared_pool
 
@@ -162,10 +165,15 @@ def test_a_shared_pool_serves_every_call_and_is_replaced_when_it_loses_a_process
         first = set(run_tasks(_pid, range(6), settings, _kept_reason))
         second = set(run_tasks(_pid, range(6), settings, _kept_reason))
         died = run_tasks(os._exit, [3, 3], settings, _kept_reason)
-        after = set(run_tasks(_pid, range(6), settings, _kept_reason))
+        after = run_tasks(_pid, range(6), settings, _kept_reason)
+        # a process killed while idle, between two calls: the next call gets a new pool
+        os.kill(after[0], signal.SIGKILL)
+        time.sleep(2.0)  # the pool's manager thread notices the death and marks it broken
+        again = run_tasks(_pid, range(6), settings, _kept_reason)
     assert len(first) == 2 and first == second and os.getpid() not in first
     assert all("terminated abruptly" in r for r in died), died
-    assert after and not after & first
+    assert all(isinstance(p, int) for p in after + again), (after, again)
+    assert not set(after) & first and not set(again) & set(after)
 
 
 def _pid(_job: object) -> int:

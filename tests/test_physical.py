@@ -18,7 +18,13 @@ import pytest
 
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.errors import ModelFileError
-from gatetwin.fmu.c_build import KERNEL_PREFIX, find_compiler, generated_blocks, generated_kernel
+from gatetwin.fmu.c_build import (
+    CFLAGS,
+    KERNEL_PREFIX,
+    find_compiler,
+    generated_blocks,
+    generated_kernel,
+)
 from gatetwin.identify.physical import NO_SEICHE, fit_physical, kernel_simulator
 from gatetwin.identify.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
@@ -78,9 +84,9 @@ def test_c_rendering_of_the_kernel_equals_python(plant, tmp_path):
     for name, text in {**generated_kernel(), **generated_blocks()}.items():
         (tmp_path / name).write_text(text)
     lib = tmp_path / "libkernel.so"
-    subprocess.run([*cc, "-std=c99", "-O2", "-fPIC", "-shared", "-ffp-contract=off", "-Wall",
-                    "-Wextra", "-Werror", "-o", str(lib), "physical_kernel.c", "elementary.c",
-                    "-lm"], cwd=tmp_path, check=True)  # fmt: skip
+    flags = [f for f in CFLAGS if not f.startswith("-fvisibility")]  # the FMUs' flags
+    subprocess.run([*cc, *flags, "-o", str(lib), "physical_kernel.c", "elementary.c", "-lm"],
+                   cwd=tmp_path, check=True)  # fmt: skip
     c = ctypes.CDLL(str(lib))
     portable = portable_kernel(kernel)
     p = plant.vector

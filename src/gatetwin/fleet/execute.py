@@ -116,44 +116,60 @@ def shared_pool(settings: FleetSettings | None) -> Iterator[None]:
     at its first task and shut down at the end: the stages of ``gatetwin run`` share its
     processes, so each process imports the libraries and compiles the numba kernels once
     instead of once per stage. Nothing changes where there is no local pool (serial, dask).
-    A pool that loses a process is replaced at the next call."""
+    A pool that has lost a process (during a call or between calls) is replaced at the next
+    call."""
     workers = settings.workers if settings and not settings.scheduler else 1
     if workers <= 1 or workers in _SHARED:
         yield
         return
-    context = multiprocessing.get_context("spawn")
-    _SHARED[workers] = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+    _SHARED[workers] = _new_pool(workers)
     try:
         yield
     finally:
         _SHARED.pop(workers).shutdown(cancel_futures=True)
 
 
+def _new_pool(workers: int) -> ProcessPoolExecutor:
+    # spawn: a fresh interpreter per worker, no fork of this process's threads or locks
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+
+
+def _replace_shared(workers: int, broken: ProcessPoolExecutor) -> None:
+    if _SHARED.get(workers) is broken:
+        broken.shutdown(wait=False, cancel_futures=True)
+        _SHARED[workers] = _new_pool(workers)
+
+
 def _pool(task: Task, jobs: list[Any], crashed: Crashed,
           workers: int) -> Iterator[tuple[int, Any]]:  # fmt: skip
-    if workers in _SHARED:
-        yield from _submitted(_SHARED[workers], task, jobs, crashed, workers)
+    if workers not in _SHARED:
+        with _new_pool(min(workers, len(jobs))) as pool:
+            yield from _collected(pool, _submit(pool, task, jobs), jobs, crashed, workers)
         return
-    # spawn: a fresh interpreter per worker, no fork of this process's threads or locks
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context) as pool:
-        yield from _submitted(pool, task, jobs, crashed, workers)
+    pool = _SHARED[workers]
+    try:
+        futures = _submit(pool, task, jobs)
+    except BrokenProcessPool:  # a process of the shared pool died since the last call
+        _replace_shared(workers, pool)
+        pool = _SHARED[workers]
+        futures = _submit(pool, task, jobs)
+    yield from _collected(pool, futures, jobs, crashed, workers)
 
 
-def _submitted(pool: ProcessPoolExecutor, task: Task, jobs: list[Any], crashed: Crashed,
-               workers: int) -> Iterator[tuple[int, Any]]:  # fmt: skip
+def _submit(pool: ProcessPoolExecutor, task: Task, jobs: list[Any]) -> dict[Any, int]:
     with spawn_environment(POOL_THREADS):  # the pool spawns its processes on submit
-        futures = {pool.submit(task, job): k for k, job in enumerate(jobs)}
+        return {pool.submit(task, job): k for k, job in enumerate(jobs)}
+
+
+def _collected(pool: ProcessPoolExecutor, futures: dict[Any, int], jobs: list[Any],
+               crashed: Crashed, workers: int) -> Iterator[tuple[int, Any]]:  # fmt: skip
     for future in as_completed(futures):
         k = futures[future]
         try:
             yield k, future.result()
         except Exception as exc:  # a dead worker fails its job only
-            if isinstance(exc, BrokenProcessPool) and _SHARED.get(workers) is pool:
-                pool.shutdown(wait=False, cancel_futures=True)
-                _SHARED[workers] = ProcessPoolExecutor(
-                    max_workers=workers, mp_context=multiprocessing.get_context("spawn")
-                )
+            if isinstance(exc, BrokenProcessPool):
+                _replace_shared(workers, pool)
             yield k, crashed(jobs[k], exc)
 
 

@@ -29,9 +29,11 @@ from gatetwin.fmu.description3 import model_description_xml3
 
 #: Compile flags of every C FMU; -ffp-contract=off keeps compilers from fusing a*b+c into
 #: one FMA, which would change results in the last bit against the Python reference. -O3
-#: lets GCC vectorise loops of unknown length (the MPC controller's QP updates; its doStep
-#: p99 at N = 100 went from 1.36 to 0.88 ms, benchmarks/bench_controller_fmu.py); it
-#: reorders no floating-point sum (that takes -ffast-math), so the results keep their bits.
+#: lets GCC vectorise loops of unknown length (the MPC controller's QP updates: its doStep
+#: p99 at N = 100, benchmarks/bench_controller_fmu.py, fell by about 40 %). Neither GCC nor
+#: clang (Zig) reorders a floating-point sum without -fassociative-math (part of
+#: -ffast-math), and element-wise vector operations give the scalar bits: the results keep
+#: their bits.
 CFLAGS = (
     "-std=c99",
     "-O3",

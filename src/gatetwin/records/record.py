@@ -12,6 +12,7 @@ This module does not identify anything; it only reads, checks and segments.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import os
@@ -228,8 +229,25 @@ MEMO_SIZE = 256
 
 def content_digest(record: Record) -> bytes:
     """A digest of everything ``record`` holds (arrays, segments, metadata, path): equal
-    for two reads of the same file, different as soon as one value differs."""
-    return hashlib.blake2b(pickle.dumps(record, protocol=5), digest_size=16).digest()
+    for two reads of the same file, different as soon as one value differs. Arrays are
+    hashed where they lie (a month of samples is not copied)."""
+    digest = hashlib.blake2b(digest_size=16)
+    for item in dataclasses.fields(record):
+        _feed(digest, item.name, getattr(record, item.name))
+    return digest.digest()
+
+
+def _feed(digest: Any, name: str, value: Any) -> None:
+    digest.update(name.encode() + b"\0")
+    if isinstance(value, np.ndarray):
+        digest.update(f"{value.dtype.str}{value.shape}".encode())
+        digest.update(np.ascontiguousarray(value).data)
+    elif isinstance(value, dict):
+        digest.update(b"{%d}" % len(value))
+        for key in sorted(value, key=str):
+            _feed(digest, str(key), value[key])
+    else:
+        digest.update(pickle.dumps(value, protocol=5))
 
 
 def per_record_memo(func: Callable[..., _Result]) -> Callable[..., _Result]:
