@@ -140,6 +140,37 @@ def test_large_set_point_steps_are_solved_at_every_sample(fmu, setpoint):
     assert np.all(np.abs(openings[~closing] - lowest) <= 1e-9) and not closing[-1]
 
 
+@pytest.mark.slow  # ~15 s: the controller at the demo's horizon of 100
+def test_set_points_outside_the_band_are_solved_at_the_demos_horizon(plant, tmp_path):
+    """Above the band, tracking works against the band's soft bound: a cold start takes
+    several hundred iterations at N = 100 (a fixed bound of 500 held the opening at every
+    sample). With the default bound every sample is solved, within its bound, and the gate
+    closes at the rate limit (the plant's gain is negative) until the opening range's end."""
+    import json
+    import zipfile
+
+    from gatetwin.fmu.mpc_controller import export_mpc_controller
+    from gatetwin.mpc.fmu_controller import OUTPUTS
+
+    demo = DemoSettings()
+    fmu = export_mpc_controller(plant, tmp_path / "mpc100.fmu", settings=demo.mpc)
+    with zipfile.ZipFile(fmu) as z:
+        bound = json.loads(z.read("resources/controller.json"))["max_iter"]
+    n = 40
+    setpoints = np.where(np.arange(n) < n // 2, 2000.0, 1e6)
+    rows = _driven(fmu, np.full(n, 316.0), np.full(n, 50.0), setpoints)
+    status = rows[:, OUTPUTS.index("solver_status")]
+    iterations = rows[:, OUTPUTS.index("solver_iterations")]
+    assert np.array_equal(status, np.zeros(n)) and np.all(iterations <= bound)
+    assert np.max(iterations) > 500  # the case the former fixed bound could not solve
+    openings = rows[:, OUTPUTS.index("opening_mm")]
+    moves = np.diff(np.concatenate([[25.0], openings]))
+    lowest = demo.mpc.opening_range_mm[0]
+    closing = openings > lowest + 1e-9
+    assert np.all(np.abs(moves[closing] + demo.mpc.max_move_mm) <= 1e-9)
+    assert np.all(np.abs(openings[~closing] - lowest) <= 1e-9) and not closing[-1]
+
+
 def _close(actual, expected, rtol=FUNCTION_RTOL):
     actual = np.asarray(actual, dtype=float).ravel()
     expected = np.asarray(expected, dtype=float).ravel()

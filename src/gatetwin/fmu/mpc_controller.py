@@ -56,11 +56,15 @@ from gatetwin.plant.model import FopdtPlant, Plant, plant_to_dict
 #: :func:`~gatetwin.fmu.c_build.build_generated_component`).
 COMPONENT_FILES = ("controller_mpc.c", "mpc_data.h", "qp_dense.c", "qp_dense.h")
 DEFAULT_NAME = "gatetwin_mpc"
-#: Additions and drops of constraints the FMU's QP solver may take per sample. A solve from
-#: the unconstrained minimum takes about one per constraint active at the solution; the QP
-#: has ``horizon + 1`` variables, so at most that many are active at once. 500 leaves room
-#: for the drops of a large transient at the demo's horizon of 100.
-MAX_ITER = 500
+#: Additions and drops of constraints the FMU's QP solver may take per sample, per one-sided
+#: constraint of its QP (a lower and an upper bound on each variable and each row). A solve
+#: takes about one addition per constraint active at the solution (at most one per
+#: variable), but a set-point outside the level band sets tracking against the band's soft
+#: bound, and a cold start then drops and re-adds: 835 iterations at the demo's horizon of
+#: 100 (802 one-sided constraints) for a set-point of 2000 mm, where the former fixed bound
+#: of 500 held the opening at every sample. At that horizon the bound, 3,208 iterations of
+#: about 35 µs, is about 0.1 s: a tenth of the 1.2 s period in the worst case.
+MAX_ITER_PER_CONSTRAINT = 4
 
 
 def export_mpc_controller(
@@ -68,7 +72,7 @@ def export_mpc_controller(
     out_path: str | os.PathLike[str],
     *,
     settings: MpcSettings | None = None,
-    max_iter: int = MAX_ITER,
+    max_iter: int | None = None,
     model_name: str = DEFAULT_NAME,
     fmi_version: str = "2.0",
 ) -> Path:
@@ -84,9 +88,10 @@ def export_mpc_controller(
     settings : MpcSettings, optional
         Horizon, constraints, weights, observer (the demo's by default). It needs a level
         band.
-    max_iter : int
+    max_iter : int, optional
         Iterations (constraint additions and drops) the QP solver may take per sample
-        before the FMU falls back to holding the opening.
+        before the FMU falls back to holding the opening (default:
+        :data:`MAX_ITER_PER_CONSTRAINT` per one-sided constraint of the QP).
     model_name : str
         modelIdentifier: a C identifier.
     fmi_version : {"2.0", "3.0"}
@@ -103,7 +108,7 @@ def export_mpc_controller(
     plant = _load(model_or_path)
     check_fmi_version(fmi_version)
     settings = settings or MpcSettings()
-    if not (isinstance(max_iter, int) and 1 <= max_iter <= 100_000):
+    if max_iter is not None and not (isinstance(max_iter, int) and 1 <= max_iter <= 100_000):
         raise ExportError(f"max_iter must be an integer in [1, 100000] (got {max_iter!r})")
     if settings.level_band_mm is None:
         raise ExportError("mpc controller FMU: the settings need a level band")
@@ -129,13 +134,15 @@ def _load(model_or_path: Any) -> FopdtPlant:
     return plant
 
 
-def _build(plant: FopdtPlant, settings: MpcSettings, max_iter: int, name: str, work: Path,
-           file: str, fmi_version: str) -> Path:  # fmt: skip
+def _build(plant: FopdtPlant, settings: MpcSettings, max_iter: int | None, name: str,
+           work: Path, file: str, fmi_version: str) -> Path:  # fmt: skip
     fmu_dir = work / "fmu"
     sources = fmu_dir / "sources"
     sources.mkdir(parents=True)
     register = register_length(plant, settings.sample_period_s)
     fns, layout = build_functions(len(plant.schedule.flow_m3h), register, settings)
+    if max_iter is None:
+        max_iter = MAX_ITER_PER_CONSTRAINT * 2 * (layout.n_var + layout.n_con)
     sizes = generate_c(fns, sources, "mpc_generated")
     desc = describe_controller(plant, settings, max_iter, name)
     build_generated_component(
@@ -229,7 +236,7 @@ def controller_config_header(
     settings: MpcSettings,
     layout: Layout,
     sizes: dict[str, dict[str, int]],
-    max_iter: int = MAX_ITER,
+    max_iter: int,
 ) -> str:
     """``model_config.h`` of the controller FMU."""
     lo, hi = settings.opening_range_mm
@@ -257,5 +264,5 @@ def controller_config_header(
     return config_header(desc, "mpc_data.h", layout, sizes, settings.sample_period_s, own, refs)
 
 
-__all__ = ["DEFAULT_NAME", "MAX_ITER", "controller_config_header", "describe_controller",
-           "export_mpc_controller"]  # fmt: skip
+__all__ = ["DEFAULT_NAME", "MAX_ITER_PER_CONSTRAINT", "controller_config_header",
+           "describe_controller", "export_mpc_controller"]  # fmt: skip
