@@ -117,6 +117,16 @@ def _run_families(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n\n" + _provenance(doc) + "\n"
 
 
+def _run_ssp(doc: dict[str, Any]) -> str:
+    """The run's SSP of the closed loop against the Python loop on the same FMUs."""
+    ssp = doc["data"]["mpc"]["closed_loop_ssp"]
+    return (f"On the run's `{ssp['model']}` ({ssp['controller']}, {ssp['scenario']}, "
+            f"{ssp['minutes']:g} min, no noise) `simulate-ssp` gives a closed-loop IAE of "
+            f"{ssp['iae_ssp']:.6g} mm·s, the Python loop {ssp['iae_python_loop']:.6g} mm·s; "
+            f"their levels differ by at most {ssp['max_abs_level_difference_mm']:.3g} mm.\n\n"
+            + _provenance(doc) + "\n")  # fmt: skip
+
+
 def _controller_fmu_cost(doc: dict[str, Any]) -> str:
     sys.path.insert(0, str(Path(__file__).parent))
     from bench_controller_fmu import report
@@ -130,6 +140,7 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "run.stages": _run_stages,
     "run.envelope": _run_envelope,
     "run.families": _run_families,
+    "run.ssp": _run_ssp,
     "controller_fmu.cost": _controller_fmu_cost,
 }
 

@@ -4,13 +4,15 @@ and bad packages are refused in one line without output."""
 
 from __future__ import annotations
 
+import re
+import time
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fmu_support import with_zip_bomb
+from fmu_support import compiler, with_zip_bomb
 from gatetwin.cli import main
 from gatetwin.errors import ExportError, SspError
 from gatetwin.modelfile import read_model_file
@@ -21,6 +23,7 @@ from gatetwin.ssp.documents import SSD_SCHEMA, SSV_SCHEMA, read_parameter_set, s
 from gatetwin.ssp.master import SIGNAL_TIME_TOL_S, _signal, _signal_at
 from gatetwin.ssp.reference import python_loop
 from gatetwin.ssp.write import CONTROLLER_SOURCE, OBSERVER_SOURCE, PARAMETERS_SOURCE, SSD_NAME
+from test_validate_isolation import build_hostile
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 MODEL = MODELS / "fopdt_3F.json"
@@ -193,6 +196,78 @@ def test_an_fmu_that_unpacks_past_the_limit_is_refused_before_it_is_unpacked(pac
     )
     line = _refused_line(bombed, tmp_path, capsys)
     assert "component plant: its members unpack to" in line
+
+
+#: Where a hostile plant (tests/test_validate_isolation.py, misbehaving after its tenth step
+#: whatever the inflow) stops in the loop: its eleventh step, from t = 10 × 1.2 s.
+HOSTILE_AT = r"at t = 12 s \(communication step 10, component plant\)"
+#: The per-call limit the hostile runs get, s (a step of these FMUs takes microseconds).
+HOSTILE_TIMEOUT_S = 2.0
+HOSTILE_CAUSES = {
+    "exit": rf"the FMU called exit\(0\) during fmi2DoStep {HOSTILE_AT}",
+    "abort": rf"the FMU process died with signal 6 \(SIGABRT\) during fmi2DoStep {HOSTILE_AT}",
+    "null_write": rf"the FMU process died with signal 11 \(SIGSEGV\) during fmi2DoStep "
+    rf"{HOSTILE_AT}",
+    "hang": rf"no FMI call returned within {HOSTILE_TIMEOUT_S:g} s \(the FMU was in fmi2DoStep "
+    rf"{HOSTILE_AT}\); its process was killed",
+    # read at the end of that step
+    "nan": r"output level_3F_mm not finite \(nan\) at t = 12 s \(communication step 10, "
+    r"component plant\)",
+}
+
+
+@pytest.mark.skipif(compiler() is None, reason="no C compiler (cc/gcc) on PATH")
+@pytest.mark.parametrize("kind", sorted(HOSTILE_CAUSES))
+def test_a_plant_that_exits_crashes_hangs_or_gives_nan_ends_the_run_in_one_line(
+    kind, package, tmp_path, capsys
+):
+    """The master runs the FMUs in a child process: whatever the plant does, simulate-ssp
+    exits 2 with the cause, the component, the call and the time in one line, no CSV."""
+    plant = tmp_path / "plant.fmu"
+    plant.write_bytes(_read(package, "resources/plant.fmu"))
+    hostile = build_hostile(plant, kind, tmp_path, flow_above=0.0).read_bytes()
+    loop = _repacked(
+        package,
+        tmp_path / f"{kind}.ssp",
+        lambda name, data: hostile if name == "resources/plant.fmu" else data,
+    )
+    out = tmp_path / "r.csv"
+    code = main(["simulate-ssp", str(loop), "--out", str(out),
+                 "--timeout", str(HOSTILE_TIMEOUT_S)])  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert re.fullmatch(rf"gatetwin: error: {re.escape(str(loop))}: {HOSTILE_CAUSES[kind]}",
+                        err[0]), err[0]  # fmt: skip
+    assert not out.exists()
+
+
+def test_an_fmus_refusal_is_one_line_with_its_logged_reason(package, tmp_path, capsys):
+    """A controller refusing a negative integral time names the call, where, and why."""
+    assert b'value="4.8" unit="s"' in _read(package, PARAMETERS_SOURCE)
+    negative = _repacked(package, tmp_path / "negative.ssp", lambda name, data: (
+        data.replace(b'value="4.8" unit="s"', b'value="-4.8" unit="s"')
+        if name == PARAMETERS_SOURCE else data))  # fmt: skip
+    line = _refused_line(negative, tmp_path, capsys)
+    assert "component controller" in line and "FMU log:" in line, line
+
+
+#: A per-call limit far above one call of these FMUs (microseconds) and the child's start
+#: (milliseconds), far below the long run's length, s.
+PER_CALL_LIMIT_S = 0.5
+
+
+def test_a_long_run_of_quick_calls_is_not_cut_by_the_per_call_limit(tmp_path):
+    """The limit bounds each call, not the run: a run several limits long passes and gives
+    the unprotected run's values."""
+    long_loop = tmp_path / "long.ssp"
+    assert main(["ssp", str(MODEL), "--out", str(long_loop), "--minutes", "600"]) == 0
+    start = time.perf_counter()
+    unprotected = simulate_ssp(long_loop, isolate=False)
+    assert time.perf_counter() - start > 2 * PER_CALL_LIMIT_S  # a run longer than the limit
+    isolated = simulate_ssp(long_loop, timeout_s=PER_CALL_LIMIT_S)
+    assert list(isolated.columns) == list(unprotected.columns)
+    for name, values in unprotected.columns.items():
+        assert np.array_equal(isolated.columns[name], values), name
 
 
 #: The MPC package: a short horizon keeps the build to seconds (the demo's N = 100 takes

@@ -110,19 +110,21 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 """
 
 
-def _patched_glue(glue: str, action: str, flow_vr: int) -> str:
+def _patched_glue(glue: str, action: str, flow_vr: int, flow_above: float) -> str:
     renames = {"fmi2DoStep": "hostile_do_step", "fmi2GetReal": "hostile_get_real"}
     for name, new in renames.items():
         glue, n = re.subn(rf"^fmi2Status\s+{name}\s*\(", f"static fmi2Status {new}(", glue,
                           flags=re.MULTILINE)  # fmt: skip
         assert n == 1, f"fmi2_glue.c: no single definition of {name} to wrap"
     return glue + WRAPPERS % {"flow_vr": flow_vr, "after": AFTER_STEPS,
-                              "flow_above": FLOW_ABOVE_M3H, "action": action,
+                              "flow_above": flow_above, "action": action,
                               "nan": int(not action)}  # fmt: skip
 
 
-def build_hostile(good: Path, kind: str, folder: Path) -> Path:
-    """``good`` rebuilt from its own sources with the ``kind`` misbehaviour."""
+def build_hostile(good: Path, kind: str, folder: Path, flow_above: float = FLOW_ABOVE_M3H
+                  ) -> Path:  # fmt: skip
+    """``good`` rebuilt from its own sources with the ``kind`` misbehaviour, once it has made
+    ``AFTER_STEPS`` steps with a discharge input above ``flow_above``."""
     md = read_model_description(str(good))
     identifier = md.coSimulation.modelIdentifier
     flow_vr = next(v.valueReference for v in md.modelVariables if v.name == "flow_m3h")
@@ -131,7 +133,7 @@ def build_hostile(good: Path, kind: str, folder: Path) -> Path:
         zf.extractall(work)
     sources = work / "sources"
     glue = sources / "fmi2_glue.c"
-    glue.write_text(_patched_glue(glue.read_text(), ACTIONS[kind], flow_vr))
+    glue.write_text(_patched_glue(glue.read_text(), ACTIONS[kind], flow_vr, flow_above))
     command = (sources / "BUILD.txt").read_text().splitlines()[2].split()
     command[0] = compiler()
     subprocess.run(command, cwd=sources, check=True, capture_output=True, text=True)

@@ -70,6 +70,12 @@ def add_simulate_ssp_arguments(parser: argparse.ArgumentParser) -> None:
         "--step-size", metavar="SECONDS", type=float,
         help="communication step (default: the controller's sample period)",
     )  # fmt: skip
+    parser.add_argument(
+        "--timeout", metavar="SECONDS", type=float,
+        help="wall-clock limit of each FMI call; the FMUs run in a child process, and one "
+        "that exits, crashes or overruns this ends the run with the cause named "
+        "(default: 10)",
+    )  # fmt: skip
 
 
 def run_simulate_ssp(args: argparse.Namespace) -> int:
@@ -79,7 +85,9 @@ def run_simulate_ssp(args: argparse.Namespace) -> int:
         raise GatetwinError(f"--step-size: expected a positive number of seconds, got "
                             f"{args.step_size}")  # fmt: skip
     check_writable(args.out)
-    run = simulate_ssp(args.ssp, out_csv=args.out, step_size_s=args.step_size)
+    run = simulate_ssp(
+        args.ssp, out_csv=args.out, step_size_s=args.step_size, timeout_s=args.timeout
+    )
     levels = [c for c in run.columns if c.startswith("controller.level_")]
     if levels and "controller.setpoint_mm" in run.columns:
         iae = run.iae(levels[0], "controller.setpoint_mm")

@@ -20,6 +20,13 @@ initialisation mode; the bound parameters are set; the connections are propagate
 times as there are components (outputs read in initialisation mode: each one's value at
 rest), then each component leaves initialisation mode in document order.
 
+Isolation: the FMUs are foreign native code, so by default the whole run happens in a child
+process of the FMU host of :mod:`gatetwin.validate.isolation`. An FMU that calls ``exit()``
+or ``abort()``, writes through a null pointer, or does not return from a call within the
+limit (``timeout_s``, each call: a long run of quick steps is never cut) ends the run with
+one line naming the cause, the component, the call, the communication step and the time;
+nothing is written.
+
 The result (:class:`SspRun`) holds, per communication point, every component input as the
 component received it for the step from that point, the system inputs, and the outputs of
 every monitor (a component no other component reads from, such as the observer) as they
@@ -42,12 +49,27 @@ import numpy as np
 from gatetwin.errors import SspError
 from gatetwin.records.limits import check_unpacked_size, open_regular
 from gatetwin.ssp.documents import NS, SSD_SCHEMA, read_parameter_set, schema_problems
+from gatetwin.validate.fmu_runner import (
+    DO_STEP,
+    FREE_INSTANCE,
+    GET_REAL,
+    INITIALISE,
+    INSTANTIATE,
+    LOADING,
+    SET_REAL,
+    TERMINATE,
+    Position,
+)
 
 #: A signal's change at ``time_s`` is in force from the first communication point not before
 #: ``time_s - SIGNAL_TIME_TOL_S`` (the rule of :meth:`gatetwin.mpc.loop.Scenario.schedules`).
 SIGNAL_TIME_TOL_S = 1e-9
 #: Largest number of communication steps one run takes.
 MAX_STEPS = 10_000_000
+#: Wall-clock limit of one FMI call when none is given, s: the base limit of a validation run
+#: (:data:`gatetwin.validate.isolation.TIMEOUT_BASE_S`), which covers starting a process and
+#: loading a binary; a gatetwin FMU's step takes microseconds to milliseconds.
+TIMEOUT_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -98,6 +120,28 @@ class SspRun:
             row = [t, *(self.columns[n][k] for n in names)]
             lines.append(",".join(repr(float(x)) for x in row))
         return "\n".join(lines) + "\n"
+
+
+class SspPosition(Position):
+    """Where a run is: the FMI call under way, the communication step, the time and the
+    component (an index into ``names``)."""
+
+    __slots__ = ("names",)
+    COMPONENT = 3
+    SLOTS = 4
+
+    def __init__(self, values: Any = None, names: tuple[str, ...] = ()) -> None:
+        super().__init__(values if values is not None else [0.0] * self.SLOTS)
+        self.names = names
+
+    def on(self, call: int, component: int) -> None:
+        self.values[self.CALL], self.values[self.COMPONENT] = call, component
+
+    def at(self) -> str:
+        """``at t = 12 s (communication step 10, component plant)``."""
+        k = int(self.values[self.COMPONENT])
+        name = self.names[k] if 0 <= k < len(self.names) else "?"
+        return f"at t = {self.time_s:.6g} s (communication step {self.sample}, component {name})"
 
 
 def _float(value: str | None, what: str, where: str) -> float:
@@ -190,11 +234,14 @@ class _Master:
     """The FMUs of one run and the values on their connectors."""
 
     def __init__(self, system: SspSystem, folder: Path, parameters: dict[str, float],
-                 where: str) -> None:  # fmt: skip
-        self.system, self.where = system, where
+                 where: str, position: SspPosition) -> None:  # fmt: skip
+        self.system, self.where, self.position = system, where, position
+        self.index = {c.name: i for i, c in enumerate(system.components)}
         self.signals = {name: _signal(parameters, name, where) for name in system.inputs}
         self.values: dict[tuple[str | None, str], float] = {}
         self.slaves: dict[str, Any] = {}
+        self.logs: dict[str, list[tuple[int, str]]] = {}  # each FMU's (status, message)
+        self.callbacks: dict[str, Any] = {}  # the ctypes callbacks, alive with the instances
         self.vrs: dict[str, dict[str, int]] = {}
         self.steps: dict[str, float] = {}
         self.parameters = parameters
@@ -236,14 +283,44 @@ class _Master:
                            f"archive ({exc})") from None  # fmt: skip
         unzipped = extract(str(path), str(folder / f"fmu_{len(self.slaves)}"))
         try:
+            self.position.on(LOADING, self.index[c.name])
             slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
                               modelIdentifier=md.coSimulation.modelIdentifier,
                               instanceName=c.name)  # fmt: skip
-            slave.instantiate(loggingOn=False)
+            self.position.on(INSTANTIATE, self.index[c.name])
+            slave.instantiate(callbacks=self._callbacks(c.name), loggingOn=False)
         except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions here
             raise SspError(f"{self.where}: component {c.name}: the FMU cannot be instantiated "
                            f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
         self.slaves[c.name] = slave
+
+    def _callbacks(self, name: str) -> Any:
+        """FMI callbacks whose logger keeps the FMU's messages (for the error line) instead of
+        printing them."""
+        from fmpy import calloc, free
+        from fmpy.fmi2 import (
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+        )
+
+        log = self.logs.setdefault(name, [])
+
+        def logger(_env: Any, _instance: Any, status: int, _category: Any, text: bytes) -> None:
+            log.append((int(status), " ".join(text.decode("utf-8", "replace").split())))
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        self.callbacks[name] = callbacks
+        return callbacks
+
+    def last_problem(self, name: str) -> str:
+        """The component's last logged message of status warning or worse ("" if none)."""
+        bad = [text for status, text in self.logs.get(name, []) if status >= 1]
+        return bad[-1][:300] if bad else ""
 
     def _check_connections(self) -> None:
         connectors = {(c.name, n) for c in self.system.components for n in c.connectors}
@@ -278,6 +355,7 @@ class _Master:
     def push_inputs(self, name: str) -> dict[str, float]:
         inputs = self.inputs_of(name)
         if inputs:
+            self.position.on(SET_REAL, self.index[name])
             vr = self.vrs[name]
             self.slaves[name].setReal([vr[n] for n in inputs], list(inputs.values()))
         return inputs
@@ -285,8 +363,13 @@ class _Master:
     def pull_outputs(self, c: SspComponent) -> None:
         outs = [n for n, kind in c.connectors.items() if kind == "output"]
         if outs:
+            self.position.on(GET_REAL, self.index[c.name])
             values = self.slaves[c.name].getReal([self.vrs[c.name][n] for n in outs])
-            self.values.update({(c.name, n): float(v) for n, v in zip(outs, values, strict=True)})
+            for n, v in zip(outs, values, strict=True):
+                if not math.isfinite(v):
+                    raise SspError(f"{self.where}: output {n} not finite ({v}) "
+                                   f"{self.position.at()}")  # fmt: skip
+                self.values[(c.name, n)] = float(v)
 
     def apply_parameters(self) -> None:
         for c in self.system.components:
@@ -297,6 +380,7 @@ class _Master:
                 raise SspError(f"{self.where}: parameter {c.name}.{unknown[0]}: no such "
                                "variable in the FMU")  # fmt: skip
             if own:
+                self.position.on(SET_REAL, self.index[c.name])
                 vr = self.vrs[c.name]
                 self.slaves[c.name].setReal([vr[n] for n in own], list(own.values()))
 
@@ -307,7 +391,8 @@ class _Master:
         return {c.name for c in self.system.components} - read
 
     def close(self) -> None:
-        for slave in self.slaves.values():
+        for name, slave in self.slaves.items():
+            self.position.on(FREE_INSTANCE, self.index[name])
             try:
                 slave.freeInstance()
             except Exception:  # noqa: BLE001, S110 - freeing is all that is left to do
@@ -315,7 +400,9 @@ class _Master:
 
 
 def _initialize(m: _Master, start: float) -> None:
-    for slave in m.slaves.values():
+    m.position.values[Position.TIME_S] = start
+    for name, slave in m.slaves.items():
+        m.position.on(INITIALISE, m.index[name])
         slave.setupExperiment(startTime=start)
         slave.enterInitializationMode()
     m.apply_parameters()
@@ -326,6 +413,7 @@ def _initialize(m: _Master, start: float) -> None:
             m.pull_outputs(c)
     for c in m.system.components:
         m.push_inputs(c.name)
+        m.position.on(INITIALISE, m.index[c.name])
         m.slaves[c.name].exitInitializationMode()
         m.pull_outputs(c)
 
@@ -346,55 +434,103 @@ def _run(m: _Master, h: float) -> SspRun:
     rows: dict[str, list[float]] = {}
     times = start + np.arange(n) * h
     monitors = m.monitors()
+    where = m.position.values
     for k in range(n):
         t = float(times[k])
+        where[Position.SAMPLE], where[Position.TIME_S] = k, t
         m.set_system_inputs(t)
         for name in m.system.inputs:
             rows.setdefault(name, []).append(m.values[(None, name)])
         for c in m.system.components:
             for connector, value in m.push_inputs(c.name).items():
                 rows.setdefault(f"{c.name}.{connector}", []).append(value)
+            m.position.on(DO_STEP, m.index[c.name])
             m.slaves[c.name].doStep(currentCommunicationPoint=t, communicationStepSize=h)
             m.pull_outputs(c)
             if c.name in monitors:
                 _log_outputs(m, c, rows)
-    for slave in m.slaves.values():
+    for name, slave in m.slaves.items():
+        m.position.on(TERMINATE, m.index[name])
         slave.terminate()
     return SspRun(times, {k: np.array(v) for k, v in rows.items()}, h)
 
 
 def simulate_ssp(
-    ssp_path: str | Path, *, out_csv: str | Path | None = None, step_size_s: float | None = None
-) -> SspRun:
+    ssp_path: str | Path, *, out_csv: str | Path | None = None, step_size_s: float | None = None,
+    timeout_s: float | None = None, isolate: bool = True,
+) -> SspRun:  # fmt: skip
     """Run the system of an SSP with gatetwin's master (see the module); write ``out_csv``.
+
+    ``timeout_s`` bounds each FMI call (default :data:`TIMEOUT_S`); ``isolate=False`` runs
+    the FMUs in this process, unprotected (for debugging).
 
     Raises
     ------
     SspError
-        The package, its SSD, a parameter set or an FMU is not what the master runs, or an
-        FMU refuses a call (the message names the component and the time).
+        The package, its SSD, a parameter set or an FMU is not what the master runs, an FMU
+        refuses a call (the message names the component and the time), or an FMU ends or
+        stalls its process (the cause named).
     """
-    from fmpy.fmi1 import FMICallException
-
     from gatetwin._io import write_text_atomic
 
     path = Path(ssp_path)
     where = str(path)
+    limit = TIMEOUT_S if timeout_s is None else float(timeout_s)
+    if not 0 < limit < math.inf:
+        raise SspError(f"timeout {timeout_s} s must be a finite number of seconds > 0")
     with tempfile.TemporaryDirectory(prefix="gatetwin-ssp-") as tmp:
         folder = Path(tmp)
         system, parameters = _unpack(path, folder, where)
-        master = _Master(system, folder, parameters, where)
-        try:
-            h = master.step_size_s(step_size_s)
-            _initialize(master, system.start_time_s)
-            run = _run(master, h)
-        except FMICallException as exc:
-            raise SspError(f"{where}: an FMU refused a call ({exc})") from None
-        finally:
-            master.close()
+        task = SspTask(system, folder, parameters, where, step_size_s)
+        if isolate:
+            from gatetwin.validate.isolation import run_task
+
+            answer = run_task(task, [None], [limit])
+            if isinstance(answer, str):
+                raise SspError(answer)
+            if answer[0].failure_cause:
+                raise SspError(f"{where}: {answer[0].failure_cause}")
+            run = answer[0].result
+        else:
+            run = task.run(None, task.position(None))
     if out_csv is not None:
         write_text_atomic(out_csv, run.to_csv())
     return run
+
+
+class SspTask:
+    """One run of an unpacked package, as a task of
+    :func:`gatetwin.validate.isolation.run_task` (each FMI call bounded)."""
+
+    per_call = True
+    SLOTS = SspPosition.SLOTS
+    name = "gatetwin-simulate-ssp"
+
+    def __init__(self, system: SspSystem, folder: Path, parameters: dict[str, float],
+                 where: str, step_size_s: float | None) -> None:  # fmt: skip
+        self.system, self.folder, self.parameters = system, folder, parameters
+        self.where, self.step_size_s = where, step_size_s
+
+    def position(self, shared: Any) -> SspPosition:
+        return SspPosition(shared, tuple(c.name for c in self.system.components))
+
+    def run(self, _request: Any, position: SspPosition) -> SspRun:
+        from fmpy.fmi1 import FMICallException
+
+        master = _Master(self.system, self.folder, self.parameters, self.where, position)
+        try:
+            h = master.step_size_s(self.step_size_s)
+            _initialize(master, self.system.start_time_s)
+            return _run(master, h)
+        except FMICallException as exc:
+            name = position.names[int(position.values[position.COMPONENT])]
+            detail = master.last_problem(name)
+            raise SspError(
+                f"{self.where}: an FMU refused a call ({exc}) {position.at()}"
+                + (f"; FMU log: {detail}" if detail else "")
+            ) from None
+        finally:
+            master.close()
 
 
 def _unpack(path: Path, folder: Path, where: str) -> tuple[SspSystem, dict[str, float]]:
@@ -428,5 +564,5 @@ def _unpack(path: Path, folder: Path, where: str) -> tuple[SspSystem, dict[str, 
     return system, parameters
 
 
-__all__ = ["SIGNAL_TIME_TOL_S", "SspComponent", "SspRun", "SspSystem", "read_ssd",
-           "simulate_ssp"]  # fmt: skip
+__all__ = ["SIGNAL_TIME_TOL_S", "TIMEOUT_S", "SspComponent", "SspPosition", "SspRun",
+           "SspSystem", "SspTask", "read_ssd", "simulate_ssp"]  # fmt: skip

@@ -425,8 +425,8 @@ def _validate_record(
 ) -> RecordValidation:
     record, gauge, measured = inputs.record, inputs.gauge, inputs.measured_mm
     opening = inputs.opening_mm
-    failed = run.simulated_mm is None
-    simulated = np.full(record.n_samples, np.nan) if failed else run.simulated_mm
+    failed = run.result is None
+    simulated = np.full(record.n_samples, np.nan) if failed else run.result
     cause = run.failure_cause or not_finite_cause(output, simulated, inputs.grid)
     trace = Trace(record.time_s, opening, record.flow_m3h, measured, simulated, record.hold)
     metrics = free_run_metrics(measured, simulated)

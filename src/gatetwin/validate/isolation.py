@@ -19,8 +19,10 @@ with the message and :func:`run_isolated` raises it as a
 
 Processes. This process starts one *FMU host* (``python -c``, talking over two pipes of
 its own, so an FMU printing on stdout cannot garble it), which imports numpy, fmpy and
-this module once and lives until this process ends. For every FMU the host forks a child,
-ready in milliseconds; the child runs that FMU's records one at a time. A child that died,
+this module once and lives until this process ends. For every task the host forks a child,
+ready in milliseconds: for :func:`run_isolated` the task is one FMU, whose records the child
+runs one at a time; :func:`gatetwin.ssp.simulate_ssp` sends a whole SSP as one task
+(:func:`run_task`). A child that died,
 exited, overran its limit (killed) or raised fails only the record it was running; the
 next record gets a new child. The host never loads an FMU, so it outlives them all, and
 it stops (killing its child) as soon as this process goes away. Children never write core
@@ -57,6 +59,7 @@ from typing import Any
 
 import numpy as np
 
+from gatetwin.errors import GatetwinError
 from gatetwin.validate.errors import ValidationError
 from gatetwin.validate.fmu_runner import (
     FMU_CALLS,
@@ -113,19 +116,20 @@ class RunRequest:
 
 @dataclass(frozen=True)
 class RunResult:
-    """How one free run ended.
+    """How one run in a child ended.
 
     Attributes
     ----------
-    simulated_mm : ndarray or None
-        The output at every sample (None when the run failed).
+    result : Any
+        What the task's run returned: for :func:`run_isolated`, the output at every sample
+        (None when the run failed).
     failure_cause : str
         Why the run gave no output ("" when it did).
     seconds : float
         Wall-clock time of the run, s (starting the child included).
     """
 
-    simulated_mm: np.ndarray | None
+    result: Any
     failure_cause: str = ""
     seconds: float = math.nan
 
@@ -171,10 +175,50 @@ def run_isolated(
     limits = [timeout_s if timeout_s is not None else default_timeout_s(r.grid) for r in requests]
     with tempfile.TemporaryDirectory(prefix="gatetwin-validate-") as tmp:
         unzip_dir = extract(info.path, tmp)
-        answer = _host().run((info, unzip_dir, list(requests), limits), sum(limits))
+        answer = run_task(FmuTask(info, unzip_dir), list(requests), limits)
     if isinstance(answer, str):
         raise ValidationError(answer)
     return answer
+
+
+class FmuTask:
+    """What a child runs for :func:`run_isolated`: one extracted FMU, a record at a time.
+
+    A task for :func:`run_task` has this interface: ``name`` (the child's process name),
+    ``per_call`` (True: a request's limit bounds each call, see :func:`run_task`),
+    ``position(shared)`` (a :class:`Position` over the shared array of ``SLOTS`` floats)
+    and ``run(request, position)`` (the request's result, in the child).
+    """
+
+    per_call = False
+    SLOTS = 3
+
+    def __init__(self, info: FmuInfo, unzip_dir: str) -> None:
+        self.info, self.unzip_dir = info, unzip_dir
+
+    @property
+    def name(self) -> str:
+        return f"gatetwin-validate {self.info.name}"
+
+    def position(self, shared: Any) -> Position:
+        return Position(shared)
+
+    def run(self, r: RunRequest, position: Position) -> np.ndarray:
+        return simulate_extracted(self.info, self.unzip_dir, r.output, r.grid, r.opening_mm,
+                                  r.flow_m3h, position)  # fmt: skip
+
+
+def run_task(task: Any, requests: list[Any], limits: list[float]) -> list[RunResult] | str:
+    """Run each request of ``task`` in a child process of the FMU host, in order.
+
+    ``limits[i]`` bounds request ``i``: its whole run, or, for a task whose ``per_call`` is
+    True, each stretch in which the task's position does not move (one FMI call that does
+    not return), so a long run of quick calls is never cut. Returns one :class:`RunResult`
+    per request, or the message of a :class:`~gatetwin.errors.GatetwinError` the task
+    raised (an FMI error status) for the caller to raise as its own kind of error.
+    """
+    total = None if task.per_call else sum(limits)
+    return _host().run((task, requests, limits), total)
 
 
 def start_host() -> None:
@@ -226,12 +270,14 @@ class _Host:
     def alive(self) -> bool:
         return self.process.poll() is None
 
-    def run(self, job: tuple[Any, ...], limit_s: float) -> list[RunResult] | str:
-        """Send one FMU's job; its results, or an FMI error message to raise."""
+    def run(self, job: tuple[Any, ...], limit_s: float | None) -> list[RunResult] | str:
+        """Send one task's job; its results, or an error message to raise. ``limit_s``: how
+        long its runs may take in all (None: each run bounds itself, call by call)."""
+        wait_s = None if limit_s is None else limit_s + HOST_GRACE_S
         with self.lock:
             try:
                 self.jobs.send(job)
-                if self.answers.poll(limit_s + HOST_GRACE_S):
+                if self.answers.poll(wait_s):
                     return self.answers.recv()
             except (OSError, EOFError):
                 pass
@@ -239,8 +285,8 @@ class _Host:
                 self.close()
                 raise
             self.close()
-        return (f"the FMU host process ended or gave no answer within "
-                f"{limit_s + HOST_GRACE_S:g} s (it was stopped)")  # fmt: skip
+        return ("the FMU host process ended" + (f" or gave no answer within {wait_s:g} s"
+                if wait_s is not None else "") + " (it was stopped)")  # fmt: skip
 
     def close(self) -> None:
         """End the host (closing its pipe ends it; killed if it lingers)."""
@@ -274,7 +320,7 @@ host_main(int(sys.argv[1]), int(sys.argv[2]))
 
 
 def host_main(jobs_fd: int, answers_fd: int) -> None:
-    """The FMU host's loop: for each job (one FMU, its requests and limits), run the requests
+    """The FMU host's loop: for each job (a task, its requests and limits), run the requests
     in children and answer with the results; end when this process's parent goes away."""
     import fmpy.fmi1
     import fmpy.fmi2  # noqa: F401 - imported once here, inherited by every forked child
@@ -284,14 +330,14 @@ def host_main(jobs_fd: int, answers_fd: int) -> None:
     answers = Connection(answers_fd, readable=False)
     while True:
         try:
-            info, unzip_dir, requests, limits = jobs.recv()
+            task, requests, limits = jobs.recv()
         except (EOFError, OSError):
             return
         try:
-            answers.send(_run_children(info, unzip_dir, requests, limits, jobs))
+            answers.send(_run_children(task, requests, limits, jobs))
         except _ParentGoneError:
             return
-        except ValidationError as exc:
+        except GatetwinError as exc:
             answers.send(str(exc))
 
 
@@ -299,15 +345,13 @@ class _ParentGoneError(Exception):
     """The parent closed its end of the job pipe while a child ran."""
 
 
-def _run_children(
-    info: FmuInfo, unzip_dir: str, requests: list[RunRequest], limits: list[float],
-    parent: Any,
-) -> list[RunResult]:  # fmt: skip
+def _run_children(task: Any, requests: list[Any], limits: list[float], parent: Any
+                  ) -> list[RunResult]:  # fmt: skip
     results: list[RunResult] = []
     child: _Child | None = None
     try:
         for request, limit in zip(requests, limits, strict=True):
-            child = child or _Child(info, unzip_dir)
+            child = child or _Child(task)
             results.append(child.run(request, limit, parent))
             if results[-1].failure_cause or not child.alive:  # a fresh child for the next
                 child.stop()
@@ -323,18 +367,16 @@ def _context() -> Any:
 
 
 class _Child:
-    """One child process holding one extracted FMU; runs one request at a time."""
+    """One child process holding one task (an extracted FMU); runs one request at a time."""
 
-    def __init__(self, info: FmuInfo, unzip_dir: str) -> None:
+    def __init__(self, task: Any) -> None:
         ctx = _context()
-        self.info = info
-        self.position = Position(ctx.RawArray("d", 3))
+        self.task = task
+        self.position = task.position(ctx.RawArray("d", task.SLOTS))
         self.position.values[Position.CALL] = STARTING
         self.conn, child_end = ctx.Pipe()
-        self.process = ctx.Process(
-            target=_serve, args=(child_end, info, unzip_dir, self.position.values),
-            name=f"gatetwin-validate {info.name}", daemon=True,
-        )  # fmt: skip
+        self.process = ctx.Process(target=_serve, args=(child_end, task, self.position.values),
+                                   name=task.name, daemon=True)  # fmt: skip
         self.process.start()
         child_end.close()
 
@@ -343,7 +385,8 @@ class _Child:
         return self.process.is_alive()
 
     def run(self, request: RunRequest, timeout_s: float, parent: Any) -> RunResult:
-        """Send one request and wait at most ``timeout_s`` for its answer.
+        """Send one request and wait at most ``timeout_s`` for its answer (for a per-call
+        task: at most ``timeout_s`` while its position stands still).
 
         Raises :class:`_ParentGoneError` (the child killed) when ``parent`` reaches its end first.
         """
@@ -352,7 +395,7 @@ class _Child:
             self.conn.send(request)
         except (BrokenPipeError, ConnectionResetError):
             pass  # the child is gone already; its exit status says why
-        ready = wait([self.conn, self.process.sentinel, parent], timeout_s)
+        ready = self._wait(parent, timeout_s)
         if parent in ready and self.conn not in ready:
             self.kill()
             raise _ParentGoneError
@@ -362,12 +405,26 @@ class _Child:
         else:
             where = self.position
             self.kill()
-            cause = (f"no result within {timeout_s:g} s (the FMU was in {where.call} "
+            what = "no FMI call returned" if self.task.per_call else "no result"
+            cause = (f"{what} within {timeout_s:g} s (the FMU was in {where.call} "
                      f"{where.at()}); its process was killed")  # fmt: skip
         seconds = time.perf_counter() - start
         if cause:
             return RunResult(None, cause, seconds)
         return RunResult(answer[1] if answer else None, "", seconds)
+
+    def _wait(self, parent: Any, timeout_s: float) -> list[Any]:
+        """What became ready within the limit ([] when it passed)."""
+        watched = [self.conn, self.process.sentinel, parent]
+        before = list(self.position.values)
+        while True:
+            ready = wait(watched, timeout_s)
+            if ready or not self.task.per_call:
+                return ready
+            now = list(self.position.values)
+            if now == before:
+                return []  # a whole limit, or up to two, without moving on
+            before = now
 
     def _receive(self) -> tuple[str, Any] | None:
         try:
@@ -402,7 +459,7 @@ class _Child:
         """Ask the child to end, kill it if it does not, and release its pipe."""
         if self.process.is_alive():
             try:
-                self.conn.send(None)
+                self.conn.send(_STOP)
             except (BrokenPipeError, ConnectionResetError):
                 pass
             self.process.join(STOP_GRACE_S)
@@ -423,27 +480,30 @@ def _signal_name(number: int) -> str:
 # --------------------------------------------------------------------------- the child
 
 
-def _serve(conn: Any, info: FmuInfo, unzip_dir: str, shared: Any) -> None:
-    """The child's loop: run each request received, answer, stop on ``None`` or EOF."""
+#: What a child is sent to make it end (a request may be anything else, None included).
+_STOP = "gatetwin: stop"
+
+
+def _serve(conn: Any, task: Any, shared: Any) -> None:
+    """The child's loop: run each request received, answer, stop on ``_STOP`` or EOF."""
     _no_core_files()
-    position = Position(shared)
+    position = task.position(shared)
     while True:
         try:
             request = conn.recv()
         except EOFError:
             return
-        if request is None:
+        if isinstance(request, str) and request == _STOP:
             return
-        conn.send(_answer(info, unzip_dir, request, position))
+        conn.send(_answer(task, request, position))
 
 
-def _answer(info: FmuInfo, unzip_dir: str, r: RunRequest, position: Position) -> tuple[str, Any]:
-    """``("ok", output)``, ``("error", message)`` for an FMI error status, or
-    ``("failed", cause)`` for anything else raised while the FMU ran."""
+def _answer(task: Any, request: Any, position: Position) -> tuple[str, Any]:
+    """``("ok", output)``, ``("error", message)`` for an FMI error status (any gatetwin
+    error), or ``("failed", cause)`` for anything else raised while the FMU ran."""
     try:
-        out = simulate_extracted(info, unzip_dir, r.output, r.grid, r.opening_mm, r.flow_m3h,
-                                 position)  # fmt: skip
-    except ValidationError as exc:
+        out = task.run(request, position)
+    except GatetwinError as exc:
         return "error", str(exc)
     except Exception as exc:  # whatever the FMU's side raises fails this record only
         text = " ".join(str(exc).split())
