@@ -13,12 +13,10 @@ A model file is refused before anything is built from it when it breaks any of:
   ``[A-Za-z0-9_]{1,32}``), lengths. Integers must be written as JSON integers: ``2.9``,
   ``2.0`` and ``1e6`` are not ARX orders.
 
-The schema is read by a small interpreter of the JSON Schema keywords the file uses
-(``type``, ``enum``, ``const``, ``required``, ``properties``, ``patternProperties``,
-``additionalProperties``, ``maxProperties``, ``items``, ``minItems``, ``maxItems``,
-``minimum``, ``maximum``, ``exclusiveMinimum``, ``exclusiveMaximum``, ``pattern``,
-``maxLength``, ``allOf``, ``if``/``then``, local ``$ref``), so the schema a user reads is
-the one applied. Every refusal is one :class:`~gatetwin.errors.ModelFileError` line naming
+The schema is applied by ``jsonschema`` (draft 2020-12), so the schema a user reads is the
+one applied; the checks before it (size, depth, text, finiteness, duplicate keys) are what
+JSON Schema cannot say or what must hold before any of it runs. Every refusal is one
+:class:`~gatetwin.errors.ModelFileError` line naming
 the field path (``plant.na: 1000000 is above the limit 50``) and never quoting more than
 :data:`SHOW_CHARS` characters of the bad value.
 
@@ -202,142 +200,78 @@ _TYPE_NAMES = {"object": "an object", "array": "a list", "string": "a string",
                "null": "null"}  # fmt: skip
 
 
-def _is_type(value: Any, kind: str) -> bool:
-    if kind == "object":
-        return isinstance(value, dict)
-    if kind == "array":
-        return isinstance(value, list)
-    if kind == "string":
-        return isinstance(value, str)
-    if kind == "boolean":
-        return isinstance(value, bool)
-    if kind == "null":
-        return value is None
-    if isinstance(value, bool):
-        return False
-    return isinstance(value, int) or (kind == "number" and isinstance(value, float))
+@lru_cache(maxsize=2)
+def _validator(section: str = "") -> Any:
+    """The validator (jsonschema, draft 2020-12) of the whole schema, or of one top-level
+    ``section`` (its definitions kept for its ``$ref``), with one change: an integer is a
+    JSON integer (``2.0`` is a number, not an ARX order; JSON Schema would accept it)."""
+    from jsonschema import Draft202012Validator, validators
+
+    schema = model_schema()
+    if section:
+        schema = {"$defs": {**schema["$defs"], "section": schema["properties"][section]},
+                  "$ref": "#/$defs/section"}  # fmt: skip
+    strict = Draft202012Validator.TYPE_CHECKER.redefine("integer",
+                                                        lambda _, v: type(v) is int)  # fmt: skip
+    return validators.extend(Draft202012Validator, type_checker=strict)(schema)
 
 
-def _resolve(schema: dict[str, Any], root: dict[str, Any]) -> dict[str, Any]:
-    while "$ref" in schema:
-        ref = schema["$ref"]
-        if not ref.startswith("#/"):
-            raise ValueError(f"model schema: only local $ref are supported, not {ref}")
-        target: Any = root
-        for part in ref[2:].split("/"):
-            target = target[part]
-        schema = {**target, **{k: v for k, v in schema.items() if k != "$ref"}}
-    return schema
-
-
-def _check_type(value: Any, schema: dict[str, Any], path: tuple[Any, ...]) -> None:
-    kinds = schema.get("type")
-    if kinds is None:
-        return
-    kinds = [kinds] if isinstance(kinds, str) else kinds
-    if any(_is_type(value, k) for k in kinds):
-        return
-    wanted = " or ".join(_TYPE_NAMES[k] for k in kinds)
-    raise _FieldError(path, f"{show(value)} is not {wanted}")
-
-
-def _check_number(value: Any, schema: dict[str, Any], path: tuple[Any, ...]) -> None:
-    if "maximum" in schema and value > schema["maximum"]:
-        raise _FieldError(path, f"{show(value)} is above the limit {_limit(schema['maximum'])}")
-    if "exclusiveMaximum" in schema and not value < schema["exclusiveMaximum"]:
-        raise _FieldError(path, f"{show(value)} must be below {_limit(schema['exclusiveMaximum'])}")
-    if "minimum" in schema and value < schema["minimum"]:
-        raise _FieldError(path, f"{show(value)} is below the limit {_limit(schema['minimum'])}")
-    if "exclusiveMinimum" in schema and not value > schema["exclusiveMinimum"]:
-        raise _FieldError(path, f"{show(value)} must be above {_limit(schema['exclusiveMinimum'])}")
-
-
-def _check_string(value: str, schema: dict[str, Any], path: tuple[Any, ...]) -> None:
-    if "maxLength" in schema and len(value) > schema["maxLength"]:
-        raise _FieldError(path, f"text of {len(value)} characters is longer than the limit "
-                             f"{schema['maxLength']}")  # fmt: skip
-    if "pattern" in schema and not re.search(schema["pattern"], value):
-        raise _FieldError(path, f"{show(value)} does not match {schema['pattern']}")
-
-
-def _check_object(value: dict[str, Any], schema: dict[str, Any], path: tuple[Any, ...],
-                  root: dict[str, Any]) -> None:  # fmt: skip
-    if "maxProperties" in schema and len(value) > schema["maxProperties"]:
-        raise _FieldError(path, f"{len(value)} keys, more than the limit {schema['maxProperties']}")
-    for key in schema.get("required", ()):
-        if key not in value:
-            raise _FieldError(path, f"key {key!r} missing")
-    properties = schema.get("properties", {})
+def _unknown_key(value: dict[str, Any], schema: dict[str, Any]) -> str:
+    """The first key of ``value`` that neither ``properties`` nor ``patternProperties`` of
+    ``schema`` admits."""
     patterns = schema.get("patternProperties", {})
-    extra = schema.get("additionalProperties", True)
-    for key, item in value.items():
-        matched = [s for p, s in patterns.items() if re.search(p, key)]
-        if key in properties:
-            matched.append(properties[key])
-        if not matched and extra is False:
-            raise _FieldError(path, f"unknown key {show(key)}")
-        if not matched and isinstance(extra, dict):
-            matched.append(extra)
-        for sub in matched:
-            _check(item, sub, (*path, key), root)
+    return next(k for k in value if k not in schema.get("properties", {})
+                and not any(re.search(p, k) for p in patterns))  # fmt: skip
 
 
-def _check_array(value: list[Any], schema: dict[str, Any], path: tuple[Any, ...],
-                 root: dict[str, Any]) -> None:  # fmt: skip
-    if "maxItems" in schema and len(value) > schema["maxItems"]:
-        raise _FieldError(path, f"{len(value)} items, more than the limit {schema['maxItems']}")
-    if "minItems" in schema and len(value) < schema["minItems"]:
-        raise _FieldError(path, f"{len(value)} item(s), fewer than the {schema['minItems']} needed")
-    if "items" in schema:
-        for i, item in enumerate(value):
-            _check(item, schema["items"], (*path, i), root)
+def _type_message(value: Any, limit: Any, _: Any) -> str:
+    kinds = [limit] if isinstance(limit, str) else limit
+    return f"{show(value)} is not {' or '.join(_TYPE_NAMES[k] for k in kinds)}"
 
 
-def _holds(value: Any, schema: dict[str, Any], root: dict[str, Any]) -> bool:
-    try:
-        _check(value, schema, (), root)
-    except _FieldError:
-        return False
-    return True
+#: The line of each JSON Schema keyword the schema uses: (value, the keyword's value, error).
+_MESSAGES: dict[str, Any] = {
+    "type": _type_message,
+    "maximum": lambda v, lim, _: f"{show(v)} is above the limit {_limit(lim)}",
+    "minimum": lambda v, lim, _: f"{show(v)} is below the limit {_limit(lim)}",
+    "exclusiveMaximum": lambda v, lim, _: f"{show(v)} must be below {_limit(lim)}",
+    "exclusiveMinimum": lambda v, lim, _: f"{show(v)} must be above {_limit(lim)}",
+    "maxLength": lambda v, lim, _: f"text of {len(v)} characters is longer than the limit {lim}",
+    "pattern": lambda v, lim, _: f"{show(v)} does not match {lim}",
+    "enum": lambda v, lim, _: f"{show(v)} is not one of {', '.join(map(str, lim))}",
+    "const": lambda v, lim, _: f"{show(v)} is not {lim!r}",
+    "required": lambda v, lim, _: f"key {next(k for k in lim if k not in v)!r} missing",
+    "additionalProperties": lambda v, _, e: f"unknown key {show(_unknown_key(v, e.schema))}",
+    "maxProperties": lambda v, lim, _: f"{len(v)} keys, more than the limit {lim}",
+    "maxItems": lambda v, lim, _: f"{len(v)} items, more than the limit {lim}",
+    "minItems": lambda v, lim, _: f"{len(v)} item(s), fewer than the {lim} needed",
+}
 
 
-def _check(value: Any, schema: dict[str, Any], path: tuple[Any, ...],
-           root: dict[str, Any]) -> None:  # fmt: skip
-    schema = _resolve(schema, root)
-    _check_type(value, schema, path)
-    if "enum" in schema and value not in schema["enum"]:
-        choices = ", ".join(map(str, schema["enum"]))
-        raise _FieldError(path, f"{show(value)} is not one of {choices}")
-    if "const" in schema and value != schema["const"]:
-        raise _FieldError(path, f"{show(value)} is not {schema['const']!r}")
-    if _is_type(value, "number"):
-        _check_number(value, schema, path)
-    elif isinstance(value, str):
-        _check_string(value, schema, path)
-    elif isinstance(value, dict):
-        _check_object(value, schema, path, root)
-    elif isinstance(value, list):
-        _check_array(value, schema, path, root)
-    for sub in schema.get("allOf", ()):
-        _check(value, sub, path, root)
-    if "if" in schema and "then" in schema and _holds(value, schema["if"], root):
-        _check(value, schema["then"], path, root)
+def _message(error: Any) -> str:
+    """One short line for a jsonschema error, quoting no more of the value than :func:`show`."""
+    if error.validator in _MESSAGES:
+        return _MESSAGES[error.validator](error.instance, error.validator_value, error)
+    return show(error.message, 2 * SHOW_CHARS)[1:-1]  # a keyword the schema does not use yet
 
 
-def _run(content: Any, schema: dict[str, Any], root: tuple[Any, ...]) -> None:
+def _run(content: Any, section: str, root: tuple[Any, ...]) -> None:
     try:
         check_general_rules(content, root)
-        _check(content, schema, root, model_schema())
     except _FieldError as exc:
         raise ModelFileError(f"{format_path(exc.path)}: {exc.message}") from None
+    error = next(_validator(section).iter_errors(content), None)
+    if error is not None:
+        path = (*root, *error.absolute_path)
+        raise ModelFileError(f"{format_path(path)}: {_message(error)}")
 
 
 def check_model_document(content: Any) -> None:
     """Check a parsed model file against every rule; :class:`ModelFileError` names the
     field path of the first fault (``plant.na: 1000000 is above the limit 50``)."""
-    _run(content, model_schema(), ())
+    _run(content, "", ())
 
 
 def check_plant_section(data: Any) -> None:
     """Check a model file's ``plant`` section alone (paths start at ``plant``)."""
-    _run(data, model_schema()["properties"]["plant"], ("plant",))
+    _run(data, "plant", ("plant",))
