@@ -23,7 +23,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "gatetwin"
 LIBRARIES = ("identify", "fmu", "validate", "mpc", "diagnose", "plant", "records", "flume",
              "fleet", "ssp")  # fmt: skip
 #: The orchestration of ``gatetwin run`` and the command line.
-TOP_LAYERS = ("gatetwin.run", "gatetwin.pipeline", "gatetwin.cli")
+TOP_LAYERS = ("gatetwin.run", "gatetwin.cli")
 
 
 def _modules() -> dict[str, Path]:

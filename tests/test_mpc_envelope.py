@@ -252,11 +252,7 @@ def test_library_modules_do_not_import_the_orchestration():
 
     assert "gatetwin.mpc.discrete" not in imports(src / "mpc" / "augment.py")
     for path in (src / "mpc").glob("*.py"):
-        assert "gatetwin.pipeline" not in imports(path), path.name
-    import gatetwin.bundled
-    import gatetwin.pipeline
-
-    assert gatetwin.pipeline.bundled_records_dir is gatetwin.bundled.bundled_records_dir
+        assert "gatetwin.run" not in imports(path), path.name
 
 
 def test_envelope_problem_agrees_between_qp_and_ipopt():

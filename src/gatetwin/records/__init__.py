@@ -6,7 +6,7 @@ module of this package:
 
 * :mod:`~gatetwin.records.limits` — which files are opened (regular files within size
   and line-length limits);
-* :mod:`~gatetwin.records.csv`, :mod:`~gatetwin.records.csvtext`,
+* :mod:`~gatetwin.records.arrow_csv`, :mod:`~gatetwin.records.csvtext`,
   :mod:`~gatetwin.records.parquet`, :mod:`~gatetwin.records.table` — files to columns;
 * :mod:`~gatetwin.records.units` — units named in column suffixes, converted to mm and
   m³/h (:data:`UNIT_FACTORS`);

@@ -1,6 +1,6 @@
 """The diagnosing CSV parser: reads any file the fast reader balks at, or says why not.
 
-:mod:`gatetwin.records.csv` parses well-formed files with Arrow; whatever it refuses or
+:mod:`gatetwin.records.arrow_csv` parses well-formed files with Arrow; whatever it refuses or
 the pre-scan flags (NUL bytes, invalid UTF-8, blank lines inside, lone carriage returns,
 ragged rows, quoted newlines, cells outside the number grammar) comes here. This parser
 accepts exactly what the data format allows and otherwise raises a one-line

@@ -12,8 +12,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from gatetwin.errors import RecordError
+from gatetwin.records.arrow_csv import read_csv
 from gatetwin.records.columns import TableColumns
-from gatetwin.records.csv import read_csv
 from gatetwin.records.limits import ReadLimits, open_regular, resolve_limits
 from gatetwin.records.parquet import PARQUET_SUFFIXES, parquet_header, read_parquet
 
