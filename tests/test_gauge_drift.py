@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from gatetwin.diagnose.onset import ONSET_EFFECTS, detection
+from gatetwin.errors import ControlError
 from gatetwin.flume.experiments import run_scenario
 from gatetwin.flume.scenario import with_inflow
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.gauge_drift import (
     THRESHOLD_MM_PER_S,
     WINDOW_SAMPLES,

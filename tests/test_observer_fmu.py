@@ -16,10 +16,9 @@ from fmpy.validation import validate_fmu
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.cli import main
 from gatetwin.diagnose.onset import OnsetError, detection, first_move_after, with_onset
-from gatetwin.errors import ExportError
+from gatetwin.errors import ControlError, ExportError
 from gatetwin.fmu.observer_fmu import export_observer, run_observer_fmu
 from gatetwin.modelfile import read_model_file
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.online import (
     MONITORING,
     OUTPUTS,

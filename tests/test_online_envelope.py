@@ -11,11 +11,10 @@ import numpy as np
 import pytest
 
 from gatetwin.diagnose.onset import detection, with_onset
-from gatetwin.errors import FlumeError
+from gatetwin.errors import ControlError, FlumeError
 from gatetwin.flume.experiments import run_scenario
 from gatetwin.flume.scenario import with_inflow
 from gatetwin.modelfile import read_model_file
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.online import ENVELOPE_ANOMALY, OUTPUTS, AnomalySettings, OnlineObserver
 from observer_cases import ROOT, envelope_plant, flume_scenario, held_opening
 

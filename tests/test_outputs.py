@@ -16,11 +16,10 @@ import pytest
 
 from gatetwin._io import write_json_atomic
 from gatetwin.cli import main
-from gatetwin.errors import OutputError, PipelineError
+from gatetwin.errors import OutputError, PipelineError, ValidationError
 from gatetwin.run.outdir import MARKER, RUN_PID_FILE, clean_stale_work
 from gatetwin.run.pipeline import STAGES, PipelineContext, PipelineStage, run_pipeline
 from gatetwin.validate import inspect_fmu
-from gatetwin.validate.errors import ValidationError
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"

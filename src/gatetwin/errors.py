@@ -58,3 +58,31 @@ class SspError(GatetwinError, ValueError):
 class PlantError(GatetwinError, ValueError):
     """A plant model (an EPA SWMM ``.inp`` and the names in it) cannot be driven, or a
     needed optional extra is missing; the message names the file and the item at fault."""
+
+
+class ValidationError(GatetwinError, ValueError):
+    """An FMU, a record or a request that cannot be validated.
+
+    Raised for a file that is not an FMU (not a zip, no ``modelDescription.xml``), an FMU
+    without a binary for this platform or without the expected inputs and outputs, an
+    FMU that refuses or fails an FMI call during the simulation (the message names the
+    call, its status and the FMU's last log line), a record without the gauge the FMU
+    computes, and a malformed threshold. It is *not* raised when an FMU simulates but
+    misses a threshold: that is a finding, reported in the results.
+    """
+
+
+class ControlError(GatetwinError, ValueError):
+    """A controller, model rendering or closed-loop scenario cannot be set up as asked."""
+
+
+class SimulationError(GatetwinError, ValueError):
+    """An input or communication step the plant cannot honour."""
+
+
+class OnsetError(GatetwinError, ValueError):
+    """An effect, parameter or onset that cannot be injected."""
+
+
+class ReportError(GatetwinError, ValueError):
+    """A report part that cannot be rendered (not a PNG, ragged table, unwritable file)."""

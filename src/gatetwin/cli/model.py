@@ -453,7 +453,7 @@ def add_observe_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _with_gauge_rule(out: dict, record, args: argparse.Namespace) -> dict:
     """The observer's outputs with the redundancy rule of gatetwin.mpc.gauge_drift added."""
-    from gatetwin.mpc.errors import ControlError
+    from gatetwin.errors import ControlError
     from gatetwin.mpc.gauge_drift import with_gauge_rule
     from gatetwin.mpc.online import measured_inputs
 

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from gatetwin.errors import GatetwinError
+from gatetwin.errors import OnsetError
 from gatetwin.plant.model import FopdtPlant
 from gatetwin.plant.simulate import simulate
 
@@ -46,10 +46,6 @@ ONSET_EFFECTS: dict[str, dict[str, float]] = {
     "stuck_gate": {},
     "slowed_gate": {"rate_mm_per_s": 0.1},
 }
-
-
-class OnsetError(GatetwinError, ValueError):
-    """An effect, parameter or onset that cannot be injected."""
 
 
 def with_onset(

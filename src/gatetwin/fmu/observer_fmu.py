@@ -57,7 +57,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from gatetwin.errors import ExportError
+from gatetwin.errors import ControlError, ExportError
 from gatetwin.fmu.c_build import build_generated_component, check_fmi_version, zip_folder
 from gatetwin.fmu.description import FmuDescription, VariableSpec, output_name
 from gatetwin.fmu.generated_component import (
@@ -73,7 +73,6 @@ from gatetwin.fmu.generated_component import (
 )
 from gatetwin.mpc.codegen import Layout
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S, register_length
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.gauge_drift import DRIFT_KIND, THRESHOLD_MM_PER_S, WINDOW_SAMPLES
 from gatetwin.mpc.observer_codegen import (
     DRIFT_RULE,

@@ -25,6 +25,8 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from gatetwin.errors import ControlError as ControlError
+
 #: The public names, by the submodule that defines them. They are imported on first use:
 #: the command line reads constants of :mod:`~gatetwin.mpc.online` for its help and must
 #: not pay for python-control and CasADi, which the loop and the PI import.
@@ -46,7 +48,6 @@ _SOURCES: dict[str, tuple[str, ...]] = {
         "fopdt_split",
     ),
     "envelope": ("linearised_model",),
-    "errors": ("ControlError",),
     "loop": (
         "ClosedLoopRun",
         "LoopSettings",
@@ -89,7 +90,7 @@ _SOURCES: dict[str, tuple[str, ...]] = {
 }
 _MODULE_OF = {name: module for module, names in _SOURCES.items() for name in names}
 
-__all__ = sorted(_MODULE_OF)
+__all__ = sorted([*_MODULE_OF, "ControlError"])
 
 
 def __getattr__(name: str) -> Any:

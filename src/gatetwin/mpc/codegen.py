@@ -34,9 +34,9 @@ from typing import Any
 import casadi
 import numpy as np
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import fopdt_model
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.observer import DisturbanceObserver
 from gatetwin.mpc.qp import CondensedQp, MpcProblem, qp_matrices, qp_vectors
 from gatetwin.mpc.settings import MpcSettings

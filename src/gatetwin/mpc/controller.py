@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc.actuation import CommandShaper
 from gatetwin.mpc.discrete import DiscreteModel, discretise
 from gatetwin.mpc.envelope import (
@@ -52,7 +53,6 @@ from gatetwin.mpc.envelope import (
     on_grid,
     steady_opening_mm,
 )
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.observer import DisturbanceObserver
 from gatetwin.mpc.opti import OptiBackend
 from gatetwin.mpc.qp import MpcProblem, MpcSolution, QpBackend

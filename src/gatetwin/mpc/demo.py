@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from gatetwin.errors import ControlError
 from gatetwin.flume import FlumeConfig, run_flume, spin_up
 from gatetwin.mpc.controller import MpcController
 from gatetwin.mpc.envelope import (
@@ -55,7 +56,6 @@ from gatetwin.mpc.envelope import (
     steady_level_mm,
     steady_opening_mm,
 )
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.loop import (
     ClosedLoopRun,
     LoopSettings,

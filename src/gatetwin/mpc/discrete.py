@@ -37,9 +37,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.augment import append_output_blocks
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.statespace import DiscreteModel
 from gatetwin.plant.effects import EffectSet
 from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant

@@ -27,9 +27,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S, fopdt_split
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.statespace import DiscreteModel
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.model import FopdtPlant, PhysicalPlant, Plant, envelope_point, local_fopdt

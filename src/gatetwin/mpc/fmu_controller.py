@@ -20,8 +20,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
-from gatetwin.mpc.errors import ControlError
 
 #: Outputs a controller FMU may have, read after every step (``diagnostics``): the command,
 #: and the MPC's predicted level, active constraints, solver status and iterations.

@@ -31,9 +31,9 @@ from typing import Any
 
 import numpy as np
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
-from gatetwin.mpc.errors import ControlError
 
 #: Samples the slope is fitted over: 480 s of 1.2 s samples.
 WINDOW_SAMPLES = 400

@@ -14,8 +14,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.plants import LoopPlant
 
 

@@ -33,9 +33,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import LinAlgError, solve_discrete_are
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import DiscreteModel
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.settings import ObserverSettings
 
 

@@ -47,11 +47,11 @@ from typing import Any
 import casadi
 import numpy as np
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc import online
 from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.codegen import NEXT, Layout, SymbolicController, work_sizes, write_generated
 from gatetwin.mpc.envelope import _datum_mm, envelope_register_length, tangent_model
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.gauge_drift import WINDOW_SAMPLES, drift_sample, slope_weights, with_drift_rule
 from gatetwin.mpc.observer import DisturbanceObserver
 from gatetwin.mpc.settings import MpcSettings, ObserverSettings

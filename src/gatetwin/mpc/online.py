@@ -61,10 +61,10 @@ from typing import Any
 
 import numpy as np
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import DELAY_SPLIT_RTOL, SAMPLE_PERIOD_S, discretise
 from gatetwin.mpc.envelope import has_envelope, linearised_model
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.observer import DisturbanceObserver
 from gatetwin.mpc.settings import ObserverSettings
 from gatetwin.mpc.statespace import DiscreteModel

@@ -16,7 +16,7 @@ from typing import Any
 import casadi
 import numpy as np
 
-from gatetwin.mpc.errors import ControlError
+from gatetwin.errors import ControlError
 from gatetwin.mpc.qp import MpcProblem, MpcSolution
 from gatetwin.mpc.settings import MpcSettings
 

@@ -25,8 +25,8 @@ from typing import Any
 
 import control
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.pi_law import pi_step
 from gatetwin.plant.model import FopdtPlant
 

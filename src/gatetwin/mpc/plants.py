@@ -23,11 +23,10 @@ from typing import Protocol
 
 import numpy as np
 
-from gatetwin.errors import GatetwinError
+from gatetwin.errors import ControlError, GatetwinError
 from gatetwin.flume import FlumeConfig, run_flume, spin_up
 from gatetwin.flume.solver import HydraulicState
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
-from gatetwin.mpc.errors import ControlError
 from gatetwin.plant.model import Plant
 from gatetwin.plant.simulate import PlantSimulator
 

@@ -34,9 +34,9 @@ import casadi
 import numpy as np
 from scipy.linalg import toeplitz
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import DiscreteModel
-from gatetwin.mpc.errors import ControlError
 from gatetwin.mpc.settings import MpcSettings
 
 

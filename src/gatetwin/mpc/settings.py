@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from gatetwin.errors import ControlError
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
-from gatetwin.mpc.errors import ControlError
 
 #: QP solvers reachable from PyPI's casadi that the MPC accepts (casadi ``conic`` plugins).
 QP_SOLVERS = ("qpoases", "daqp", "osqp", "qrqp")

@@ -2,12 +2,8 @@
 
 from __future__ import annotations
 
-from gatetwin.errors import GatetwinError
+from gatetwin.errors import SimulationError
 from gatetwin.plant.model import FLOW_RANGE_M3H, OPENING_RANGE_MM
-
-
-class SimulationError(GatetwinError, ValueError):
-    """An input or communication step the plant cannot honour."""
 
 
 def check_inputs(opening_mm: float, flow_m3h: float) -> None:

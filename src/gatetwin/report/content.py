@@ -17,13 +17,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from gatetwin.errors import GatetwinError
+from gatetwin.errors import ReportError
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-
-
-class ReportError(GatetwinError, ValueError):
-    """A report part that cannot be rendered (not a PNG, ragged table, unwritable file)."""
 
 
 def format_cell(value: Any) -> str:

@@ -21,13 +21,13 @@ output not finite) or (with ``--fail-outside-validity``) the validity envelope f
 input it cannot validate.
 """
 
+from gatetwin.errors import ValidationError
 from gatetwin.validate.compare import (
     FreeRunMetrics,
     StepComparison,
     free_run_metrics,
     noise_floor_fit_percent,
 )
-from gatetwin.validate.errors import ValidationError
 from gatetwin.validate.fmu_runner import (
     CommunicationGrid,
     FmuInfo,

@@ -19,12 +19,11 @@ from typing import Any
 
 import numpy as np
 
-from gatetwin.errors import IdentificationError
+from gatetwin.errors import IdentificationError, ValidationError
 from gatetwin.identify import identify_step
 from gatetwin.identify.serial import finite_or_none
 from gatetwin.records import Record
 from gatetwin.records.record import per_record_memo
-from gatetwin.validate.errors import ValidationError
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@
   output at every sample (:mod:`~gatetwin.validate.isolation` runs the same simulation in a
   child process).
 
-Every failure is a :class:`~gatetwin.validate.errors.ValidationError` with a one-line
+Every failure is a :class:`~gatetwin.errors.ValidationError` with a one-line
 message; an FMI call that fails is named with its status and the FMU's last log line.
 This module runs FMUs; it computes no metrics and decides nothing.
 """
@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
+from gatetwin.errors import ValidationError
 from gatetwin.records import GAP_FACTOR, gauge_of_column
 from gatetwin.records.limits import check_unpacked_size, open_regular
-from gatetwin.validate.errors import ValidationError
 from gatetwin.validate.mapping import VariableMap
 
 #: FMI versions the harness runs (co-simulation).

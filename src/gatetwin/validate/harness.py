@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from gatetwin.errors import IdentificationError
+from gatetwin.errors import IdentificationError, ValidationError
 from gatetwin.identify import reconstructed_opening, residual_whiteness
 from gatetwin.identify.metrics import Whiteness
 from gatetwin.identify.serial import finite_list, finite_or_none
@@ -62,7 +62,6 @@ from gatetwin.validate.compare import (
     noise_floor_fit_percent,
     worst_step_differences,
 )
-from gatetwin.validate.errors import ValidationError
 from gatetwin.validate.fmu_runner import (
     CommunicationGrid,
     FmuInfo,

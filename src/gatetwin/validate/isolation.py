@@ -15,7 +15,7 @@ The child keeps the FMI call under way, the record sample and the FMU time in a 
 shared array (:class:`~gatetwin.validate.fmu_runner.Position`), which is read after the
 child is gone. An FMI call that returns an error status is not a crash: the child answers
 with the message and :func:`run_isolated` raises it as a
-:class:`~gatetwin.validate.errors.ValidationError`, as the in-process run does.
+:class:`~gatetwin.errors.ValidationError`, as the in-process run does.
 
 Processes. This process starts one *FMU host* (``python -c``, talking over two pipes of
 its own, so an FMU printing on stdout cannot garble it), which imports numpy, fmpy and
@@ -59,8 +59,7 @@ from typing import Any
 
 import numpy as np
 
-from gatetwin.errors import GatetwinError
-from gatetwin.validate.errors import ValidationError
+from gatetwin.errors import GatetwinError, ValidationError
 from gatetwin.validate.fmu_runner import (
     FMU_CALLS,
     SENDING,

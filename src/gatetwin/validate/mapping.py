@@ -28,10 +28,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from gatetwin.errors import ValidationError
 from gatetwin.records import gauge_of_column
 from gatetwin.records.limits import open_regular
 from gatetwin.records.units import FACTORS
-from gatetwin.validate.errors import ValidationError
 
 #: The columns the harness drives the FMU with, in the order it sets them.
 INPUT_ROLES = ("opening_mm", "flow_m3h")

@@ -17,7 +17,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from gatetwin._io import write_bytes_atomic, write_json_atomic, write_text_atomic
-from gatetwin.validate.errors import ValidationError
+from gatetwin.errors import ValidationError
 from gatetwin.validate.harness import VALIDITY_CHECK, FmuValidation, RecordValidation
 from gatetwin.validate.thresholds import FAILED, NOT_APPLICABLE
 from gatetwin.version import __version__

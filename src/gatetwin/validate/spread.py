@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from gatetwin.errors import ValidationError
 from gatetwin.records import Record, read_record
-from gatetwin.validate.errors import ValidationError
 from gatetwin.validate.fmu_runner import inspect_fmu, output_for_gauge, static_findings
 from gatetwin.validate.harness import (
     FmuValidation,

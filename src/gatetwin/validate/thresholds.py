@@ -20,9 +20,9 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from gatetwin.errors import ValidationError
 from gatetwin.identify.serial import finite_or_none
 from gatetwin.validate.compare import STEP_METRICS
-from gatetwin.validate.errors import ValidationError
 
 #: Metrics where a higher value is better: a threshold on them is a lower limit.
 HIGHER_IS_BETTER = ("fit_percent", "fit_vs_floor", "r2", "ljung_box_p")

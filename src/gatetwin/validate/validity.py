@@ -33,9 +33,9 @@ from typing import Any
 
 import numpy as np
 
+from gatetwin.errors import ValidationError
 from gatetwin.modelfile import FLOW_METER_ACCURACY_M3H
 from gatetwin.records.segments import RESOLUTION_MM
-from gatetwin.validate.errors import ValidationError
 
 #: The quantities of an envelope, in report order.
 QUANTITIES = ("opening_mm", "flow_m3h", "level_mm")
