@@ -117,17 +117,37 @@ def test_a_broken_gate_is_reported_and_the_others_are_written(district, tmp_path
     victim = next(p for p in sorted((records / "gate002").glob("*.csv")) if "static" not in p.name)
     victim.write_text("time_s,opening_mm\nnot,a,record\n")
     out = tmp_path / "out"
-    # an earlier run into the same --out identified gate002: its folder goes with the rerun
+    # an earlier run into the same --out identified gate002: what it wrote there goes with
+    # the rerun, a file the user put there stays
     (out / "gate002").mkdir(parents=True)
     (out / "gate002" / "fopdt_3F.json").write_text("{}")
-    (out / "fleet.json").write_text(json.dumps({"gates": [{"gate": "gate002", "status": "ok"}]}))
+    (out / "gate002" / "notes.txt").write_text("mine")
+    (out / "fleet.json").write_text(json.dumps(
+        {"gates": [{"gate": "gate002", "status": "ok", "models": ["fopdt_3F"]}]}))  # fmt: skip
     done = _models("--records", str(records), "--out", str(out), "--workers", "1")
     assert done.returncode == 1, done.stderr[-2000:]
     doc = json.loads((out / "fleet.json").read_text())
     assert (doc["n_ok"], doc["n_failed"]) == (2, 1)
     failed = [g for g in doc["gates"] if g["status"] != "ok"]
     assert [g["gate"] for g in failed] == ["gate002"] and victim.name in json.dumps(failed[0])
-    assert any((out / "gate001").glob("*.json")) and not (out / "gate002").exists()
+    assert any((out / "gate001").glob("*.json"))
+    assert [p.name for p in (out / "gate002").iterdir()] == ["notes.txt"]
+
+
+def test_a_rerun_removes_only_what_the_earlier_run_wrote_for_a_gate(tmp_path):
+    from gatetwin.fleet.run import _remove_earlier_outputs
+
+    for extra in ([], ["notes.txt"]):
+        folder = tmp_path / f"gate_{len(extra)}"
+        (folder / "fmus").mkdir(parents=True)
+        written = ["schema.json", "fopdt_3F.json", "routine_fopdt_3F.json", "fmus/fopdt_3F.fmu"]
+        for name in [*written, *extra]:
+            (folder / name).write_text("x")
+        _remove_earlier_outputs(folder, ["fopdt_3F"])
+        if extra:
+            assert sorted(p.name for p in folder.iterdir()) == extra
+        else:
+            assert not folder.exists()  # nothing of the user's: the folder goes too
 
 
 def test_pool_processes_run_their_numerical_libraries_on_one_thread(monkeypatch):
@@ -241,6 +261,28 @@ def test_jobs_of_a_scheduler_that_lost_every_worker_fail_instead_of_waiting_fore
     reasons = json.loads(done.stdout.strip().splitlines()[-1])
     assert len(reasons) == 3
     assert any("has had no worker for 3 s" in r for r in reasons), reasons
+
+
+def test_dask_logs_nothing_on_stderr_while_a_fleet_runs_on_it(capfd):
+    """A lost scheduler makes dask's client log its reconnection attempts on stderr, on
+    loggers that carry handlers of their own; while the jobs run they are silenced (each
+    lost job names its reason), and afterwards they are as they were."""
+    import logging
+
+    pytest.importorskip("distributed")
+    from gatetwin.fleet.execute import _quiet_dask_logs
+
+    client_log = logging.getLogger("distributed.client")
+    handlers = {h: h.level for n in ("distributed", "distributed.client")
+                for h in logging.getLogger(n).handlers}  # fmt: skip
+    assert handlers, "dask's logging configuration gives its loggers no handler"
+    quiet = _quiet_dask_logs()
+    client_log.error("Failed to reconnect to scheduler after 20.00 seconds, closing client")
+    quiet.close()
+    assert capfd.readouterr().err == ""
+    assert {h: h.level for h in handlers} == handlers
+    client_log.error("after the run")
+    assert "after the run" in capfd.readouterr().err
 
 
 @pytest.mark.slow  # ~30 s: three gates identified

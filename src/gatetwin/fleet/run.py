@@ -74,13 +74,29 @@ def _output_paths(result: dict[str, Any], folder: Path) -> list[Path]:
             + [folder / "fmus" / f"{n}.fmu" for n in result["fmus"]])  # fmt: skip
 
 
-def _gates_written_before(out: Path) -> set[str]:
-    """Gates whose folders an earlier fleet run wrote into ``out`` (its ``fleet.json``)."""
+def _gates_written_before(out: Path) -> dict[str, list[str]]:
+    """Gates whose folders an earlier fleet run wrote into ``out`` (its ``fleet.json``), with
+    the models it wrote for each."""
     try:
         doc = json.loads(summary_paths(out)["json"].read_text(encoding="utf-8"))
-        return {g["gate"] for g in doc["gates"] if g["status"] == "ok"}
+        return {g["gate"]: [str(m) for m in g.get("models", [])]
+                for g in doc["gates"] if g["status"] == "ok"}  # fmt: skip
     except (OSError, ValueError, KeyError, TypeError):
-        return set()
+        return {}
+
+
+def _remove_earlier_outputs(folder: Path, models: list[str]) -> None:
+    """Remove what an earlier run wrote into a gate's folder (its models, FMUs, routine
+    reports), and the folder when nothing else is left: a file the user put there stays."""
+    paths = [folder / "schema.json", *sorted(folder.glob("routine_*.json"))]
+    paths += [p for n in models for p in (folder / f"{n}.json", folder / "fmus" / f"{n}.fmu")
+              if Path(n).name == n]  # fmt: skip
+    for path in paths:
+        with contextlib.suppress(OSError):
+            path.unlink(missing_ok=True)
+    for empty in (folder / "fmus", folder):
+        with contextlib.suppress(OSError):
+            empty.rmdir()
 
 
 def run_fleet(sources: list[str], out: str | Path, settings: FleetSettings, *,
@@ -132,9 +148,10 @@ def run_fleet(sources: list[str], out: str | Path, settings: FleetSettings, *,
         if res["status"] == "ok":
             return _write_or_fail(res, out_dir)
         if res["summary"]["gate"] in ours:
-            # the folder an earlier run into this --out wrote for the gate would stand beside
-            # a summary that says the gate failed
-            shutil.rmtree(out_dir / res["summary"]["gate"], ignore_errors=True)
+            # what an earlier run into this --out wrote for the gate would stand beside a
+            # summary that says the gate failed
+            gate = res["summary"]["gate"]
+            _remove_earlier_outputs(out_dir / gate, ours[gate])
         return res
 
     results = run_gates(jobs, settings, progress, finished)
