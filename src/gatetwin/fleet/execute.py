@@ -14,6 +14,7 @@ reported to ``progress``); :func:`run_tasks` returns them in the jobs' order.
 from __future__ import annotations
 
 import contextlib
+import logging
 import multiprocessing
 import os
 import time
@@ -204,11 +205,29 @@ def connect(address: str, timeout_s: float) -> Any:
     return client
 
 
+def _quiet_dask_logs() -> contextlib.ExitStack:
+    """Silence dask's own log handlers (on stderr) until the returned stack is closed.
+
+    A lost scheduler makes the client log its reconnection attempts; beside gatetwin's one
+    line they are noise, and what went wrong is each lost job's reason instead. dask gives
+    several of its loggers a handler of their own, so the handlers are silenced, not one
+    logger."""
+    stack = contextlib.ExitStack()
+    loggers = [lg for name, lg in logging.root.manager.loggerDict.items()
+               if name.partition(".")[0] == "distributed"
+               and isinstance(lg, logging.Logger)]  # fmt: skip
+    for handler in {h for lg in loggers for h in lg.handlers}:
+        stack.callback(handler.setLevel, handler.level)
+        handler.setLevel(logging.CRITICAL + 1)
+    return stack
+
+
 def _dask(task: Task, jobs: list[Any], crashed: Crashed, address: str,
           timeout_s: float) -> Iterator[tuple[int, Any]]:  # fmt: skip
     from distributed import as_completed as dask_completed
 
     client = connect(address, timeout_s)
+    quiet = _quiet_dask_logs()
     try:
         futures = {}
         for k, job in enumerate(jobs):
@@ -246,6 +265,7 @@ def _dask(task: Task, jobs: list[Any], crashed: Crashed, address: str,
                 return
     finally:
         client.close()
+        quiet.close()
 
 
 def run_tasks(task: Task, jobs: Iterable[Any], settings: FleetSettings, crashed: Crashed,
