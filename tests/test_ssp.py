@@ -20,7 +20,7 @@ from gatetwin.mpc.demo import DemoSettings, demo_scenarios
 from gatetwin.mpc.loop import loop_metrics
 from gatetwin.ssp import simulate_ssp, write_ssp
 from gatetwin.ssp.documents import SSD_SCHEMA, SSV_SCHEMA, read_parameter_set, schema_problems
-from gatetwin.ssp.master import SIGNAL_TIME_TOL_S, _signal, _signal_at
+from gatetwin.ssp.master import MAX_STEPS, SIGNAL_TIME_TOL_S, _signal, _signal_at
 from gatetwin.ssp.reference import python_loop
 from gatetwin.ssp.write import CONTROLLER_SOURCE, OBSERVER_SOURCE, PARAMETERS_SOURCE, SSD_NAME
 from test_validate_isolation import build_hostile
@@ -140,11 +140,14 @@ def test_bad_packages_and_requests_are_one_line_without_output(package, tmp_path
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "need 1 to" in err[0] and len(err[0]) < 300, err
     assert not (tmp_path / "r.csv").exists()
-    # a scenario longer than simulate-ssp runs is refused when the package would be written
-    assert main(["ssp", str(MODEL), "--out", str(tmp_path / "m.ssp"), "--minutes", "1e9"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "simulate-ssp runs at most" in err[0] and len(err[0]) < 200, err
-    assert not (tmp_path / "m.ssp").exists()
+    # a scenario longer than simulate-ssp runs is refused when the package would be written:
+    # far longer, and one step longer (at the PI's 1.2 s)
+    for minutes in ("1e9", f"{(MAX_STEPS + 1) * 1.2 / 60:.17g}"):
+        assert main(["ssp", str(MODEL), "--out", str(tmp_path / "m.ssp"),
+                     "--minutes", minutes]) == 2  # fmt: skip
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "simulate-ssp runs at most" in err[0] and len(err[0]) < 200, err
+        assert not (tmp_path / "m.ssp").exists()
     assert main(["ssp", str(MODELS / "arx_3F.json"), "--out", str(tmp_path / "m.ssp"),
                  "--controller", "mpc", "--without-effects"]) == 2  # fmt: skip
     assert "FOPDT" in capsys.readouterr().err and not (tmp_path / "m.ssp").exists()

@@ -56,6 +56,7 @@ from gatetwin.validate.fmu_runner import (
     INITIALISE,
     INSTANTIATE,
     LOADING,
+    MAX_FMU_STEPS,
     SET_REAL,
     TERMINATE,
     Position,
@@ -64,8 +65,11 @@ from gatetwin.validate.fmu_runner import (
 #: A signal's change at ``time_s`` is in force from the first communication point not before
 #: ``time_s - SIGNAL_TIME_TOL_S`` (the rule of :meth:`gatetwin.mpc.loop.Scenario.schedules`).
 SIGNAL_TIME_TOL_S = 1e-9
-#: Largest number of communication steps one run takes.
-MAX_STEPS = 10_000_000
+#: Largest number of communication steps one run takes: 13.9 days at the controllers' 1.2 s,
+#: as many as validate asks of an FMU for one record
+#: (:data:`gatetwin.validate.fmu_runner.MAX_FMU_STEPS`). The run's columns are held in
+#: memory (8 bytes a value: 64 MB for the eight columns of a closed loop at the limit).
+MAX_STEPS = MAX_FMU_STEPS
 #: Wall-clock limit of one FMI call when none is given, s: the base limit of a validation run
 #: (:data:`gatetwin.validate.isolation.TIMEOUT_BASE_S`), which covers starting a process and
 #: loading a binary; a gatetwin FMU's step takes microseconds to milliseconds.
@@ -418,10 +422,10 @@ def _initialize(m: _Master, start: float) -> None:
         m.pull_outputs(c)
 
 
-def _log_outputs(m: _Master, c: SspComponent, rows: dict[str, list[float]]) -> None:
+def _log_outputs(m: _Master, c: SspComponent, log: Any, k: int) -> None:
     for connector, kind in c.connectors.items():
         if kind == "output":
-            rows.setdefault(f"{c.name}.{connector}", []).append(m.values[(c.name, connector)])
+            log(f"{c.name}.{connector}", k, m.values[(c.name, connector)])
 
 
 def _run(m: _Master, h: float) -> SspRun:
@@ -431,7 +435,13 @@ def _run(m: _Master, h: float) -> SspRun:
         raise SspError(f"{m.where}: {steps:.6g} steps of {h:.6g} s from {start:.6g} to "
                        f"{stop:.6g} s; need 1 to {MAX_STEPS}")  # fmt: skip
     n = int(round(steps))
-    rows: dict[str, list[float]] = {}
+    columns: dict[str, np.ndarray] = {}
+
+    def log(name: str, k: int, value: float) -> None:
+        if name not in columns:
+            columns[name] = np.full(n, np.nan)
+        columns[name][k] = value
+
     times = start + np.arange(n) * h
     monitors = m.monitors()
     where = m.position.values
@@ -440,19 +450,19 @@ def _run(m: _Master, h: float) -> SspRun:
         where[Position.SAMPLE], where[Position.TIME_S] = k, t
         m.set_system_inputs(t)
         for name in m.system.inputs:
-            rows.setdefault(name, []).append(m.values[(None, name)])
+            log(name, k, m.values[(None, name)])
         for c in m.system.components:
             for connector, value in m.push_inputs(c.name).items():
-                rows.setdefault(f"{c.name}.{connector}", []).append(value)
+                log(f"{c.name}.{connector}", k, value)
             m.position.on(DO_STEP, m.index[c.name])
             m.slaves[c.name].doStep(currentCommunicationPoint=t, communicationStepSize=h)
             m.pull_outputs(c)
             if c.name in monitors:
-                _log_outputs(m, c, rows)
+                _log_outputs(m, c, log, k)
     for name, slave in m.slaves.items():
         m.position.on(TERMINATE, m.index[name])
         slave.terminate()
-    return SspRun(times, {k: np.array(v) for k, v in rows.items()}, h)
+    return SspRun(times, columns, h)
 
 
 def simulate_ssp(
