@@ -197,10 +197,81 @@ def test_stale_work_folders_are_removed_and_live_ones_reported(tmp_path):
     foreign = tmp_path / ".out.user.tmp"  # named alike, but no run's file in it: not ours
     foreign.mkdir()
     lines: list[str] = []
+    # a pid file that does not parse (a disk that filled as it was written) is no live run's
+    empty = _work_folder(tmp_path, ".out.empty123.tmp", 0)
+    (empty / RUN_PID_FILE).write_text("", encoding="utf-8")
     removed = clean_stale_work(tmp_path / "out", lines.append)
-    assert removed == [dead] and not dead.exists()
+    assert sorted(removed) == sorted([dead, empty]) and not dead.exists() and not empty.exists()
     assert live.exists() and foreign.exists()
     assert any(str(live) in line and "may still be going" in line for line in lines)
+
+
+# --------------------------------------------------------------------------- a full disk
+
+#: A file-size limit (RLIMIT_FSIZE, bytes) the command runs under: a write past it fails as
+#: on a full disk (EFBIG instead of ENOSPC). The flume's A.csv (38 kB) fits, C.csv (75 kB)
+#: does not.
+FSIZE_BYTES = 50_000
+
+
+def _limited(command: list[str], fsize: int) -> subprocess.CompletedProcess[str]:
+    """``gatetwin COMMAND`` in a child process whose files may not grow past ``fsize``."""
+
+    def limit() -> None:
+        import resource
+
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # the write fails instead
+        resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    return subprocess.run([sys.executable, "-m", "gatetwin.cli", *command], env=env,
+                          capture_output=True, text=True, preexec_fn=limit,
+                          timeout=300)  # fmt: skip
+
+
+def test_a_flume_run_that_runs_out_of_room_leaves_nothing(tmp_path):
+    """A.csv and its sidecar are written, C.csv cannot be: the command fails in one line and
+    removes what it wrote and the folders it made (here two levels)."""
+    out = tmp_path / "new" / "flume"
+    done = _limited(["flume", "--out", str(out), "--only", "A", "C"], FSIZE_BYTES)
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert lines[-1].startswith("gatetwin: error:") and "C.csv: cannot write" in lines[-1]
+    assert "Traceback" not in done.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_run_whose_pid_file_cannot_be_written_leaves_no_work_folder(tmp_path):
+    done = _limited(["run", "--out", str(tmp_path / "out")], 0)
+    assert done.returncode == 2 and "cannot write the output" in done.stderr, done.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_what_a_failed_block_added_is_undone_and_what_was_there_stays(tmp_path):
+    from gatetwin._io import undone_on_failure
+
+    out = tmp_path / "out"
+    (out / "kept").mkdir(parents=True)
+    (out / "mine.txt").write_text("mine")
+    for keep_files in (False, True):
+        with pytest.raises(OutputError), undone_on_failure(out, keep_files=keep_files):
+            (out / "empty" / "deeper").mkdir(parents=True)
+            (out / "gate").mkdir()
+            (out / "gate" / "model.json").write_text("{}")
+            raise OutputError("disk full")
+        left = sorted(str(p.relative_to(out)) for p in out.rglob("*"))
+        expected = ["gate", "gate/model.json"] if keep_files else []
+        assert left == sorted(["kept", "mine.txt", *expected])
+        shutil.rmtree(out / "gate", ignore_errors=True)
+    with pytest.raises(KeyboardInterrupt), undone_on_failure(tmp_path / "a" / "b") as made:
+        (made / "c.csv").parent.mkdir(parents=True)
+        (made / "c.csv").write_text("x")
+        raise KeyboardInterrupt
+    assert not (tmp_path / "a").exists()
+    with undone_on_failure(tmp_path / "ok") as made:  # nothing raised: all stays
+        made.mkdir()
+        (made / "x").write_text("x")
+    assert (tmp_path / "ok" / "x").is_file()
 
 
 SLOW_RUN = """

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NoReturn
 
-from gatetwin._io import write_json_atomic
+from gatetwin._io import undone_on_failure, write_json_atomic
 from gatetwin.cli import diagnose as _diagnose_cmds
 from gatetwin.cli import model as _model_cmds
 from gatetwin.cli import ssp as _ssp_cmds
@@ -182,12 +182,14 @@ def _run_flume(args: argparse.Namespace) -> int:
     )
 
     if args.district is not None:
-        return _run_district(args)
+        with undone_on_failure(args.out):
+            return _run_district(args)
     if args.routine is not None:
         raise GatetwinError("--routine applies with --district N")
     if args.scenario:
         scn = load_scenario(args.scenario)
-        path = run_scenario(scn).write(Path(args.out) / f"{scn.name}.csv")
+        with undone_on_failure(args.out):
+            path = run_scenario(scn).write(Path(args.out) / f"{scn.name}.csv")
         print(f"wrote {path} and its sidecar")
         return 0
     known = {s.name for s in reference_scenarios()} | {"static"}
@@ -197,7 +199,9 @@ def _run_flume(args: argparse.Namespace) -> int:
             f"--only: unknown record(s) {', '.join(unknown)}; expected some of "
             f"{', '.join(sorted(known))}"
         )
-    paths = write_reference_records(args.out, progress=print_to_stderr, only=tuple(args.only))
+    with undone_on_failure(args.out):
+        paths = write_reference_records(args.out, progress=print_to_stderr,
+                                        only=tuple(args.only))  # fmt: skip
     for path in paths:
         print(f"wrote {path}")
     return 0

@@ -9,7 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from gatetwin._io import check_writable, write_json_atomic
+from gatetwin._io import check_writable, undone_on_failure, write_json_atomic
 from gatetwin.errors import GatetwinError, IdentificationError
 
 TEST_CHOICES = ("step", "prbs")
@@ -203,8 +203,10 @@ def _run_fleet(args: argparse.Namespace) -> int:
     settings = FleetSettings(scheduler=args.scheduler,
                              workers=args.workers or default_workers())  # fmt: skip
     sources = args.records or [str(bundled_records_dir())]
-    doc = run_fleet(sources, args.out, settings, fmu_backend=args.fmus,
-                    max_memory_mib=args.max_memory, progress=_print_to_stderr)  # fmt: skip
+    # the gates written as they finished are kept; folders left empty go
+    with undone_on_failure(args.out, keep_files=True):
+        doc = run_fleet(sources, args.out, settings, fmu_backend=args.fmus,
+                        max_memory_mib=args.max_memory, progress=_print_to_stderr)  # fmt: skip
     print(f"wrote {doc['n_ok']} model sets of {doc['n_gates']} gates and the summary "
           f"{Path(args.out) / 'fleet.json'}; {doc['n_failed']} failed, "
           f"{doc['n_no_window']} without an informative window")  # fmt: skip
@@ -235,7 +237,9 @@ def run_models(args: argparse.Namespace) -> int:
         return _run_fleet(args)
     folder = Path(args.records[0]) if args.records else bundled_records_dir()
     ident = identify_folder(folder)
-    for path in write_model_files(ident.models, Path(args.out)):
+    with undone_on_failure(args.out):
+        paths = write_model_files(ident.models, Path(args.out))
+    for path in paths:
         print(f"wrote {path}")
     return 0
 

@@ -22,6 +22,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from gatetwin._io import write_text_atomic
 from gatetwin.errors import PipelineError
 
 #: File marking a directory as written by ``gatetwin run`` (only such are replaced).
@@ -63,14 +64,18 @@ def _identity(path: Path) -> Identity | None:
 
 
 def make_work_dir(target: Path) -> Path:
-    """The hidden temporary sibling the stages write into, holding this process's id."""
+    """The hidden temporary sibling the stages write into, holding this process's id (written
+    atomically: a pid file that does not parse is never a live run's). When it cannot be
+    made whole (disk full), nothing of it is left."""
+    work = None
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         work = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp",
                                      dir=target.parent))  # fmt: skip
-        (work / RUN_PID_FILE).write_text(f"{os.getpid()}\n{socket.gethostname()}\n",
-                                         encoding="utf-8")  # fmt: skip
+        write_text_atomic(work / RUN_PID_FILE, f"{os.getpid()}\n{socket.gethostname()}\n")
     except OSError as exc:
+        if work is not None:
+            shutil.rmtree(work, ignore_errors=True)
         raise PipelineError(
             f"{target.parent}: cannot write the output of 'gatetwin run' there "
             f"({exc.strerror or exc}); choose another --out"
@@ -158,12 +163,18 @@ def _rename_quietly(source: Path, target: Path) -> None:
 
 
 def _process_gone(pid_file: Path) -> bool | None:
-    """True when the run that wrote ``pid_file`` is over, None when that cannot be told."""
+    """True when the run that wrote ``pid_file`` is over, None when that cannot be told.
+
+    A pid file that is there but does not parse (empty: a disk that filled as it was
+    written) is over: a run writes its pid file whole or not at all."""
     try:
         pid_text, host = (pid_file.read_text(encoding="utf-8").split("\n") + [""])[:2]
-        pid = int(pid_text)
-    except (OSError, ValueError):
+    except OSError:
         return None
+    try:
+        pid = int(pid_text)
+    except ValueError:
+        return True
     if host != socket.gethostname() or pid == os.getpid():
         return None
     try:
