@@ -354,13 +354,14 @@ _FUZZ_KINDS = {("input", None): "input", ("output", None): "output",
 
 def fuzz_spec(
     extracted: Path, out: Path, ranges: dict[str, tuple[float, float]] | None = None,
-    sampled: bool = False,
+    sampled: bool = False, warns_on_change: str | None = None,
 ) -> Path:  # fmt: skip
     """The SPEC file tests/fmu_fuzz.c reads for the extracted FMI 2.0 FMU, written to ``out``:
     GUID, value references, kinds and start values from its modelDescription.xml, the
     plausible values of the inputs named in ``ranges``; the state's size and int fields from
     tests/fmu_layout.c compiled against its ``sources/``. ``sampled``: the FMU steps whole
-    samples of its default experiment's step size (the MPC controller, the observer)."""
+    samples of its default experiment's step size (the MPC controller, the observer).
+    ``warns_on_change``: the input each setting of which may bring one more fmi2Warning."""
     md = read_model_description(str(extracted))
     lines = [f"guid {md.guid}"]
     for v in sorted(md.modelVariables, key=lambda v: v.valueReference):
@@ -372,6 +373,8 @@ def fuzz_spec(
             lines.append(f"range {v.valueReference} {float(lo)!r} {float(hi)!r}")
         if v.name == "sample_period_s":
             lines.append(f"sample_period {v.valueReference}")
+        if v.causality == "input" and v.name == warns_on_change:
+            lines.append(f"warns_on_change {v.valueReference}")
     if sampled:
         lines.append(f"sample_period_s {float(md.defaultExperiment.stepSize)!r}")
     probe = out.with_suffix(".layout")

@@ -14,6 +14,7 @@ seiche they do not cover), both with casadi-generated arithmetic.
 
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 from dataclasses import replace
@@ -57,9 +58,21 @@ MPC_HORIZON = 10
 SAMPLED = ("mpc_controller", "observer", "observer_envelope")
 CASES = tuple(SEQUENCES)
 #: Plausible values of the plants' inputs (gate up to 90 mm, discharge up to 150 m3/h: inside
-#: and beyond the test plants' envelope); another input (the controller's level and set-point)
-#: draws from 0..2x its start.
+#: and beyond the test plants' envelope); another input draws from 0..2x its start.
 INPUT_RANGES = {"opening_mm": (0.0, 90.0), "flow_m3h": (0.0, 150.0)}
+#: The controllers (of fopdt_3F) are driven with level and set-point across their level
+#: band, the model's validity range [lo, hi], and one band's width beyond either end; each
+#: set-point outside the band may bring its own fmi2Warning (the MPC's reason, logged).
+CONTROLLERS = ("pi_controller", "mpc_controller")
+
+
+def _band_ranges() -> dict[str, tuple[float, float]]:
+    doc = json.loads((MODELS / "fopdt_3F.json").read_text(encoding="utf-8"))
+    lo, hi = doc["validity"]["level_range_mm"]
+    span = (lo - (hi - lo), hi + (hi - lo))
+    return {**INPUT_RANGES, f"level_{doc['gauge']}_mm": span, "setpoint_mm": span}
+
+
 #: The long run: ten times as many.
 SLOW_FACTOR = 10
 #: A check the PI controller makes on a state it restores (every variable finite), and the
@@ -135,8 +148,10 @@ def fuzzers(tmp_path_factory) -> dict[str, Fuzzed]:
     out = {}
     for case in CASES:
         extracted = Path(extract(str(_export(case, folder)), str(folder / case)))
-        spec = fuzz_spec(extracted, folder / f"{case}.spec", INPUT_RANGES,
-                         sampled=case in SAMPLED)  # fmt: skip
+        controller = case in CONTROLLERS
+        spec = fuzz_spec(extracted, folder / f"{case}.spec",
+                         _band_ranges() if controller else INPUT_RANGES, sampled=case in SAMPLED,
+                         warns_on_change="setpoint_mm" if controller else None)  # fmt: skip
         out[case] = Fuzzed(
             build_sanitized(extracted, folder),
             fuzzer,
@@ -169,6 +184,22 @@ def _fuzz(fuzzers, case: str, seed: int, sequences: int) -> str:
 @pytest.mark.parametrize("case", CASES)
 def test_random_call_sequences_find_nothing(fuzzers, case):
     _fuzz(fuzzers, case, seed=20261123, sequences=SEQUENCES[case])
+
+
+@pytest.mark.parametrize("case", CONTROLLERS)
+def test_the_controllers_level_and_set_point_are_drawn_across_and_beyond_their_band(fuzzers, case):
+    """The spec gives level and set-point one band's width beyond the validity's level range
+    on either side, so the fuzzer's draws fall below, inside and above the band."""
+    doc = json.loads((MODELS / "fopdt_3F.json").read_text(encoding="utf-8"))
+    lo, hi = doc["validity"]["level_range_mm"]
+    md = read_model_description(str(fuzzers[case].extracted))
+    vr = {v.name: v.valueReference for v in md.modelVariables if v.causality == "input"}
+    ranges = {int(parts[1]): (float(parts[2]), float(parts[3]))
+              for parts in map(str.split, fuzzers[case].spec.read_text().splitlines())
+              if parts and parts[0] == "range"}  # fmt: skip
+    for name in (f"level_{doc['gauge']}_mm", "setpoint_mm"):
+        low, high = ranges[vr[name]]
+        assert low < lo and high > hi and (lo - low, high - hi) == (hi - lo, hi - lo), name
 
 
 # ~8 min over the cases: run before a release (`-m long`), not on every change
