@@ -63,14 +63,19 @@ unit = "{length}"
 NOISE_MM = 0.5
 
 
-@pytest.fixture(scope="module")
-def foreign_fmu(tmp_path_factory) -> Path:
+def foreign_gate_fmu(folder: Path) -> Path:
+    """The foreign gate's FMU, built with pythonfmu into ``folder``."""
     from pythonfmu.builder import FmuBuilder
 
-    folder = tmp_path_factory.mktemp("foreign")
+    folder.mkdir(parents=True, exist_ok=True)
     script = folder / "foreign_gate.py"
     script.write_text(SLAVE, encoding="utf-8")
     return Path(FmuBuilder.build_FMU(script, dest=folder))
+
+
+@pytest.fixture(scope="module")
+def foreign_fmu(tmp_path_factory) -> Path:
+    return foreign_gate_fmu(tmp_path_factory.mktemp("foreign"))
 
 
 def _record(folder: Path) -> Path:
