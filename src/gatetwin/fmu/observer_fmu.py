@@ -497,6 +497,7 @@ def run_observer_fmu(
     import numpy as np
     from fmpy import extract, read_model_description
 
+    from gatetwin.fmi_host import open_instance
     from gatetwin.mpc.online import OUTPUTS
 
     refs = {output_name(g): np.asarray(v, dtype=float)
@@ -511,62 +512,30 @@ def run_observer_fmu(
         [np.asarray(v, dtype=float) for v in (level_mm, opening_mm, flow_m3h, *refs.values())]
     )
     unzipped = extract(str(fmu_path))
-    slave = _slave(md, unzipped)
     ts = float(md.defaultExperiment.stepSize)
     names = [*OUTPUTS, *(n for n in ("slow_cusum", *DRIFT_RULE[:2]) if n in vr)]
     out = np.empty((columns.shape[0], len(names)))
     try:
-        slave.start()
-        for name, value in (parameters or {}).items():
-            slave.set([vr[name]], [float(value)])
-        slave.set(inputs, [float(v) for v in columns[0]])
-        slave.fmu.exitInitializationMode()
-        out_vrs = [vr[n] for n in names]
-        for i in range(columns.shape[0]):
-            slave.set(inputs, [float(v) for v in columns[i]])
-            slave.fmu.doStep(currentCommunicationPoint=float(i * ts),
-                             communicationStepSize=float(ts))  # fmt: skip
-            out[i] = slave.get(out_vrs)
-        slave.fmu.terminate()
+        slave = open_instance(md, unzipped, "observer", what=str(fmu_path), error=ControlError,
+                              logging_on=False)  # fmt: skip
+        try:
+            slave.setupExperiment(startTime=0.0)
+            slave.enterInitializationMode()
+            for name, value in (parameters or {}).items():
+                slave.setReal([vr[name]], [float(value)])
+            slave.setReal(inputs, [float(v) for v in columns[0]])
+            slave.exitInitializationMode()
+            out_vrs = [vr[n] for n in names]
+            for i in range(columns.shape[0]):
+                slave.setReal(inputs, [float(v) for v in columns[i]])
+                slave.doStep(float(i * ts), float(ts))
+                out[i] = slave.getReal(out_vrs)
+            slave.terminate()
+        finally:
+            slave.freeInstance()
     finally:
-        slave.fmu.freeInstance()
         shutil.rmtree(unzipped, ignore_errors=True)
     return {name: out[:, k] for k, name in enumerate(names)}
-
-
-@dataclasses.dataclass(frozen=True)
-class _Slave:
-    """An instantiated FMI 2.0 or 3.0 co-simulation slave with the verbs both share."""
-
-    fmu: Any
-    fmi3: bool
-
-    def start(self) -> None:
-        """Enter initialisation mode at ``t = 0``."""
-        if self.fmi3:
-            self.fmu.enterInitializationMode(startTime=0.0)
-        else:
-            self.fmu.setupExperiment(startTime=0.0)
-            self.fmu.enterInitializationMode()
-
-    def set(self, vrs: list[int], values: list[float]) -> None:
-        (self.fmu.setFloat64 if self.fmi3 else self.fmu.setReal)(vrs, values)
-
-    def get(self, vrs: list[int]) -> list[float]:
-        return (self.fmu.getFloat64 if self.fmi3 else self.fmu.getReal)(vrs)
-
-
-def _slave(md: Any, unzipped: str) -> _Slave:
-    from fmpy.fmi2 import FMU2Slave
-    from fmpy.fmi3 import FMU3Slave
-
-    fmi3 = md.fmiVersion.startswith("3.")
-    fmu = (FMU3Slave if fmi3 else FMU2Slave)(
-        guid=md.guid, unzipDirectory=unzipped, instanceName="observer",
-        modelIdentifier=md.coSimulation.modelIdentifier,
-    )  # fmt: skip
-    fmu.instantiate(loggingOn=False)
-    return _Slave(fmu, fmi3)
 
 
 def _drift_config(desc: FmuDescription, references: tuple[str, ...],

@@ -89,7 +89,6 @@ class FmuController:
         self.sample_period_s = sample_period_s or default or (step and float(step)) \
             or SAMPLE_PERIOD_S  # fmt: skip
         self.name = name or ("mpc_fmu" if "solver_status" in self._vr else "pi_fmu")
-        self._fmi3 = md.fmiVersion.startswith("3.")
         self._slave: Any = None
         self.time_s = 0.0
         self.last_solve_s = 0.0
@@ -100,42 +99,31 @@ class FmuController:
     def reset(self, opening_mm: float, level_mm: float, flow_m3h: float) -> None:
         """Instantiate at rest at ``opening_mm`` with the set-point at ``level_mm``."""
         from fmpy.fmi1 import FMICallException
-        from fmpy.fmi2 import FMU2Slave
-        from fmpy.fmi3 import FMU3Slave
+
+        from gatetwin.fmi_host import open_instance
 
         self.close()
-        slave = (FMU3Slave if self._fmi3 else FMU2Slave)(
-            guid=self._md.guid,
-            unzipDirectory=self._unzipped,
-            modelIdentifier=self._md.coSimulation.modelIdentifier,
-            instanceName="gatetwin_controller",
-        )
-        slave.instantiate(loggingOn=False)
+        slave = open_instance(self._md, self._unzipped, "gatetwin_controller",
+                              what=self.path.name, error=ControlError,
+                              logging_on=False)  # fmt: skip
         self._slave = slave
         self.time_s = 0.0
         self.failures = 0
         self.statuses = []
         try:
-            if self._fmi3:
-                slave.enterInitializationMode(startTime=0.0)
-            else:
-                slave.setupExperiment(startTime=0.0)
-                slave.enterInitializationMode()
+            slave.setupExperiment(startTime=0.0)
+            slave.enterInitializationMode()
             self._set([self._vr["start_opening_mm"]], [float(opening_mm)])
             self._set(self._inputs, [float(level_mm), float(flow_m3h), float(level_mm)])
             slave.exitInitializationMode()
         except FMICallException as exc:
-            raise ControlError(f"{self.path.name}: reset refused ({exc})") from None
+            raise ControlError(f"{self.path.name}: reset refused ({exc}){_logged(slave)}") from None
 
     def _set(self, vrs: list[int], values: list[float]) -> None:
-        if self._fmi3:
-            self._slave.setFloat64(vrs, values)
-        else:
-            self._slave.setReal(vrs, values)
+        self._slave.setReal(vrs, values)
 
     def _get(self, vrs: list[int]) -> list[float]:
-        get = self._slave.getFloat64 if self._fmi3 else self._slave.getReal
-        return [float(v) for v in get(vrs)]
+        return [float(v) for v in self._slave.getReal(vrs)]
 
     def step(self, level_mm: float, flow_m3h: float, setpoint_mm: float) -> float:
         """Opening (mm) the FMU computes from these inputs, held over the next sample."""
@@ -152,6 +140,7 @@ class FmuController:
         except FMICallException as exc:
             raise ControlError(
                 f"{self.path.name}: step at t = {self.time_s} s refused ({exc})"
+                + _logged(self._slave)
             ) from None
         self.last_solve_s = time.perf_counter() - start
         self.time_s += self.sample_period_s
@@ -178,6 +167,12 @@ class FmuController:
         """Close the instance and delete the extracted FMU."""
         self.close()
         shutil.rmtree(self._unzipped, ignore_errors=True)
+
+
+def _logged(slave: Any) -> str:
+    """``; FMU log: …`` with the FMU's last warning or error, or ""."""
+    detail = slave.last_problem()
+    return f"; FMU log: {detail[:300]}" if detail else ""
 
 
 __all__ = ["OUTPUTS", "FmuController"]

@@ -204,16 +204,11 @@ class FmuCore:
         self.time_s = 0.0
 
     def start(self, opening_mm: float, flow_m3h: float) -> float:
-        from fmpy.fmi2 import FMU2Slave
+        from gatetwin.fmi_host import open_instance
 
         self.close()
-        slave = FMU2Slave(
-            guid=self._md.guid,
-            unzipDirectory=self._unzipped,
-            modelIdentifier=self._md.coSimulation.modelIdentifier,
-            instanceName="gatetwin_mpc",
-        )
-        slave.instantiate(loggingOn=False)
+        slave = open_instance(self._md, self._unzipped, "gatetwin_mpc", what=str(self.path),
+                              error=ControlError, logging_on=False)  # fmt: skip
         self._slave = slave
         self.time_s = 0.0
         slave.setupExperiment(startTime=0.0)

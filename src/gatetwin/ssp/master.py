@@ -244,8 +244,6 @@ class _Master:
         self.signals = {name: _signal(parameters, name, where) for name in system.inputs}
         self.values: dict[tuple[str | None, str], float] = {}
         self.slaves: dict[str, Any] = {}
-        self.logs: dict[str, list[tuple[int, str]]] = {}  # each FMU's (status, message)
-        self.callbacks: dict[str, Any] = {}  # the ctypes callbacks, alive with the instances
         self.vrs: dict[str, dict[str, int]] = {}
         self.steps: dict[str, float] = {}
         self.parameters = parameters
@@ -259,7 +257,8 @@ class _Master:
 
     def _instantiate(self, c: SspComponent, folder: Path) -> None:
         from fmpy import extract, read_model_description
-        from fmpy.fmi2 import FMU2Slave
+
+        from gatetwin.fmi_host import open_instance
 
         path = folder / "package" / c.source
         try:
@@ -286,45 +285,15 @@ class _Master:
             raise SspError(f"{self.where}: component {c.name}: {c.source} is not a zip "
                            f"archive ({exc})") from None  # fmt: skip
         unzipped = extract(str(path), str(folder / f"fmu_{len(self.slaves)}"))
-        try:
-            self.position.on(LOADING, self.index[c.name])
-            slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
-                              modelIdentifier=md.coSimulation.modelIdentifier,
-                              instanceName=c.name)  # fmt: skip
-            self.position.on(INSTANTIATE, self.index[c.name])
-            slave.instantiate(callbacks=self._callbacks(c.name), loggingOn=False)
-        except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions here
-            raise SspError(f"{self.where}: component {c.name}: the FMU cannot be instantiated "
-                           f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
-        self.slaves[c.name] = slave
-
-    def _callbacks(self, name: str) -> Any:
-        """FMI callbacks whose logger keeps the FMU's messages (for the error line) instead of
-        printing them."""
-        from fmpy import calloc, free
-        from fmpy.fmi2 import (
-            fmi2CallbackAllocateMemoryTYPE,
-            fmi2CallbackFreeMemoryTYPE,
-            fmi2CallbackFunctions,
-            fmi2CallbackLoggerTYPE,
-        )
-
-        log = self.logs.setdefault(name, [])
-
-        def logger(_env: Any, _instance: Any, status: int, _category: Any, text: bytes) -> None:
-            log.append((int(status), " ".join(text.decode("utf-8", "replace").split())))
-
-        callbacks = fmi2CallbackFunctions()
-        callbacks.logger = fmi2CallbackLoggerTYPE(logger)
-        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        self.callbacks[name] = callbacks
-        return callbacks
+        self.position.on(LOADING, self.index[c.name])
+        self.slaves[c.name] = open_instance(
+            md, unzipped, c.name, what=f"{self.where}: component {c.name}", error=SspError,
+            logging_on=False, loaded=lambda: self.position.on(INSTANTIATE, self.index[c.name]),
+        )  # fmt: skip
 
     def last_problem(self, name: str) -> str:
         """The component's last logged message of status warning or worse ("" if none)."""
-        bad = [text for status, text in self.logs.get(name, []) if status >= 1]
-        return bad[-1][:300] if bad else ""
+        return self.slaves[name].last_problem()[:300] if name in self.slaves else ""
 
     def _check_connections(self) -> None:
         connectors = {(c.name, n) for c in self.system.components for n in c.connectors}

@@ -440,20 +440,15 @@ class Position:
 
 @dataclass
 class _Session:
-    """One instantiated FMU, its log and where the run is (for error messages)."""
+    """One instantiated FMU (:class:`gatetwin.fmi_host.Instance`, its log kept) and what the
+    harness knows of it."""
 
     info: FmuInfo
     slave: Any
-    callbacks: Any = None
-    messages: list[tuple[int, str]] = field(default_factory=list)
-
-    def log(self, _env: Any, _instance: Any, status: int, _category: Any, message: bytes) -> None:
-        self.messages.append((int(status), message.decode("utf-8", "replace")))
 
     def last_problem(self) -> str:
         """The FMU's last logged message of status warning or worse ("" if none)."""
-        bad = [text for status, text in self.messages if status >= 1]
-        return " ".join(bad[-1].split()) if bad else ""
+        return self.slave.last_problem()
 
     def set_inputs(self, opening_mm: float, flow_m3h: float) -> None:
         vrs = [self.info.value_references[name] for name in INPUTS]
@@ -462,110 +457,31 @@ class _Session:
                                  float(flow_m3h) * scale(INPUTS[1])])  # fmt: skip
 
 
-class _Fmi3Slave:
-    """An :class:`fmpy.fmi3.FMU3Slave` behind the FMI 2.0 verbs the harness calls, so that one
-    protocol (:func:`_simulate`) drives both versions: ``setupExperiment`` keeps the start
-    time for ``fmi3EnterInitializationMode``; get/set Real are get/set Float64; ``doStep``
-    asks for no early return and no events (the FMU declares neither)."""
-
-    def __init__(self, slave: Any) -> None:
-        self.slave = slave
-        self.start_time_s = 0.0
-
-    def setupExperiment(self, startTime: float) -> None:  # noqa: N802, N803 (fmpy's names)
-        self.start_time_s = startTime
-
-    def enterInitializationMode(self) -> None:  # noqa: N802
-        self.slave.enterInitializationMode(startTime=self.start_time_s)
-
-    def exitInitializationMode(self) -> None:  # noqa: N802
-        self.slave.exitInitializationMode()
-
-    def getReal(self, vr: list[int]) -> list[float]:  # noqa: N802
-        return self.slave.getFloat64(vr)
-
-    def setReal(self, vr: list[int], values: list[float]) -> None:  # noqa: N802
-        self.slave.setFloat64(vr, values)
-
-    def doStep(self, t: float, h: float) -> None:  # noqa: N802
-        self.slave.doStep(t, h)
-
-    def terminate(self) -> None:
-        self.slave.terminate()
-
-    def freeInstance(self) -> None:  # noqa: N802
-        self.slave.freeInstance()
-
-    def freeLibrary(self) -> None:  # noqa: N802
-        self.slave.freeLibrary()
-
-
-def _open_session3(info: FmuInfo, unzip_dir: str, where: Position | None = None) -> _Session:
-    from fmpy.fmi3 import FMU3Slave
-
-    try:
-        slave = FMU3Slave(guid=info.guid, unzipDirectory=unzip_dir,
-                          modelIdentifier=info.model_identifier,
-                          instanceName="gatetwin_validate")  # fmt: skip
-    except OSError as exc:
-        raise ValidationError(f"{info.path}: the FMU's binary cannot be loaded ({exc})") from None
-    session = _Session(info, _Fmi3Slave(slave))
-
-    def log(env: Any, status: int, category: Any, message: bytes) -> None:
-        session.log(env, None, status, category, message)
-
-    if where is not None:
-        where.values[Position.CALL] = INSTANTIATE
-    try:
-        slave.instantiate(loggingOn=True, logMessage=log)
-    except Exception:  # fmpy raises a bare Exception when fmi3Instantiate fails
-        slave.freeLibrary()
-        detail = session.last_problem()
-        raise ValidationError(
-            f"{info.path}: fmi3InstantiateCoSimulation failed"
-            + (f"; FMU log: {detail}" if detail else "")
-        ) from None
-    return session
-
-
 def _open_session(info: FmuInfo, unzip_dir: str, where: Position | None = None) -> _Session:
-    if info.fmi_version != "2.0":
-        return _open_session3(info, unzip_dir, where)
-    from fmpy import calloc, free
-    from fmpy.fmi2 import (
-        FMU2Slave,
-        fmi2CallbackAllocateMemoryTYPE,
-        fmi2CallbackFreeMemoryTYPE,
-        fmi2CallbackFunctions,
-        fmi2CallbackLoggerTYPE,
-    )
+    from types import SimpleNamespace
 
-    try:
-        slave = FMU2Slave(
-            guid=info.guid,
-            unzipDirectory=unzip_dir,
-            modelIdentifier=info.model_identifier,
-            instanceName="gatetwin_validate",
-        )
-    except OSError as exc:
-        raise ValidationError(f"{info.path}: the FMU's binary cannot be loaded ({exc})") from None
-    session = _Session(info, slave)
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(session.log)
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    session.callbacks = callbacks  # keep the ctypes callbacks alive as long as the instance
-    if where is not None:
-        where.values[Position.CALL] = INSTANTIATE
-    try:
-        slave.instantiate(callbacks=callbacks, loggingOn=True)
-    except Exception:  # fmpy raises a bare Exception when fmi2Instantiate fails
-        slave.freeLibrary()
-        detail = session.last_problem()
-        raise ValidationError(
-            f"{info.path}: fmi2Instantiate failed" + (f"; FMU log: {detail}" if detail else "")
-        ) from None
-    return session
+    from gatetwin.fmi_host import open_instance
+
+    def instantiating() -> None:
+        if where is not None:
+            where.values[Position.CALL] = INSTANTIATE
+
+    md = SimpleNamespace(
+        fmiVersion=info.fmi_version,
+        guid=info.guid,
+        coSimulation=SimpleNamespace(modelIdentifier=info.model_identifier),
+    )
+    return _Session(
+        info,
+        open_instance(
+            md,
+            unzip_dir,
+            "gatetwin_validate",
+            what=info.path,
+            error=ValidationError,
+            loaded=instantiating,
+        ),
+    )
 
 
 def _simulate(
