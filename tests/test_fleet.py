@@ -273,15 +273,19 @@ def test_dask_logs_nothing_on_stderr_while_a_fleet_runs_on_it(capfd):
     from gatetwin.fleet.execute import _quiet_dask_logs
 
     client_log = logging.getLogger("distributed.client")
+    # dask's logging configuration gives its loggers handlers of their own (on stderr); one
+    # is added here too, so the test does not depend on when dask configured its logging
+    own = logging.StreamHandler(sys.stderr)
+    client_log.addHandler(own)
     handlers = {h: h.level for n in ("distributed", "distributed.client")
                 for h in logging.getLogger(n).handlers}  # fmt: skip
-    assert handlers, "dask's logging configuration gives its loggers no handler"
     quiet = _quiet_dask_logs()
     client_log.error("Failed to reconnect to scheduler after 20.00 seconds, closing client")
     quiet.close()
     assert capfd.readouterr().err == ""
     assert {h: h.level for h in handlers} == handlers
     client_log.error("after the run")
+    client_log.removeHandler(own)
     assert "after the run" in capfd.readouterr().err
 
 
