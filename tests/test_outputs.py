@@ -256,19 +256,22 @@ def test_a_run_whose_pid_file_cannot_be_written_leaves_no_work_folder(tmp_path):
 def test_what_a_failed_block_added_is_undone_and_what_was_there_stays(tmp_path):
     from gatetwin._io import undone_on_failure
 
-    out = tmp_path / "out"
+    out = tmp_path / "out"  # a folder that existed: nothing in it is touched
     (out / "kept").mkdir(parents=True)
     (out / "mine.txt").write_text("mine")
-    for keep_files in (False, True):
-        with pytest.raises(OutputError), undone_on_failure(out, keep_files=keep_files):
-            (out / "empty" / "deeper").mkdir(parents=True)
-            (out / "gate").mkdir()
-            (out / "gate" / "model.json").write_text("{}")
+    with pytest.raises(OutputError), undone_on_failure(out):
+        (out / "written.csv").write_text("x")
+        raise OutputError("disk full")
+    assert sorted(p.name for p in out.iterdir()) == ["kept", "mine.txt", "written.csv"]
+    for keep_files in (False, True):  # a folder the block made goes, or only its empty ones
+        new = tmp_path / f"new_{keep_files}"
+        with pytest.raises(OutputError), undone_on_failure(new, keep_files=keep_files):
+            (new / "empty" / "deeper").mkdir(parents=True)
+            (new / "gate").mkdir()
+            (new / "gate" / "model.json").write_text("{}")
             raise OutputError("disk full")
-        left = sorted(str(p.relative_to(out)) for p in out.rglob("*"))
-        expected = ["gate", "gate/model.json"] if keep_files else []
-        assert left == sorted(["kept", "mine.txt", *expected])
-        shutil.rmtree(out / "gate", ignore_errors=True)
+        left = sorted(str(p.relative_to(new)) for p in new.rglob("*")) if new.exists() else []
+        assert left == (["gate", "gate/model.json"] if keep_files else [])
     with pytest.raises(KeyboardInterrupt), undone_on_failure(tmp_path / "a" / "b") as made:
         (made / "c.csv").parent.mkdir(parents=True)
         (made / "c.csv").write_text("x")

@@ -81,46 +81,37 @@ def check_writable(path: str | os.PathLike[str], *, folder: bool = False) -> Non
 def undone_on_failure(folder: str | os.PathLike[str], *, keep_files: bool = False
                       ) -> Iterator[Path]:  # fmt: skip
     """Write a command's outputs into ``folder``; if the block raises (disk full, a refused
-    input half-way, an interrupt), what it added goes: the files it created (unless
-    ``keep_files``) and the folders it created, ``folder`` and its new parents included, when
-    nothing else is left in them. What was there before stays (a file the block replaced
-    keeps its new content: the writes are atomic, not transactional)."""
+    input half-way, an interrupt) and ``folder`` did not exist before, it goes with what the
+    block wrote into it (with ``keep_files``, only the folders left empty), and so do the
+    parents the block created. A folder that existed before is left as it is: another
+    program may write into it meanwhile (``--out ~``), and nothing in it is the block's
+    alone to delete."""
     root = Path(folder)
     top = Path(os.path.abspath(root))
     while not top.exists() and top != top.parent:
         top = top.parent  # the nearest folder that exists now
-    before = _tree(root)
+    created = not root.exists()
     try:
         yield root
     except BaseException:
-        _remove_added(root, before, keep_files)
-        made = Path(os.path.abspath(root))
-        while made != top and made.is_relative_to(top):
-            with contextlib.suppress(OSError):
-                made.rmdir()  # only when empty
-            made = made.parent
+        if created:
+            _remove_tree(root, keep_files)
+            made = Path(os.path.abspath(root)).parent
+            while made != top and made.is_relative_to(top):
+                with contextlib.suppress(OSError):
+                    made.rmdir()  # only when empty
+                made = made.parent
         raise
 
 
-def _tree(root: Path) -> set[Path] | None:
-    """Every path under ``root``, relative to it (None when ``root`` is not a folder)."""
-    if not root.is_dir():
-        return None
-    out: set[Path] = set()
-    for folder, names, files in os.walk(root):
-        here = Path(folder).relative_to(root)
-        out.update(here / n for n in [*names, *files])
-    return out
-
-
-def _remove_added(root: Path, before: set[Path] | None, keep_files: bool) -> None:
-    if not root.is_dir():
+def _remove_tree(root: Path, keep_files: bool) -> None:
+    """``root`` and everything in it (``keep_files``: its files stay, empty folders go)."""
+    if root.is_symlink() or not root.is_dir():
         return
     for folder, names, files in os.walk(root, topdown=False):
-        here = Path(folder).relative_to(root)
-        added = [n for n in [*([] if keep_files else files), *names]
-                 if before is None or here / n not in before]  # fmt: skip
-        for name in added:
+        for name in [*([] if keep_files else files), *names]:
             with contextlib.suppress(OSError):
                 path = Path(folder) / name
                 path.rmdir() if name in names else path.unlink()
+    with contextlib.suppress(OSError):
+        root.rmdir()

@@ -264,8 +264,10 @@ def _dask(task: Task, jobs: list[Any], crashed: Crashed, address: str,
                     yield k, crashed(jobs[k], lost)
                 return
     finally:
-        client.close()
-        quiet.close()
+        try:
+            client.close()
+        finally:
+            quiet.close()
 
 
 def run_tasks(task: Task, jobs: Iterable[Any], settings: FleetSettings, crashed: Crashed,

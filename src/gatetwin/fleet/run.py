@@ -92,7 +92,7 @@ def _remove_earlier_outputs(folder: Path, models: list[str]) -> None:
     paths += [p for n in models for p in (folder / f"{n}.json", folder / "fmus" / f"{n}.fmu")
               if Path(n).name == n]  # fmt: skip
     for path in paths:
-        with contextlib.suppress(OSError):
+        with contextlib.suppress(OSError, ValueError):  # ValueError: a NUL in a name
             path.unlink(missing_ok=True)
     for empty in (folder / "fmus", folder):
         with contextlib.suppress(OSError):

@@ -169,7 +169,7 @@ def _process_gone(pid_file: Path) -> bool | None:
     written) is over: a run writes its pid file whole or not at all."""
     try:
         pid_text, host = (pid_file.read_text(encoding="utf-8").split("\n") + [""])[:2]
-    except OSError:
+    except (OSError, UnicodeDecodeError):
         return None
     try:
         pid = int(pid_text)

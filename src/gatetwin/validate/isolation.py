@@ -276,7 +276,7 @@ class _Host:
         with self.lock:
             try:
                 self.jobs.send(job)
-                if self.answers.poll(wait_s):
+                if self._answered(wait_s):
                     return self.answers.recv()
             except (OSError, EOFError):
                 pass
@@ -286,6 +286,16 @@ class _Host:
             self.close()
         return ("the FMU host process ended" + (f" or gave no answer within {wait_s:g} s"
                 if wait_s is not None else "") + " (it was stopped)")  # fmt: skip
+
+    def _answered(self, wait_s: float | None) -> bool:
+        """Whether an answer came within ``wait_s`` (None: as long as the host lives; its
+        children hold the pipe open, so a dead host gives no end-of-file)."""
+        if wait_s is not None:
+            return self.answers.poll(wait_s)
+        while not self.answers.poll(HOST_GRACE_S):
+            if not self.alive:
+                return self.answers.poll(0)
+        return True
 
     def close(self) -> None:
         """End the host (closing its pipe ends it; killed if it lingers)."""
