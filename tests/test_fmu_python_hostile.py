@@ -132,6 +132,15 @@ def test_parameters_making_the_output_non_finite_are_refused_and_the_instance_fr
     assert any("not finite" in e for e in _errors(found))
 
 
+def test_a_storage_area_below_its_floor_where_the_model_runs_is_refused(fmus):
+    # physical_3F's area falls with depth: with area_m2 = 0 it meets its floor below the
+    # validity's lowest level (test_physical.py drives the C FMU and the model file the same)
+    found = run_child(fmus["physical"], "refused_initialisation", "1.2", "physical.area_m2", "0")
+    assert (found["exit"], found["retry"], found["step"]) == (FATAL, 0, 0)
+    assert any("the storage area at level 94 mm and 20 m3/h: area_m2 + " in e
+               for e in _errors(found)), found  # fmt: skip
+
+
 def test_the_envelope_warning_is_logged_once_in_the_c_fmus_words(fmus):
     # physical_3F states flow 20..90 m³/h, opening 10..80 mm, level 94..372 mm; the C FMU
     # warns once per instance, naming the variable and its unit (plant.c: check_validity)

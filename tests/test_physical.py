@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
+import json
 import math
 import re
 import subprocess
@@ -202,6 +203,42 @@ def test_model_file_round_trip_and_bad_parameters(plant):
     assert plant_from_dict(bad).parameters["area_m2"] == -50.0
 
 
+def test_a_model_file_whose_pool_has_no_storage_where_it_runs_is_refused(tmp_path):
+    """area_m2 = 0 beside the bundled 3F model's falling area: the linear area is positive only
+    in the first 7 cm of depth, below every level the file declares valid, so the kernel would
+    run on its floor area there; the file is refused naming the depth. The same area
+    intercept with the operating depths above where it turns positive is a model (a deep
+    canal's pool), and so is the bundled file."""
+    source = Path(__file__).parents[1] / "models" / "physical_3F.json"
+    content = json.loads(source.read_text())
+    read_model_file(source)
+    for area in (0.0, 1e-9):
+        content["plant"]["parameters"]["area_m2"] = area
+        (tmp_path / "m.json").write_text(json.dumps(content))
+        with pytest.raises(
+            ModelFileError, match=r"is 0\.04\d* m2 at h = 0\.101\d* m .*level 94 mm"
+        ):
+            read_model_file(tmp_path / "m.json")
+        argv = [
+            "export",
+            str(tmp_path / "m.json"),
+            "--backend",
+            "c",
+            "--out",
+            str(tmp_path / "m.fmu"),
+        ]
+        proc = subprocess.run(
+            [sys.executable, "-m", "gatetwin", *argv], capture_output=True, text=True
+        )
+        assert proc.returncode != 0 and not (tmp_path / "m.fmu").exists(), proc.stderr
+        assert len(proc.stderr.strip().splitlines()) == 1 and "storage area" in proc.stderr
+    params = content["plant"]["parameters"]
+    params.update(area_m2=-50.0, area_per_depth_m=100.0, depth_max_m=4.0)
+    content["validity"]["level_range_mm"] = [1000.0, 3500.0]  # positive above h = 0.7 m
+    (tmp_path / "m.json").write_text(json.dumps(content))
+    assert read_model_file(tmp_path / "m.json").plant.parameters["area_m2"] == -50.0
+
+
 def test_a_step_needing_too_many_substeps_is_refused_without_change(plant):
     sim = simulator_for(plant)
     sim.initialize(30.0, 50.0)
@@ -397,10 +434,13 @@ def test_c_fmu_refuses_impossible_parameters_with_an_error_status(plant, tmp_pat
         find_compiler()
     except Exception:
         pytest.skip("no C compiler")
+    # the bundled file's validity: its falling storage area meets its floor at 0.08 m of depth
+    validity = {"level_mm": [94.0, 372.0], "flow_m3h": [20.0, 90.0]}
     path = export_fmu(plant, tmp_path / "p.fmu", backend="c", model_name="physical_3F",
-                      provenance={})  # fmt: skip
+                      provenance={"validity": validity})  # fmt: skip
     unzipped = Path(extract(str(path), str(tmp_path / "x")))
-    for values, reason in IMPOSSIBLE:
+    below = ({"area_m2": 0.0}, "the storage area at level 94 mm and 20 m3/h: area_m2 + ")
+    for values, reason in [*IMPOSSIBLE, below]:
         driver = open_fmu(unzipped, "p")
         try:
             vrs = [driver.vr[f"physical.{k}"] for k in values]

@@ -116,16 +116,6 @@ def test_the_demo_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path, cap
     assert not out.exists() and not list(tmp_path.glob(".demo.*"))
 
 
-#: What the whole demo on the field canal does not meet yet: the held-out free-run fits of
-#: its three gauges' FOPDT and physical twins are 74-97 % (most under 90 %, biases up to
-#: -88 mm on the inflow records) while the records' noise floors are 97-99.6 %.
-NOT_YET = (
-    "the physical twins of the field canal fit every held-out record (96-99 %), but a "
-    "first-order model cannot follow the submerged gate's tail pool: the envelope FOPDTs "
-    "fit the inflow and random records at 81-89 % (noise floors 99.3-99.6 %)"
-)
-
-
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory) -> dict:
     """The whole demo on the field canal, once for the slow tests."""
@@ -176,7 +166,6 @@ def test_the_physical_twins_fit_every_held_out_record(demo: dict) -> None:
 
 @pytest.mark.long
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=NOT_YET)
 def test_every_fmu_fits_every_held_out_record(demo: dict) -> None:
     """Every FMU fits every held-out record (>= 90 % or within 5 points of the noise
     floor, bias within a tenth of the level's range)."""

@@ -54,6 +54,7 @@ from gatetwin.plant.model import (
     FLOW_RANGE_M3H,
     LOWER_BOUNDS,
     OPENING_RANGE_MM,
+    OPERATING_STORAGE_RULE,
     STORAGE_RULE,
     ArxPlant,
     FopdtPlant,
@@ -559,6 +560,7 @@ def _kernel_config_lines(desc: FmuDescription) -> list[str]:
         "#define GT_KERNEL_BOUNDED " + ", ".join(str(vr) for vr in bounded),
         "#define GT_KERNEL_LOWER_BOUNDS " + ", ".join(repr(float(b)) for b in bounds),
         f'#define GT_KERNEL_STORAGE_RULE "{STORAGE_RULE}"',
+        f'#define GT_KERNEL_OPERATING_STORAGE_RULE "{OPERATING_STORAGE_RULE}"',
         f"#define GT_PHYSICAL_MAX_SUBSTEPS {MAX_SUBSTEPS}",
         f"#define GT_PHYSICAL_MAX_SUBSTEP_INDEX {physical_kernel.INDEX['max_substep_s']}",
     ]
@@ -612,6 +614,7 @@ def slave_config(desc: FmuDescription) -> dict[str, Any]:
         "kernel_first": desc.kernel_first,
         "physical_lower_bounds": LOWER_BOUNDS,
         "physical_storage_rule": STORAGE_RULE,
+        "physical_operating_storage_rule": OPERATING_STORAGE_RULE,
         "physical_max_substeps": MAX_SUBSTEPS,
         "effect_limits": [list(row) for row in _effect_limits(desc)],
         "variables": [

@@ -412,6 +412,19 @@ class GatetwinPlant(GuardedSlave):
                                  f"must be > {_g(bound)}")  # fmt: skip
         if not physical_kernel_portable.storage_room_m2(self._physical()) > 0.0:
             raise PlantError(f"the storage area {CONFIG['physical_storage_rule']}")
+        if "level_mm" in CONFIG["validity"] and "flow_m3h" in CONFIG["validity"]:
+            for level in CONFIG["validity"]["level_mm"][:2]:
+                for flow in CONFIG["validity"]["flow_m3h"][:2]:
+                    if (
+                        not physical_kernel_portable.operating_room_m2(
+                            level, flow, self._physical()
+                        )
+                        > 0.0
+                    ):
+                        raise PlantError(
+                            f"the storage area at level {_g(level)} mm and {_g(flow)} m3/h: "
+                            f"{CONFIG['physical_operating_storage_rule']}"
+                        )
 
     def _envelope(self) -> bool:
         return CONFIG["family"] in ("fopdt", "arx") and CONFIG["kernel_first"] is not None

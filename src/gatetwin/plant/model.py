@@ -240,6 +240,11 @@ STORAGE_RULE = (
     f"area_m2 + area_per_depth_m (h - {kernel.AREA_DEPTH_REF_M:g} m) must exceed "
     f"{kernel.AREA_MIN_M2:g} m2 at some depth h up to depth_max_m"
 )
+#: What :func:`~gatetwin.plant.physical_kernel.operating_room_m2` asks, for the messages.
+OPERATING_STORAGE_RULE = (
+    f"area_m2 + area_per_depth_m (h - {kernel.AREA_DEPTH_REF_M:g} m) must exceed "
+    f"{kernel.AREA_MIN_M2:g} m2 wherever the model runs (the validity's levels and discharges)"
+)
 #: Kernel parameters added after the first model files were written, with the values those
 #: files' equations had built in (the discharge normalisation and the bisection bracket they
 #: were identified with; no tail pool: a free gate; no floor at the gauge): a file without
@@ -296,6 +301,22 @@ def check_physical_parameters(values: dict[str, float] | list[float]) -> list[fl
             f"({tail['tail_exponent']!r}) > 0"
         )
     return out
+
+
+def check_operating_storage(p: list[float], level_range_mm: list[float],
+                            flow_range_m3h: list[float]) -> None:  # fmt: skip
+    """Refuse a storage area that is not above its floor at every depth the model declares it
+    runs at: the steady pools of its validity's level and discharge ranges
+    (:func:`~gatetwin.plant.physical_kernel.operating_room_m2`, which the C FMU checks too)."""
+    for level in level_range_mm:
+        for flow in flow_range_m3h:
+            if not kernel.operating_room_m2(level, flow, p) > 0.0:
+                area = kernel.operating_room_m2(level, flow, p) + kernel.AREA_MIN_M2
+                raise ModelFileError(
+                    f"physical: the storage area is {area:.4g} m2 at h = "
+                    f"{kernel.pool_depth_m(level, flow, p):.4g} m (the pool at level {level:g} "
+                    f"mm and {flow:g} m3/h, inside the validity); {OPERATING_STORAGE_RULE}"
+                )
 
 
 @dataclass(frozen=True)

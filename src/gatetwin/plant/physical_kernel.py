@@ -209,6 +209,22 @@ def storage_area_m2(depth_m: float, p: list[float]) -> float:
     return fmax(p[12] + p[13] * (depth_m - AREA_DEPTH_REF_M), AREA_MIN_M2)
 
 
+def pool_depth_m(level_mm: float, flow_m3h: float, p: list[float]) -> float:
+    """Depth at the gate of a steady pool whose gauge reads ``level_mm`` at ``flow_m3h`` (the
+    pool term of :func:`level_mm` solved for the depth, the gate passing the inflow; the floor
+    left out: at a floored gauge the pool may be lower), m."""
+    passing = flow_m3h / p[19]
+    return (level_mm + p[10] + p[11] * passing * passing) / 1000.0
+
+
+def operating_room_m2(level_mm: float, flow_m3h: float, p: list[float]) -> float:
+    """How far the linear storage area rises above its floor (``AREA_MIN_M2``) at the steady
+    pool of :func:`pool_depth_m`, m²: where a model runs, this is positive, or the kernel runs
+    on the floor instead of the fitted pool. The area is linear in depth and the depth in the
+    level, so a level range's ends at a discharge range's ends bound it."""
+    return p[12] + p[13] * (pool_depth_m(level_mm, flow_m3h, p) - AREA_DEPTH_REF_M) - AREA_MIN_M2
+
+
 def storage_room_m2(p: list[float]) -> float:
     """How far the linear storage area ``A0 + A1 (h − 0.2 m)`` rises above its floor at the
     better end of the depths the model spans (``DEPTH_LOW_M`` .. ``depth_max_m``), m²: a model
@@ -461,6 +477,7 @@ RENDERED = (
     ),  # fmt: skip
     ("has_tail", (), 1),
     ("storage_room_m2", (), 1),
+    ("operating_room_m2", ("level_mm", "flow_m3h"), 1),
     ("level_mm", ("depth_m", "opening_mm", "flow_m3h"), 1),
     ("actuator_target_mm", ("command_mm",), 1),
     ("substep_count", ("step_s",), 1),
