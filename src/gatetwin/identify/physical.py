@@ -369,8 +369,15 @@ def _standard_errors(result: Any, names: list[str]) -> dict[str, float]:
 
 
 def fit_physical(static: Any, records: dict[str, Record], gauge: str,
-                 flow_range_m3h: tuple[float, float]) -> PhysicalFit:  # fmt: skip
-    """Identify the physical plant of ``gauge`` from the static table and ``records``."""
+                 flow_range_m3h: tuple[float, float], storage: Sequence[str] = STORAGE
+                 ) -> PhysicalFit:  # fmt: skip
+    """Identify the physical plant of ``gauge`` from the static table and ``records``.
+
+    The storage area is linear in depth (``storage``: its parameters fitted). When the fitted
+    area falls to its floor at a depth the data's ranges span (the records cover too little
+    depth to carry its slope there), the fit is made again with a constant area.
+    """
+    storage = list(storage)
     points = steady_points(static, records, gauge)
     if points.flow_m3h.size < len(LAW) + 2:
         raise IdentificationError(
@@ -385,7 +392,7 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
     speeds, depths = actuator_moves(records, gauge, values)
     values = _fit_actuator(speeds, depths, values)
     values = _storage_start(values, points, drives, sources)
-    values, _ = _fit(STORAGE, values, lambda p: np.concatenate(_dynamic_residuals(drives, p)))
+    values, _ = _fit(storage, values, lambda p: np.concatenate(_dynamic_residuals(drives, p)))
     # joint: each source weighted by its residual RMS (its noise level) after the stages
     rms_static = _rms(_steady_residuals(points, _vector(values)))
     rms_dyn = [_rms(r) for r in _dynamic_residuals(drives, _vector(values))]
@@ -402,7 +409,7 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
     staged = values
     while True:
         try:
-            values, result = _fit(law + STORAGE, values, joint)
+            values, result = _fit(law + storage, values, joint)
             break
         except IdentificationError:
             if len(laws) == 1:
@@ -413,11 +420,28 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
             sources["gate_law"] = (f"{len(law)} of {len(LAW)} law parameters: the larger law "
                                    "did not converge jointly with the storage")  # fmt: skip
             values = {**staged, **{n: laws[-1][1][n] for n in LAW}}
-    law, values, result = _fit_tail(law, values, result, joint, points, laws[0][1], sources)
+    law, values, result = _fit_tail(
+        law, values, result, joint, points, laws[0][1], sources, storage
+    )
     tail = TAIL if values["tail_area_m2"] > 0.0 else []
-    law, values, result = _fit_floor(law, tail, values, result, joint, points, sources)
-    fitted = law + STORAGE + tail
+    law, values, result = _fit_floor(law, tail, values, result, joint, points, sources, storage)
+    fitted = law + storage + tail
     p = _vector(values)
+    ranges = data_ranges(static, records, gauge)
+    low = min((kernel.operating_room_m2(h, q, list(p)), h)
+              for h in ranges["level_mm"] for q in ranges["flow_m3h"])  # fmt: skip
+    if not low[0] > 0.0:
+        if "area_per_depth_m" in storage:
+            refit = fit_physical(static, records, gauge, flow_range_m3h, ["area_m2"])
+            refit.fixed_sources["area_per_depth_m"] = (
+                f"0: with its slope ({values['area_per_depth_m']:.4g} m) the fitted area fell "
+                f"to its floor at the level {low[1]:g} mm the data span"
+            )
+            return refit
+        raise IdentificationError(
+            f"physical {gauge}: the fitted storage area ({values['area_m2']:.4g} m2) is not "
+            f"above its floor ({kernel.AREA_MIN_M2:g} m2) where the data run"
+        )
     seiche, seiche_report = _fit_seiche(drives, p, rms_dyn,
                                         seiche_periods_s(records, p, points))  # fmt: skip
     effects = (effect_dict("seiche", **dict(zip(SEICHE, seiche, strict=True))),) \
@@ -442,7 +466,7 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
 
 def _fit_tail(law: list[str], values: dict[str, float], free: Any,
               joint: Callable[[np.ndarray], np.ndarray], points: SteadyPoints,
-              core: dict[str, float], sources: dict[str, str]
+              core: dict[str, float], sources: dict[str, str], storage: list[str]
               ) -> tuple[list[str], dict[str, float], Any]:  # fmt: skip
     """The gate discharging into a pool of its own (a submerged check).
 
@@ -454,8 +478,8 @@ def _fit_tail(law: list[str], values: dict[str, float], free: Any,
     either fits better with no more parameters than the free gate, or an F-test of its extra
     parameters rejects the free gate at ``SEICHE_SIGNIFICANCE``. Returns the law, values and
     least-squares result kept."""
-    names = LAW_CORE + STORAGE + TAIL
-    k_free, k_tail, n = len(law) + len(STORAGE), len(names), free.fun.size
+    names = LAW_CORE + storage + TAIL
+    k_free, k_tail, n = len(law) + len(storage), len(names), free.fun.size
     if n <= k_tail:
         return law, values, free
     # start: the pool as deep as a fraction of the depths above the gate, then the core law
@@ -495,7 +519,8 @@ def _fit_tail(law: list[str], values: dict[str, float], free: Any,
 
 def _fit_floor(law: list[str], tail: list[str], values: dict[str, float], without: Any,
                joint: Callable[[np.ndarray], np.ndarray], points: SteadyPoints,
-               sources: dict[str, str]) -> tuple[list[str], dict[str, float], Any]:  # fmt: skip
+               sources: dict[str, str], storage: list[str]
+               ) -> tuple[list[str], dict[str, float], Any]:  # fmt: skip
     """A floor at the gauge (:data:`FLOOR`), fitted with the kept ``law``, the storage and the
     ``tail`` pool's parameters on the joint weighted residuals (``without``: that fit without
     the floor), from :func:`_floor_start`. Kept when the law stays physical and F-tests of
@@ -505,16 +530,16 @@ def _fit_floor(law: list[str], tail: list[str], values: dict[str, float], withou
     only). Returns the law, values and least-squares result kept."""
     names = [*law, *FLOOR]
     n = without.fun.size
-    if n <= len(names) + len(STORAGE) + len(tail):
+    if n <= len(names) + len(storage) + len(tail):
         return law, values, without
     start_values, box = _floor_start(points, values)
     try:
-        trial, fit = _fit(names + STORAGE + tail, start_values, joint, None, box)
+        trial, fit = _fit(names + storage + tail, start_values, joint, None, box)
     except (IdentificationError, ValueError):  # ValueError: least_squares met a non-finite start
         sources["floor"] = "none: a floor did not converge"
         return law, values, without
     rss0, rss1 = 2.0 * float(without.cost), 2.0 * float(fit.cost)
-    dof = n - len(names) - len(STORAGE) - len(tail)
+    dof = n - len(names) - len(storage) - len(tail)
     p_joint = _f_test_p(rss0, rss1, len(FLOOR), dof) if rss1 > 0.0 else 1.0
     # a floor is a steady effect: the steady points alone must ask for it too (else the
     # dynamic records use its parameters as free knobs for a misfit of another kind)
@@ -534,11 +559,11 @@ def _fit_floor(law: list[str], tail: list[str], values: dict[str, float], withou
     for larger in (w for w in LAWS if len(w) > len(law) and not tail):
         grown = [*larger, *FLOOR]
         try:
-            trial2, fit2 = _fit(grown + STORAGE, trial, joint, None, box)
+            trial2, fit2 = _fit(grown + storage, trial, joint, None, box)
         except (IdentificationError, ValueError):
             break
         rss2 = 2.0 * float(fit2.cost)
-        dof = n - len(grown) - len(STORAGE)
+        dof = n - len(grown) - len(storage)
         if not (
             rss2 > 0.0
             and _physical_law(points, trial2)
