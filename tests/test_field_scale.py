@@ -118,8 +118,11 @@ def _gatetwin(*args: str) -> str:
 
 
 def _step_controller(fmu: Path, model: Path) -> tuple[float, float]:
-    """The controller's first opening from rest at the middle of the model's discharge and
-    opening ranges, with the set-point 50 mm below the level there: ``(start, opening)``."""
+    """The controller's first opening from rest at its own operating point (the middle of the
+    model's discharge range, the opening its model is linearised at), with the set-point
+    50 mm below the level there: ``(start, opening)``. (The middle of the opening range is
+    no rest of a physical model's controller: 180 mm of opening from its point, its linear
+    model holds the field gate at -478 mm.)"""
     fmpy = pytest.importorskip("fmpy")
     md = fmpy.read_model_description(str(fmu))
     vr = {v.name: v.valueReference for v in md.modelVariables}
@@ -132,7 +135,7 @@ def _step_controller(fmu: Path, model: Path) -> tuple[float, float]:
         content = read_model_file(model)
         flow = float(np.mean(content.content["validity"]["flow_m3h"]))
         plant = controller_plant(content)
-        start_mm = float(np.mean(content.content["validity"]["opening_range_mm"]))
+        start_mm = float(plant.opening_ref_mm)
         inst.setReal([vr["start_opening_mm"]], [start_mm])
         inst.exitInitializationMode()
         # at rest: the level the controller's model holds at the start opening

@@ -561,7 +561,7 @@ def _fit_floor(law: list[str], tail: list[str], values: dict[str, float], withou
         try:
             trial2, fit2 = _fit(grown + storage, trial, joint, None, box)
         except (IdentificationError, ValueError):
-            break
+            continue
         rss2 = 2.0 * float(fit2.cost)
         dof = n - len(grown) - len(storage)
         if not (
@@ -571,7 +571,7 @@ def _fit_floor(law: list[str], tail: list[str], values: dict[str, float], withou
             and _f_test_p(2.0 * float(fit.cost), rss2, len(grown) - len(names), dof)
             < SEICHE_SIGNIFICANCE
         ):
-            break
+            continue
         names, trial, fit = grown, trial2, fit2
         sources["gate_law"] = (f"{len(larger)} of {len(LAW)} law parameters with the floor: an "
                                "F-test rejects the smaller law")  # fmt: skip
@@ -605,7 +605,10 @@ def _fit_law(points: SteadyPoints, fixed: dict[str, float], sources: dict[str, s
              ) -> list[tuple[list[str], dict[str, float]]]:  # fmt: skip
     """The gate law on the steady points, grown along ``LAWS``: each step fitted from the last
     one kept, and kept when it converges, its coefficient stays physical over the points
-    (:func:`_physical_law`) and an F-test rejects the step below at ``SEICHE_SIGNIFICANCE``.
+    (:func:`_physical_law`) and an F-test rejects the last law kept at ``SEICHE_SIGNIFICANCE``.
+    A step the data do not ask for is passed over, not the end: a field gate's transition
+    sits elsewhere than the start puts it while its coefficients do not drift with discharge
+    (the drift step misses the points as the core does, the whole law meets their noise).
     The laws kept, simplest first, each with its values (``sources`` says which one is last)."""
     values = {**law_start(points, fixed["width_m"]), **fixed}
 
@@ -622,13 +625,13 @@ def _fit_law(points: SteadyPoints, fixed: dict[str, float], sources: dict[str, s
         try:
             trial, fit = _fit(law, kept[-1][1], residual, LAW_EVALUATIONS * len(law))
         except IdentificationError:
-            break
+            continue
         rss0, rss1 = 2.0 * float(last.cost), 2.0 * float(fit.cost)
         extra = len(law) - len(kept[-1][0])
         if rss1 <= 0.0 or not _physical_law(points, trial):
-            break
+            continue
         if _f_test_p(rss0, rss1, extra, n - len(law)) >= SEICHE_SIGNIFICANCE:
-            break
+            continue
         kept.append((list(law), trial))
         last = fit
         sources["gate_law"] = (f"{len(law)} of {len(LAW)} law parameters: an F-test rejects "
