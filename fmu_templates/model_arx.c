@@ -32,7 +32,11 @@ PlantStatus dynamics_check_parameters(const ModelData *m, PlantMessage *msg)
         plant_message(msg, "sample_period_s = %.17g must be > 0", m->real[VR_SAMPLE_PERIOD_S]);
         return PLANT_ERROR;
     }
+#if GT_ENVELOPE
+    return kernel_check_parameters(m, msg);
+#else
     return PLANT_OK;
+#endif
 }
 
 static void coefficients(const ModelData *m, const KnotPosition *at, double a[GT_NA],

@@ -48,6 +48,14 @@ def fmus(tmp_path_factory) -> dict[str, Path]:
         model_name="hostile_physical",
         provenance=json.loads(json.dumps(fmu_provenance(physical))),
     )
+    arx = read_model_file(MODELS / "arx_3F.json")  # an envelope ARX: the kernel too
+    made["arx_envelope"] = export_fmu(
+        arx.plant,
+        folder / "arx_envelope.fmu",
+        backend="python",
+        model_name="hostile_arx_envelope",
+        provenance=json.loads(json.dumps(fmu_provenance(arx))),
+    )
     return {k: Path(extract(str(p), str(folder / k))) for k, p in made.items()}
 
 
@@ -132,10 +140,12 @@ def test_parameters_making_the_output_non_finite_are_refused_and_the_instance_fr
     assert any("not finite" in e for e in _errors(found))
 
 
-def test_a_storage_area_below_its_floor_where_the_model_runs_is_refused(fmus):
-    # physical_3F's area falls with depth: with area_m2 = 0 it meets its floor below the
-    # validity's lowest level (test_physical.py drives the C FMU and the model file the same)
-    found = run_child(fmus["physical"], "refused_initialisation", "1.2", "physical.area_m2", "0")
+@pytest.mark.parametrize(("family", "name"), [("physical", "physical.area_m2"),
+                                             ("arx_envelope", "envelope.area_m2")])  # fmt: skip
+def test_a_storage_area_below_its_floor_where_the_model_runs_is_refused(fmus, family, name):
+    # 3F's area falls with depth: with area_m2 = 0 it meets its floor below the validity's
+    # lowest level (test_physical.py drives the C FMUs and the model file the same)
+    found = run_child(fmus[family], "refused_initialisation", "1.2", name, "0")
     assert (found["exit"], found["retry"], found["step"]) == (FATAL, 0, 0)
     assert any("the storage area at level 94 mm and 20 m3/h: area_m2 + " in e
                for e in _errors(found)), found  # fmt: skip

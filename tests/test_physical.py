@@ -206,7 +206,8 @@ def test_model_file_round_trip_and_bad_parameters(plant):
 def test_a_model_file_whose_pool_has_no_storage_where_it_runs_is_refused(tmp_path):
     """area_m2 = 0 beside the bundled 3F model's falling area: the linear area is positive only
     in the first 7 cm of depth, below every level the file declares valid, so the kernel would
-    run on its floor area there; the file is refused naming the depth. The same area
+    run on its floor area there; the file is refused naming the depth where the area is
+    smallest (the FMUs name the first corner they check). The same area
     intercept with the operating depths above where it turns positive is a model (a deep
     canal's pool), and so is the bundled file."""
     source = Path(__file__).parents[1] / "models" / "physical_3F.json"
@@ -216,7 +217,7 @@ def test_a_model_file_whose_pool_has_no_storage_where_it_runs_is_refused(tmp_pat
         content["plant"]["parameters"]["area_m2"] = area
         (tmp_path / "m.json").write_text(json.dumps(content))
         with pytest.raises(
-            ModelFileError, match=r"is 0\.04\d* m2 at h = 0\.101\d* m .*level 94 mm"
+            ModelFileError, match=r"is -0\.0815\d* m2 at h = 0\.400\d* m .*level 372 mm and 90 m3/h"
         ):
             read_model_file(tmp_path / "m.json")
         argv = [
@@ -452,6 +453,47 @@ def test_c_fmu_refuses_impossible_parameters_with_an_error_status(plant, tmp_pat
             assert any(reason in m for _, m in driver.messages), (values, driver.messages)
         finally:
             driver.close()
+
+
+@pytest.mark.parametrize("name", ["fopdt_3F", "arx_3F"])
+def test_envelope_c_fmus_refuse_a_storage_area_at_its_floor_where_they_run(name, tmp_path):
+    """The envelope FOPDT and ARX carry the physical kernel: their C FMUs check its
+    parameters as the physical FMU does, the storage area at the validity's corners too, and
+    the export refuses a plant whose FMU could not start."""
+    from fmpy import extract
+    from fmpy.fmi1 import FMICallException
+
+    from gatetwin.errors import ExportError
+    from gatetwin.fmu import export_fmu
+    from gatetwin.fmu.provenance import fmu_provenance
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from fmu_support import open_fmu
+
+    try:
+        find_compiler()
+    except Exception:
+        pytest.skip("no C compiler")
+    model = read_model_file(MODEL.with_name(f"{name}.json"))
+    provenance = fmu_provenance(model)
+    path = export_fmu(model.plant, tmp_path / "e.fmu", backend="c", model_name=name,
+                      provenance=provenance)  # fmt: skip
+    driver = open_fmu(Path(extract(str(path), str(tmp_path / "x"))), "e")
+    try:
+        driver.slave.setReal([driver.vr["envelope.area_m2"]], [0.0])
+        driver.slave.setupExperiment(startTime=0.0)
+        driver.slave.enterInitializationMode()
+        with pytest.raises(FMICallException):
+            driver.slave.exitInitializationMode()
+        reason = "the storage area at level 94 mm and 20 m3/h: area_m2 + "
+        assert any(reason in m for _, m in driver.messages), driver.messages
+    finally:
+        driver.close()
+    envelope = {**model.plant.envelope, "area_m2": 0.0}
+    with pytest.raises(ExportError, match=r"the storage area is -0\.0815\d* m2 at h = 0\.400"):
+        export_fmu(dataclasses.replace(model.plant, envelope=envelope), tmp_path / "f.fmu",
+                   backend="c", model_name=name, provenance=provenance)  # fmt: skip
+    assert not (tmp_path / "f.fmu").exists()
 
 
 def test_seiche_is_the_one_block_the_physical_and_envelope_families_carry(plant):

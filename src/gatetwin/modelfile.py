@@ -167,11 +167,8 @@ def physical_document(
     provenance: dict[str, Any],
 ) -> dict[str, Any]:  # fmt: skip
     """A physical model file's content: the validity is the envelope of the data it was
-    identified from (discharge, opening and level ranges); a fit whose storage area is not
-    positive over them is refused as its reader would refuse the file."""
+    identified from (discharge, opening and level ranges)."""
     from gatetwin.plant.physical_kernel import PARAMETERS
-
-    check_operating_storage(plant.vector, ranges["level_mm"], ranges["flow_m3h"])
 
     return {
         "$schema": SCHEMA_ID,
@@ -228,10 +225,8 @@ def read_model_file(path: str | Path) -> ModelFile:
         check_model_document(content)
         plant = plant_from_dict(content["plant"])
         box = validity_envelope(content)
-        kernel = plant.vector if plant.kind == "physical" else getattr(plant, "envelope", None)
-        if kernel and "level_mm" in box and "flow_m3h" in box:
-            check_operating_storage(list(kernel.values()) if isinstance(kernel, dict) else kernel,
-                                    box["level_mm"], box["flow_m3h"])  # fmt: skip
+        if "level_mm" in box and "flow_m3h" in box:
+            check_operating_storage(plant, box["level_mm"], box["flow_m3h"])
     except ModelFileError as exc:
         raise ModelFileError(f"{p}: {exc}") from None
     return ModelFile(content["name"], plant, content, hashlib.sha256(raw).hexdigest(), str(p))

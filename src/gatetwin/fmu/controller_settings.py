@@ -59,6 +59,7 @@ from gatetwin.plant.model import (
     FopdtPlant,
     PhysicalPlant,
     Schedule,
+    kernel_parameters,
     local_fopdt,
     steady_depth_m,
 )
@@ -182,11 +183,8 @@ def sample_period_s(model: ModelFile) -> float:
 
 
 def _kernel_parameters(model: ModelFile) -> list[float] | None:
-    plant = model.plant
-    if isinstance(plant, PhysicalPlant):
-        return plant.vector
-    envelope = getattr(plant, "envelope", None)
-    return list(envelope.values()) if envelope else None
+    carried = kernel_parameters(model.plant)
+    return list(carried[1].values()) if carried else None
 
 
 def opening_rate_mm_s(model: ModelFile, opening_mm: float, flow_m3h: float,

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 from xml.etree import ElementTree as ET
 
-from gatetwin.errors import ExportError
+from gatetwin.errors import ExportError, ModelFileError
 from gatetwin.fmu.checks import (
     MAX_GAUGE_CHARS,
     c_string_literal,
@@ -60,6 +60,8 @@ from gatetwin.plant.model import (
     FopdtPlant,
     PhysicalPlant,
     Plant,
+    check_operating_storage,
+    kernel_parameters,
     plant_to_dict,
 )
 from gatetwin.plant.physical import MAX_SUBSTEPS
@@ -194,7 +196,13 @@ def describe(
     _check_exportable(plant, model_name)
     specs = _variables(plant)
     check_parameter_values(specs)
-    validity_ranges(provenance)
+    ranges = validity_ranges(provenance)
+    if "level_mm" in ranges and "flow_m3h" in ranges:
+        # the FMU's initialisation refuses what this refuses: no FMU that cannot start
+        try:
+            check_operating_storage(plant, list(ranges["level_mm"]), list(ranges["flow_m3h"]))
+        except ModelFileError as exc:
+            raise ExportError(str(exc)) from None
     columns = {"flow_m3h": _first(specs, "schedule.flow_m3h[1]").vr}
     for name in plant.columns:
         columns[name] = _first(specs, f"schedule.{name}[1]").vr
@@ -355,16 +363,6 @@ def _variables(plant: Plant) -> list[VariableSpec]:
                 initial_dependency=p.equilibrium,
             ))  # fmt: skip
     return specs
-
-
-def kernel_parameters(plant: Plant) -> tuple[str, dict[str, float]] | None:
-    """``(variable prefix, values)`` of the physical kernel's parameters a plant carries:
-    ``physical.*`` for the physical family, ``envelope.*`` for an envelope FOPDT or ARX."""
-    if isinstance(plant, PhysicalPlant):
-        return "physical", plant.parameters
-    if isinstance(plant, FopdtPlant | ArxPlant) and plant.envelope is not None:
-        return "envelope", plant.envelope
-    return None
 
 
 def _kernel_first(plant: Plant, specs: list[VariableSpec]) -> int | None:

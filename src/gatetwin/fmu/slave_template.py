@@ -320,6 +320,8 @@ class GatetwinPlant(GuardedSlave):
             self._physical_check_parameters()
         else:
             self._arx_check_parameters()
+            if self._envelope():
+                self._physical_check_parameters()
         self._effects_check_parameters()
 
     def _check_flow_range(self, flow_m3h: float) -> tuple[int, str]:

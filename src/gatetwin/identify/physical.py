@@ -72,7 +72,12 @@ from gatetwin.plant import blocks
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import effect_dict
 from gatetwin.plant.kernel_render import numba_kernel
-from gatetwin.plant.model import FORMAT_DEFAULTS, PhysicalPlant, Schedule
+from gatetwin.plant.model import (
+    FORMAT_DEFAULTS,
+    PhysicalPlant,
+    Schedule,
+    lowest_operating_room,
+)
 from gatetwin.records import Record
 
 #: A hold this many sample periods long counts as settled.
@@ -117,8 +122,9 @@ LAW_CORE = ["cd_small", "cd_large", "offset_mm"]
 #: parameters are weakly determined when the data see one side of it).
 LAW_EVALUATIONS = 500
 #: The gate law in nested steps, each kept only when the data ask for it (an F-test against
-#: the step below at ``SEICHE_SIGNIFICANCE``) and its discharge coefficient stays physical
-#: (in (0, 1] at every opening, :func:`_physical_law`): the core; the
+#: the last law kept at ``SEICHE_SIGNIFICANCE``; a step they do not ask for is passed over)
+#: and its discharge coefficient stays physical (in (0, 1] at every opening,
+#: :func:`_physical_law`): the core; the
 #: coefficients' and the offset's drift with discharge (a submerged or far gauge, a pool whose
 #: friction loss grows with Q); the whole transition (its place, width and shape).
 LAWS = (
@@ -369,15 +375,13 @@ def _standard_errors(result: Any, names: list[str]) -> dict[str, float]:
 
 
 def fit_physical(static: Any, records: dict[str, Record], gauge: str,
-                 flow_range_m3h: tuple[float, float], storage: Sequence[str] = STORAGE
-                 ) -> PhysicalFit:  # fmt: skip
+                 flow_range_m3h: tuple[float, float]) -> PhysicalFit:  # fmt: skip
     """Identify the physical plant of ``gauge`` from the static table and ``records``.
 
-    The storage area is linear in depth (``storage``: its parameters fitted). When the fitted
-    area falls to its floor at a depth the data's ranges span (the records cover too little
-    depth to carry its slope there), the fit is made again with a constant area.
+    The storage area is linear in depth. When the fitted area falls to its floor at a level
+    and discharge the data span (the records cover too little depth to carry its slope
+    there), the hydraulics are fitted again with a constant area.
     """
-    storage = list(storage)
     points = steady_points(static, records, gauge)
     if points.flow_m3h.size < len(LAW) + 2:
         raise IdentificationError(
@@ -388,12 +392,67 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
         raise IdentificationError(f"physical {gauge}: no dynamic record has this gauge")
     fixed, sources = fixed_parameters(static, records, gauge, points)
     laws = _fit_law(points, fixed, sources)
-    law, values = laws[-1]
-    speeds, depths = actuator_moves(records, gauge, values)
-    values = _fit_actuator(speeds, depths, values)
-    values = _storage_start(values, points, drives, sources)
+    speeds, depths = actuator_moves(records, gauge, laws[-1][1])
+    actuated = _fit_actuator(speeds, depths, laws[-1][1])
+    ranges = data_ranges(static, records, gauge)
+    fit = _fit_hydraulics(points, drives, laws, actuated, sources, STORAGE)
+    room, level, flow = lowest_operating_room(list(_vector(fit[1])), ranges["level_mm"],
+                                              ranges["flow_m3h"])  # fmt: skip
+    if not room > 0.0:
+        slope = fit[1]["area_per_depth_m"]
+        fit = _fit_hydraulics(points, drives, laws, {**actuated, "area_per_depth_m": 0.0},
+                              sources, ["area_m2"])  # fmt: skip
+        fit[4]["area_per_depth_m"] = (
+            f"0: with its slope ({slope:.4g} m) the fitted area fell to its floor at level "
+            f"{level:g} mm and {flow:g} m3/h, inside the data's ranges"
+        )
+        if not lowest_operating_room(list(_vector(fit[1])), ranges["level_mm"],
+                                     ranges["flow_m3h"])[0] > 0.0:  # fmt: skip
+            raise IdentificationError(
+                f"physical {gauge}: the fitted storage area ({fit[1]['area_m2']:.4g} m2) is "
+                f"not above its floor ({kernel.AREA_MIN_M2:g} m2) where the data run"
+            )
+    fitted, values, result, rms_dyn, sources = fit
+    p = _vector(values)
+    seiche, seiche_report = _fit_seiche(drives, p, rms_dyn,
+                                        seiche_periods_s(records, p, points))  # fmt: skip
+    effects = (effect_dict("seiche", **dict(zip(SEICHE, seiche, strict=True))),) \
+        if seiche_report["kept"] else ()  # fmt: skip
+    plant = PhysicalPlant(gauge, values, Schedule(tuple(flow_range_m3h),
+                                                  {"level_ref_mm": (0.0, 0.0)}),
+                          effects=effects)  # fmt: skip
+    s = seiche if seiche_report["kept"] else NO_SEICHE
+    return PhysicalFit(
+        plant=plant,
+        standard_errors=_standard_errors(result, fitted),
+        steady_rmse_mm=_rms(_steady_residuals(points, p)),
+        n_steady=int(points.flow_m3h.size),
+        dynamic_rmse_mm={
+            d.name: _rms(r) for d, r in zip(drives, _dynamic_residuals(drives, p, s), strict=True)
+        },
+        actuator_moves=int(speeds.size),
+        seiche=seiche_report,
+        fixed_sources=sources,
+    )
+
+
+def _fit_hydraulics(
+    points: SteadyPoints,
+    drives: Sequence[_Drive],
+    laws: list[tuple[list[str], dict[str, float]]],
+    actuated: dict[str, float],
+    sources: dict[str, str],
+    storage: list[str],
+) -> tuple[list[str], dict[str, float], Any, list[float], dict[str, str]]:
+    """From the law and the actuator on: the storage by simulation error, then the law and
+    the storage jointly (each source weighted by its residual RMS after the stages), the tail
+    pool and the floor. ``storage``: the area's parameters fitted (the rest held). Returns
+    the parameters fitted, the values, the last least-squares result, the dynamic records'
+    residual RMS of the stages and the sources (``laws`` and ``sources`` are not changed)."""
+    laws, sources = list(laws), dict(sources)
+    law = laws[-1][0]
+    values = _storage_start(actuated, points, drives, sources)
     values, _ = _fit(storage, values, lambda p: np.concatenate(_dynamic_residuals(drives, p)))
-    # joint: each source weighted by its residual RMS (its noise level) after the stages
     rms_static = _rms(_steady_residuals(points, _vector(values)))
     rms_dyn = [_rms(r) for r in _dynamic_residuals(drives, _vector(values))]
 
@@ -425,43 +484,7 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
     )
     tail = TAIL if values["tail_area_m2"] > 0.0 else []
     law, values, result = _fit_floor(law, tail, values, result, joint, points, sources, storage)
-    fitted = law + storage + tail
-    p = _vector(values)
-    ranges = data_ranges(static, records, gauge)
-    low = min((kernel.operating_room_m2(h, q, list(p)), h)
-              for h in ranges["level_mm"] for q in ranges["flow_m3h"])  # fmt: skip
-    if not low[0] > 0.0:
-        if "area_per_depth_m" in storage:
-            refit = fit_physical(static, records, gauge, flow_range_m3h, ["area_m2"])
-            refit.fixed_sources["area_per_depth_m"] = (
-                f"0: with its slope ({values['area_per_depth_m']:.4g} m) the fitted area fell "
-                f"to its floor at the level {low[1]:g} mm the data span"
-            )
-            return refit
-        raise IdentificationError(
-            f"physical {gauge}: the fitted storage area ({values['area_m2']:.4g} m2) is not "
-            f"above its floor ({kernel.AREA_MIN_M2:g} m2) where the data run"
-        )
-    seiche, seiche_report = _fit_seiche(drives, p, rms_dyn,
-                                        seiche_periods_s(records, p, points))  # fmt: skip
-    effects = (effect_dict("seiche", **dict(zip(SEICHE, seiche, strict=True))),) \
-        if seiche_report["kept"] else ()  # fmt: skip
-    plant = PhysicalPlant(gauge, values, Schedule(tuple(flow_range_m3h),
-                                                  {"level_ref_mm": (0.0, 0.0)}),
-                          effects=effects)  # fmt: skip
-    s = seiche if seiche_report["kept"] else NO_SEICHE
-    return PhysicalFit(
-        plant=plant,
-        standard_errors=_standard_errors(result, fitted),
-        steady_rmse_mm=_rms(_steady_residuals(points, p)),
-        n_steady=int(points.flow_m3h.size),
-        dynamic_rmse_mm={
-            d.name: _rms(r) for d, r in zip(drives, _dynamic_residuals(drives, p, s), strict=True)
-        },
-        actuator_moves=int(speeds.size),
-        seiche=seiche_report,
-        fixed_sources=sources,
-    )
+    return law + storage + tail, values, result, rms_dyn, sources
 
 
 def _fit_tail(law: list[str], values: dict[str, float], free: Any,

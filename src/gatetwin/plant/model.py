@@ -303,20 +303,34 @@ def check_physical_parameters(values: dict[str, float] | list[float]) -> list[fl
     return out
 
 
-def check_operating_storage(p: list[float], level_range_mm: list[float],
+def lowest_operating_room(p: list[float], level_range_mm: list[float],
+                          flow_range_m3h: list[float]) -> tuple[float, float, float]:  # fmt: skip
+    """The storage area's smallest margin above its floor over the steady pools of a level
+    range and a discharge range (:func:`~gatetwin.plant.physical_kernel.operating_room_m2`
+    at their corners: the area is linear in depth, the depth linear in the level and, for
+    discharges >= 0, monotonic in the discharge), m², with the level and discharge where it is
+    smallest. The pool's depth is read from the level without a far gauge's floor (at a floored
+    gauge the pool may be lower)."""
+    return min((kernel.operating_room_m2(h, q, p), h, q)
+               for h in level_range_mm for q in flow_range_m3h)  # fmt: skip
+
+
+def check_operating_storage(plant: Any, level_range_mm: list[float],
                             flow_range_m3h: list[float]) -> None:  # fmt: skip
-    """Refuse a storage area that is not above its floor at every depth the model declares it
-    runs at: the steady pools of its validity's level and discharge ranges
-    (:func:`~gatetwin.plant.physical_kernel.operating_room_m2`, which the C FMU checks too)."""
-    for level in level_range_mm:
-        for flow in flow_range_m3h:
-            if not kernel.operating_room_m2(level, flow, p) > 0.0:
-                area = kernel.operating_room_m2(level, flow, p) + kernel.AREA_MIN_M2
-                raise ModelFileError(
-                    f"physical: the storage area is {area:.4g} m2 at h = "
-                    f"{kernel.pool_depth_m(level, flow, p):.4g} m (the pool at level {level:g} "
-                    f"mm and {flow:g} m3/h, inside the validity); {OPERATING_STORAGE_RULE}"
-                )
+    """Refuse a plant carrying the physical kernel whose storage area is not above its floor
+    at every depth it declares it runs at: the steady pools of its validity's level and
+    discharge ranges (:func:`lowest_operating_room`; the C and python FMUs check the same)."""
+    kernel_values = kernel_parameters(plant)
+    if kernel_values is None:
+        return
+    p = list(kernel_values[1].values())
+    room, level, flow = lowest_operating_room(p, level_range_mm, flow_range_m3h)
+    if not room > 0.0:
+        raise ModelFileError(
+            f"{plant.kind}: the storage area is {room + kernel.AREA_MIN_M2:.4g} m2 at h = "
+            f"{kernel.pool_depth_m(level, flow, p):.4g} m (the pool at level {level:g} mm and "
+            f"{flow:g} m3/h, inside the validity); {OPERATING_STORAGE_RULE}"
+        )
 
 
 @dataclass(frozen=True)
@@ -448,6 +462,17 @@ def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float],
 
 
 Plant = FopdtPlant | ArxPlant | PhysicalPlant
+
+
+def kernel_parameters(plant: Plant) -> tuple[str, dict[str, float]] | None:
+    """``(variable prefix, values)`` of the physical kernel's parameters a plant carries, in
+    kernel order: ``physical.*`` for the physical family, ``envelope.*`` for an envelope FOPDT
+    or ARX; None for a plant without the kernel."""
+    if isinstance(plant, PhysicalPlant):
+        return "physical", plant.parameters
+    if isinstance(plant, FopdtPlant | ArxPlant) and plant.envelope is not None:
+        return "envelope", plant.envelope
+    return None
 
 
 def _set_envelope(plant: Any) -> None:
