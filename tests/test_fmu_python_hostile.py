@@ -35,27 +35,18 @@ CHILD_TIMEOUT_S = 120
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory) -> dict[str, Path]:
     folder = tmp_path_factory.mktemp("hostile")
-    physical = read_model_file(MODELS / "physical_3F.json")
     made = {
         family: export_fmu(PLANTS[family](), folder / f"{family}.fmu", backend="python",
                            model_name=f"hostile_{family}", provenance=PROVENANCE)
         for family in ("fopdt", "arx")
     }  # fmt: skip
-    made["physical"] = export_fmu(
-        physical.plant,
-        folder / "physical.fmu",
-        backend="python",
-        model_name="hostile_physical",
-        provenance=json.loads(json.dumps(fmu_provenance(physical))),
-    )
-    arx = read_model_file(MODELS / "arx_3F.json")  # an envelope ARX: the kernel too
-    made["arx_envelope"] = export_fmu(
-        arx.plant,
-        folder / "arx_envelope.fmu",
-        backend="python",
-        model_name="hostile_arx_envelope",
-        provenance=json.loads(json.dumps(fmu_provenance(arx))),
-    )
+    # from model files: the physical plant, and an envelope ARX (it carries the kernel too)
+    for family, name in (("physical", "physical_3F"), ("arx_envelope", "arx_3F")):
+        model = read_model_file(MODELS / f"{name}.json")
+        provenance = json.loads(json.dumps(fmu_provenance(model)))
+        made[family] = export_fmu(model.plant, folder / f"{family}.fmu", backend="python",
+                                  model_name=f"hostile_{family}",
+                                  provenance=provenance)  # fmt: skip
     return {k: Path(extract(str(p), str(folder / k))) for k, p in made.items()}
 
 
