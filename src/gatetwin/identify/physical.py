@@ -395,24 +395,29 @@ def fit_physical(static: Any, records: dict[str, Record], gauge: str,
     speeds, depths = actuator_moves(records, gauge, laws[-1][1])
     actuated = _fit_actuator(speeds, depths, laws[-1][1])
     ranges = data_ranges(static, records, gauge)
-    fit = _fit_hydraulics(points, drives, laws, actuated, sources, STORAGE)
-    room, level, flow = lowest_operating_room(list(_vector(fit[1])), ranges["level_mm"],
-                                              ranges["flow_m3h"])  # fmt: skip
+
+    def lowest_room(values: dict[str, float]) -> tuple[float, float, float]:
+        return lowest_operating_room(list(_vector(values)), ranges["level_mm"],
+                                     ranges["flow_m3h"])  # fmt: skip
+
+    staged = sources  # each hydraulics fit starts from the sources of the stages before
+    fitted, values, result, rms_dyn, sources = _fit_hydraulics(points, drives, laws, actuated,
+                                                               staged, STORAGE)  # fmt: skip
+    room, level, flow = lowest_room(values)
     if not room > 0.0:
-        slope = fit[1]["area_per_depth_m"]
-        fit = _fit_hydraulics(points, drives, laws, {**actuated, "area_per_depth_m": 0.0},
-                              sources, ["area_m2"])  # fmt: skip
-        fit[4]["area_per_depth_m"] = (
+        slope = values["area_per_depth_m"]
+        fitted, values, result, rms_dyn, sources = _fit_hydraulics(
+            points, drives, laws, {**actuated, "area_per_depth_m": 0.0}, staged, ["area_m2"]
+        )
+        sources["area_per_depth_m"] = (
             f"0: with its slope ({slope:.4g} m) the fitted area fell to its floor at level "
             f"{level:g} mm and {flow:g} m3/h, inside the data's ranges"
         )
-        if not lowest_operating_room(list(_vector(fit[1])), ranges["level_mm"],
-                                     ranges["flow_m3h"])[0] > 0.0:  # fmt: skip
+        if not lowest_room(values)[0] > 0.0:
             raise IdentificationError(
-                f"physical {gauge}: the fitted storage area ({fit[1]['area_m2']:.4g} m2) is "
+                f"physical {gauge}: the fitted storage area ({values['area_m2']:.4g} m2) is "
                 f"not above its floor ({kernel.AREA_MIN_M2:g} m2) where the data run"
             )
-    fitted, values, result, rms_dyn, sources = fit
     p = _vector(values)
     seiche, seiche_report = _fit_seiche(drives, p, rms_dyn,
                                         seiche_periods_s(records, p, points))  # fmt: skip
