@@ -4,6 +4,7 @@ and bad packages are refused in one line without output."""
 
 from __future__ import annotations
 
+import math
 import re
 import time
 import zipfile
@@ -14,13 +15,13 @@ import pytest
 
 from fmu_support import compiler, with_zip_bomb
 from gatetwin.cli import main
-from gatetwin.errors import ExportError, SspError
+from gatetwin.errors import ExportError
 from gatetwin.modelfile import read_model_file
 from gatetwin.mpc.demo import DemoSettings, demo_scenarios
 from gatetwin.mpc.loop import loop_metrics
 from gatetwin.ssp import simulate_ssp, write_ssp
 from gatetwin.ssp.documents import SSD_SCHEMA, SSV_SCHEMA, read_parameter_set, schema_problems
-from gatetwin.ssp.master import MAX_STEPS, SIGNAL_TIME_TOL_S, _signal, _signal_at
+from gatetwin.ssp.master import MAX_STEPS, read_ssd
 from gatetwin.ssp.reference import python_loop
 from gatetwin.ssp.write import CONTROLLER_SOURCE, OBSERVER_SOURCE, PARAMETERS_SOURCE, SSD_NAME
 from test_validate_isolation import build_hostile
@@ -79,31 +80,130 @@ def test_the_ssp_run_is_the_python_loop(package, tmp_path, capsys):
     assert abs(iae - loop_metrics(python)["iae"]) <= SAME_ARITHMETIC
 
 
-def test_fmpy_simulate_ssp_reads_and_runs_the_package(package):
-    """fmpy's own master (Jacobi: every FMU steps on the values of the previous point, its
-    connectors start at 0) reads the SSD and, given the parameter set and the scenario as
-    inputs, runs the loop to the end; the PI brings the level back to the set-point."""
-    from fmpy.ssp.simulation import simulate_ssp as fmpy_simulate_ssp
-    from fmpy.ssp.ssd import read_ssv
-
-    parameters = read_parameter_set(_read(package, PARAMETERS_SOURCE), "ssv")
-    signals = {n: _signal(parameters, n, "ssv") for n in ("setpoint_mm", "flow_m3h")}
-    inputs = {n: (lambda t, sig=sig: _signal_at(sig, t)) for n, sig in signals.items()}
-    out = fmpy_simulate_ssp(str(package), stop_time=MINUTES * 60, step_size=1.2,
-                            parameter_set=read_ssv(str(package), resource=PARAMETERS_SOURCE),
-                            input=inputs)  # fmt: skip
-    assert len(out) == int(round(MINUTES * 60 / 1.2))
-    # the settle band of the demo's scoring (LoopSettings.settle_band_mm)
-    assert abs(out["plant.level_3F_mm"][-1] - out["controller.setpoint_mm"][-1]) <= 5.0
+@pytest.fixture(scope="module")
+def jacobi_run(package):
+    return simulate_ssp(package, scheme="jacobi")
 
 
-def test_signals_switch_at_their_times():
-    params = {"x.time_s[1]": 0.0, "x.value[1]": 1.0, "x.time_s[2]": 6.0, "x.value[2]": 2.0}
-    sig = _signal(params, "x", "test")
-    assert [_signal_at(sig, t) for t in (0.0, 5.9, 6.0 - SIGNAL_TIME_TOL_S / 2, 7.0)] == [
-        1.0, 1.0, 2.0, 2.0]  # fmt: skip
-    with pytest.raises(SspError, match="increase strictly"):
-        _signal({**params, "x.time_s[2]": 0.0}, "x", "test")
+def _connector_kinds(package: Path) -> dict[str, str]:
+    """``{"<element>.<connector>": kind}`` of the package's components."""
+    system = read_ssd(_read(package, SSD_NAME), "test")
+    return {f"{c.name}.{n}": kind for c in system.components for n, kind in c.connectors.items()}
+
+
+def test_the_jacobi_scheme_gives_the_move_to_the_plant_a_sample_later(package, jacobi_run):
+    """Under Jacobi the plant receives at t_(k+1) the opening the controller computed from
+    what it received at t_k: the Python PI fed the run's logged controller inputs gives the
+    plant's logged openings one sample later, to the bit."""
+    from gatetwin.mpc.demo import pi_controller
+
+    s = DemoSettings()
+    pi = pi_controller(read_model_file(MODEL).plant, s)
+    level, flow, setpoint = (jacobi_run.columns[f"controller.{n}"]
+                             for n in ("level_3F_mm", "flow_m3h", "setpoint_mm"))  # fmt: skip
+    opening = jacobi_run.columns["plant.opening_mm"]
+    pi.reset(opening[0], level[0], flow[0])
+    moves = np.array([pi.step(level[k], flow[k], setpoint[k]) for k in range(level.size - 1)])
+    assert np.max(np.abs(moves - opening[1:])) <= SAME_ARITHMETIC
+    assert np.ptp(opening) > 1.0  # the gate moved
+    gauss_seidel = simulate_ssp(package).columns["plant.opening_mm"]
+    assert not np.array_equal(opening, gauss_seidel)  # the schemes differ on this loop
+
+
+def test_fmpys_ssp_runner_gives_the_jacobi_run(package, jacobi_run, monkeypatch):
+    """fmpy's own runner reads the package with nothing but its path and the experiment's
+    length: it steps every FMU on the values of the last point (Jacobi) and applies no
+    parameter set, which changes nothing here (every value in the set is the FMU's start
+    value). Its one departure from the Jacobi master is at the first step: it starts every
+    connector at 0.0 (``fmpy/ssp/simulation.py``, "initialize the connectors") instead of
+    the values the FMUs hold after initialisation, so the plant gets a closed gate and no
+    inflow for 1.2 s. With that one step given the start values the package sets (each
+    input's start value is what its source gives at the start), the runs are equal to the
+    bit but for the engines' time sums (1e-9)."""
+    import fmpy.ssp.simulation as runner
+
+    def first_step_at_start_values(component, time, step_size, _do_step=runner.do_step):
+        if time == 0.0:
+            for c in component.connectors:
+                if c.kind == "input":
+                    c.value = runner.get_value(component, c.name)
+        _do_step(component, time, step_size)
+
+    monkeypatch.setattr(runner, "do_step", first_step_at_start_values)
+    out = runner.simulate_ssp(str(package), stop_time=MINUTES * 60, step_size=1.2)
+    n = jacobi_run.time_s.size
+    assert len(out) == n
+    kinds = _connector_kinds(package)
+    compared = 0
+    for name, column in jacobi_run.columns.items():
+        # fmpy's row k holds the connectors after the step from t_k: an input as it goes
+        # into the step from t_(k+1)
+        if kinds[name] == "input":
+            assert np.max(np.abs(out[name][:-1] - column[1:])) <= SAME_ARITHMETIC, name
+            compared += 1
+    assert compared == 5 and np.ptp(out["plant.opening_mm"]) > 1  # every input, and it acts
+
+
+def test_ecos_runs_the_package_as_the_jacobi_master(package, jacobi_run):
+    """ecos (``ecospy``) runs the package as it is: Jacobi, from the values the FMUs hold
+    after initialisation; every input of every component and every monitored output equal
+    to the bit but for the engines' time sums (1e-9)."""
+    _compare_ecos(package, jacobi_run)
+
+
+def _compare_ecos(package: Path, run) -> None:
+    from test_ecos import _ecospy
+
+    ecospy = _ecospy()
+    kinds = _connector_kinds(package)
+    names = list(run.columns)
+    with ecospy.EcosSimulation(step_size=run.step_s, ssp_path=str(package)) as sim:
+        assert sim.init(), "ecos could not initialise the package"
+        rows = [[sim.get_real(n.replace(".", "::", 1)) for n in names]]
+        for _ in range(run.time_s.size):
+            sim.step()
+            rows.append([sim.get_real(n.replace(".", "::", 1)) for n in names])
+        sim.terminate()
+    got = np.array(rows)
+    for i, name in enumerate(names):
+        # row k: after k steps; an input then holds what goes into the step from t_k, an
+        # output what the step from t_(k-1) gave
+        ours = got[:-1, i] if kinds[name] == "input" else got[1:, i]
+        assert np.max(np.abs(ours - run.columns[name])) <= SAME_ARITHMETIC, name
+
+
+def test_the_scenario_fmu_gives_its_tables(tmp_path):
+    """The scenario FMU's outputs are :func:`signal_value` of its tables at each point (the
+    C is generated from it), held or linear; bad tables are refused by the export, and by
+    the FMU when a parameter set breaks them."""
+    from fmpy import simulate_fmu
+
+    from gatetwin.fmu.signal_source import TableSignal, export_signal_source
+    from gatetwin.ssp.signal_law import TIME_TOL_S, signal_value
+
+    held = TableSignal("setpoint_mm", "mm", (0.0, 6.0, 12.0), (100.0, 110.0, 90.0))
+    ramp = TableSignal("flow_m3h", "m3/h", (1.0, 10.0), (50.0, 60.0), linear=True)
+    fmu = export_signal_source([held, ramp], tmp_path / "s.fmu", step_size_s=1.2)
+    out = simulate_fmu(str(fmu), stop_time=14.4, step_size=1.2, output_interval=1.2)
+    for s in (held, ramp):
+        want = [signal_value(t, list(s.times_s), list(s.values), len(s.times_s),
+                             float(s.linear), TIME_TOL_S) for t in out["time"]]  # fmt: skip
+        assert np.array_equal(out[s.name], want), s.name
+    assert out["setpoint_mm"][5] == 110.0  # 5 x 1.2 summed lands within the tolerance of 6 s
+    assert out["flow_m3h"][0] == 50.0 and out["flow_m3h"][-1] == 60.0  # held outside
+    assert 50.0 < out["flow_m3h"][4] < 60.0  # linear between the knots
+    with pytest.raises(ExportError, match="increase strictly"):
+        export_signal_source([TableSignal("x", "mm", (0.0, 0.0), (1.0, 2.0))],
+                             tmp_path / "x.fmu", step_size_s=1.0)  # fmt: skip
+    with pytest.raises(ExportError, match="not a finite number"):
+        export_signal_source([TableSignal("x", "mm", (0.0,), (math.nan,))],
+                             tmp_path / "x.fmu", step_size_s=1.0)  # fmt: skip
+    assert not (tmp_path / "x.fmu").exists()
+    from fmpy.fmi1 import FMICallException
+
+    with pytest.raises(FMICallException):  # the FMU's own check, logged
+        simulate_fmu(str(fmu), stop_time=2.4, step_size=1.2,
+                     start_values={"setpoint_mm.time_s[2]": 20.0})  # fmt: skip
 
 
 def test_bad_packages_and_requests_are_one_line_without_output(package, tmp_path, capsys):
@@ -356,3 +456,11 @@ def test_the_observer_in_the_ssp_logs_the_python_observers_estimates(mpc_package
         got = run.columns[f"observer.{name}"]
         assert np.max(np.abs(got - ref[:, i])) <= OBSERVER_TOL, name
     assert np.ptp(run.columns["observer.innovation_mm"]) > 0.1  # the set-point steps move it
+
+
+def test_ecos_runs_the_mpc_and_observer_package_as_the_jacobi_master(mpc_package):
+    """The MPC controller, the observer (a monitor: its outputs compared too), the plant and
+    the scenario in ecos: the Jacobi master's run to the bit but for the time sums."""
+    run = simulate_ssp(mpc_package, scheme="jacobi")
+    assert any(name.startswith("observer.") for name in run.columns)
+    _compare_ecos(mpc_package, run)

@@ -76,6 +76,13 @@ def add_simulate_ssp_arguments(parser: argparse.ArgumentParser) -> None:
         "that exits, crashes or overruns this ends the run with the cause named "
         "(default: 10)",
     )  # fmt: skip
+    parser.add_argument(
+        "--scheme", choices=("gauss-seidel", "jacobi"), default="gauss-seidel",
+        help="gauss-seidel (default): the elements stepped in document order, each reading "
+        "what those before it gave at this point; jacobi: all stepped on the values of the "
+        "point, as engines that step them together do (the controller's move reaches the "
+        "plant one sample later)",
+    )  # fmt: skip
 
 
 def run_simulate_ssp(args: argparse.Namespace) -> int:
@@ -86,7 +93,11 @@ def run_simulate_ssp(args: argparse.Namespace) -> int:
                             f"{args.step_size}")  # fmt: skip
     check_writable(args.out)
     run = simulate_ssp(
-        args.ssp, out_csv=args.out, step_size_s=args.step_size, timeout_s=args.timeout
+        args.ssp,
+        out_csv=args.out,
+        step_size_s=args.step_size,
+        timeout_s=args.timeout,
+        scheme=args.scheme,
     )
     levels = [c for c in run.columns if c.startswith("controller.level_")]
     if levels and "controller.setpoint_mm" in run.columns:

@@ -35,6 +35,7 @@ def export_fmu(
     provenance: dict[str, Any],
     platforms: str | tuple[str, ...] = "host",
     fmi_version: str = "2.0",
+    start_inputs: tuple[float, float] | None = None,
 ) -> Path:
     """Build an FMU of ``plant`` at ``out_path``; return its path.
 
@@ -62,6 +63,10 @@ def export_fmu(
         with Zig (``gatetwin[cross]``).
     fmi_version : {"2.0", "3.0"}
         FMI 3.0 co-simulation: C backend; same variables, value references and outputs.
+    start_inputs : (float, float), optional
+        Start values of ``opening_mm`` (mm) and ``flow_m3h`` (m3/h): where the FMU rests when
+        a master initialises it without setting its inputs (default: the model's reference
+        opening and the middle of its discharge range).
 
     Raises
     ------
@@ -86,7 +91,8 @@ def export_fmu(
     if target.suffix.lower() != ".fmu":
         raise ExportError(f"output {target} must end in .fmu")
     folders = _platform_folders(backend, platforms, fmi_version)
-    desc = describe(plant, model_name, provenance, f"{backend}:{_code_digest(backend)}")
+    desc = describe(plant, model_name, provenance, f"{backend}:{_code_digest(backend)}",
+                    start_inputs)  # fmt: skip
     check_finite_response(plant, model_name, provenance)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)

@@ -28,7 +28,7 @@ import json
 import math
 import re
 import uuid
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 from xml.etree import ElementTree as ET
 
@@ -185,16 +185,23 @@ class FmuDescription:
 
 
 def describe(
-    plant: Plant, model_name: str, provenance: dict[str, Any], build_id: str
-) -> FmuDescription:
+    plant: Plant, model_name: str, provenance: dict[str, Any], build_id: str,
+    start_inputs: tuple[float, float] | None = None,
+) -> FmuDescription:  # fmt: skip
     """The FMU description of ``plant``; raises :class:`ExportError` on what cannot be exported.
 
     ``build_id`` names the backend and a digest of its code; with the plant, the name and the
     provenance it determines the GUID, so a serialised FMU state only fits the build it came
-    from.
+    from. ``start_inputs`` (opening mm, discharge m3/h) replaces the inputs' start values (the
+    point the FMU rests at when a master sets no input before initialising it).
     """
     _check_exportable(plant, model_name)
     specs = _variables(plant)
+    if start_inputs is not None:
+        starts = dict(zip(("opening_mm", "flow_m3h"), map(float, start_inputs), strict=True))
+        if not all(math.isfinite(v) for v in starts.values()):
+            raise ExportError(f"start inputs {tuple(start_inputs)} must be finite")
+        specs = [replace(v, start=starts.get(v.name, v.start)) for v in specs]
     check_parameter_values(specs)
     ranges = validity_ranges(provenance)
     if "level_mm" in ranges and "flow_m3h" in ranges:
@@ -215,7 +222,7 @@ def describe(
     }  # fmt: skip
     return FmuDescription(
         model_identifier=model_name,
-        guid=_guid(plant, model_name, provenance, build_id),
+        guid=_guid(plant, model_name, provenance, build_id, start_inputs),
         family=plant.kind,
         gauge=plant.gauge,
         n_knots=len(plant.schedule.flow_m3h),
@@ -384,8 +391,10 @@ def _column_meta(name: str, kind: str) -> tuple[str, str]:
     return ("mm/mm", f"ARX coefficient {name} of the input, lag nk+{int(name[1:]) - 1}")
 
 
-def _guid(plant: Plant, model_name: str, provenance: dict[str, Any], build_id: str) -> str:
-    return guid_of([plant_to_dict(plant), model_name, provenance, build_id])
+def _guid(plant: Plant, model_name: str, provenance: dict[str, Any], build_id: str,
+          start_inputs: tuple[float, float] | None = None) -> str:  # fmt: skip
+    starts = [] if start_inputs is None else [[float(v) for v in start_inputs]]
+    return guid_of([plant_to_dict(plant), model_name, provenance, build_id, *starts])
 
 
 def guid_of(content: list[Any]) -> str:

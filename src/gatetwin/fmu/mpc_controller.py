@@ -29,6 +29,7 @@ generated code's work arrays included) is allocated once by the glue.
 from __future__ import annotations
 
 import json
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -75,6 +76,7 @@ def export_mpc_controller(
     max_iter: int | None = None,
     model_name: str = DEFAULT_NAME,
     fmi_version: str = "2.0",
+    start_opening_mm: float | None = None,
 ) -> Path:
     """Write the MPC controller FMU of a scheduled FOPDT to ``out_path`` (C, host platform).
 
@@ -96,6 +98,8 @@ def export_mpc_controller(
         modelIdentifier: a C identifier.
     fmi_version : {"2.0", "3.0"}
         FMI co-simulation API of the FMU (same variables, value references and outputs).
+    start_opening_mm : float, optional
+        Start value of ``start_opening_mm`` (default: the plant's reference opening).
 
     Raises
     ------
@@ -115,8 +119,9 @@ def export_mpc_controller(
     target = fmu_target(out_path)
     return write_atomically(
         target,
-        lambda work, file: _build(plant, settings, max_iter, model_name, work, file, fmi_version),
-    )
+        lambda work, file: _build(plant, settings, max_iter, model_name, work, file, fmi_version,
+                                  start_opening_mm),
+    )  # fmt: skip
 
 
 def _load(model_or_path: Any) -> FopdtPlant:
@@ -135,7 +140,8 @@ def _load(model_or_path: Any) -> FopdtPlant:
 
 
 def _build(plant: FopdtPlant, settings: MpcSettings, max_iter: int | None, name: str,
-           work: Path, file: str, fmi_version: str) -> Path:  # fmt: skip
+           work: Path, file: str, fmi_version: str,
+           start_opening_mm: float | None = None) -> Path:  # fmt: skip
     fmu_dir = work / "fmu"
     sources = fmu_dir / "sources"
     sources.mkdir(parents=True)
@@ -144,7 +150,7 @@ def _build(plant: FopdtPlant, settings: MpcSettings, max_iter: int | None, name:
     if max_iter is None:
         max_iter = MAX_ITER_PER_CONSTRAINT * 2 * (layout.n_var + layout.n_con)
     sizes = generate_c(fns, sources, "mpc_generated")
-    desc = describe_controller(plant, settings, max_iter, name)
+    desc = describe_controller(plant, settings, max_iter, name, start_opening_mm)
     build_generated_component(
         fmu_dir, desc, component_files=COMPONENT_FILES, generated_stem="mpc_generated",
         config_header=controller_config_header(desc, plant, settings, layout, sizes, max_iter),
@@ -169,7 +175,7 @@ def _settings_dict(settings: MpcSettings) -> dict[str, Any]:
     return asdict(settings)
 
 
-def _variables(plant: FopdtPlant) -> tuple[VariableSpec, ...]:
+def _variables(plant: FopdtPlant, start_opening_mm: float) -> tuple[VariableSpec, ...]:
     knots = plant.schedule.flow_m3h
     rows: list[Row] = [
         (output_name(plant.gauge), "input", "continuous", None, "mm",
@@ -189,24 +195,30 @@ def _variables(plant: FopdtPlant) -> tuple[VariableSpec, ...]:
         ("solver_iterations", "output", "discrete", "calculated", "1",
          "QP solver iterations of the last sample (constraints added and dropped)", None),
         ("start_opening_mm", "parameter", "fixed", "exact", "mm",
-         "Opening held at rest at the start", plant.opening_ref_mm),
+         "Opening held at rest at the start", start_opening_mm),
     ]  # fmt: skip
     return variables_of(rows + schedule_rows(plant))
 
 
 def describe_controller(
-    plant: FopdtPlant, settings: MpcSettings, max_iter: int, model_name: str
-) -> FmuDescription:
-    """The controller FMU's description (variables, value references, GUID)."""
+    plant: FopdtPlant, settings: MpcSettings, max_iter: int, model_name: str,
+    start_opening_mm: float | None = None,
+) -> FmuDescription:  # fmt: skip
+    """The controller FMU's description (variables, value references, GUID);
+    ``start_opening_mm`` defaults to the plant's reference opening."""
     from gatetwin.fmu.description import _IDENTIFIER
 
     if not _IDENTIFIER.fullmatch(model_name):
         raise ExportError(
             f"model_name {model_name!r} must be a C identifier (letters, digits, _; <= 64 chars)"
         )
-    specs = _variables(plant)
+    start = plant.opening_ref_mm if start_opening_mm is None else float(start_opening_mm)
+    if not math.isfinite(start):
+        raise ExportError(f"start_opening_mm {start_opening_mm} must be finite")
+    specs = _variables(plant, start)
+    own_start = [] if start_opening_mm is None else [start]
     guid = generated_guid([plant_to_dict(plant), _settings_dict(settings), max_iter, model_name,
-                           _code_digest()])  # fmt: skip
+                           _code_digest(), *own_start])  # fmt: skip
     lo, hi = settings.opening_range_mm
     return FmuDescription(
         model_identifier=model_name,

@@ -1,19 +1,25 @@
 """gatetwin's fixed-step co-simulation master for an SSP of FMI 2.0 co-simulation FMUs.
 
-What it runs: one system of FMU components (no nested systems), Real connectors,
-connections without transformations, parameter sets bound to the system (``<element>.<name>``
-sets a component's variable, other names are the system's parameters) and piecewise-constant
-system inputs given as parameters (input ``X``: ``X.value[k]`` from ``X.time_s[k]`` on, the
-convention of :mod:`gatetwin.ssp.write`). Anything else is refused with one line naming it.
+What it runs: one system of FMU components (no nested systems, no system inputs: what
+drives the loop is a component, such as the scenario FMU of :mod:`gatetwin.ssp.write`), Real
+connectors, connections without transformations and parameter sets bound to the system
+(``<element>.<name>`` sets a component's variable). Anything else is refused with one line
+naming it.
 
-How it steps (Gauss-Seidel, fixed step ``h``, the controller's sample period when an element
-has a ``sample_period_s`` parameter, else the first FMU's default step): at each
-communication point ``t_k = start + k h`` the system inputs take their values at ``t_k``;
-the components are stepped in document order, each one's inputs set from the current
-values of their sources just before its ``doStep(t_k, h)`` and its outputs read just after.
-With the controller listed before the plant (as :func:`~gatetwin.ssp.write.write_ssp` lists
-them) this is :func:`gatetwin.mpc.loop.run_closed_loop`: ``u_k = C(y_k)``, then the plant
-holds ``u_k`` over ``[t_k, t_k + h]``.
+How it steps (fixed step ``h``, the controller's sample period when an element has a
+``sample_period_s`` parameter, else the first FMU's default step), at each communication
+point ``t_k = start + k h``, by one of two schemes (:data:`SCHEMES`):
+
+* ``gauss-seidel`` (the default): the components are stepped in document order, each one's
+  inputs set from the current values of their sources just before its ``doStep(t_k, h)`` and
+  its outputs read just after. With the controller listed before the plant and the scenario
+  last (as :func:`~gatetwin.ssp.write.write_ssp` lists them) this is
+  :func:`gatetwin.mpc.loop.run_closed_loop`: ``u_k = C(y_k, r_k)``, then the plant holds
+  ``u_k`` over ``[t_k, t_k + h]``.
+* ``jacobi``: every component's inputs are set from the values at ``t_k``, every component
+  steps, then every output is read; the plant then holds ``u_k`` over ``[t_k + h, t_k + 2h]``
+  (one sample later). This is how engines that step the components together run the same
+  package (fmpy's SSP runner, ecos); SSP 1.0 leaves the master algorithm to the engine.
 
 Initialisation: every component is instantiated, set up at the start time and put into
 initialisation mode; the bound parameters are set; the connections are propagated as many
@@ -28,7 +34,7 @@ one line naming the cause, the component, the call, the communication step and t
 nothing is written.
 
 The result (:class:`SspRun`) holds, per communication point, every component input as the
-component received it for the step from that point, the system inputs, and the outputs of
+component received it for the step from that point, and the outputs of
 every monitor (a component no other component reads from, such as the observer) as they
 stand after its step from that point.
 """
@@ -62,9 +68,8 @@ from gatetwin.validate.fmu_runner import (
     Position,
 )
 
-#: A signal's change at ``time_s`` is in force from the first communication point not before
-#: ``time_s - SIGNAL_TIME_TOL_S`` (the rule of :meth:`gatetwin.mpc.loop.Scenario.schedules`).
-SIGNAL_TIME_TOL_S = 1e-9
+#: How the components are stepped at each communication point (see the module).
+SCHEMES = ("gauss-seidel", "jacobi")
 #: Largest number of communication steps one run takes: 13.9 days at the controllers' 1.2 s,
 #: as many as validate asks of an FMU for one record
 #: (:data:`gatetwin.validate.fmu_runner.MAX_FMU_STEPS`). The run's columns are held in
@@ -91,7 +96,6 @@ class SspSystem:
 
     name: str
     components: tuple[SspComponent, ...]
-    inputs: tuple[str, ...]
     #: (start element or None, start connector, end element or None, end connector)
     connections: tuple[tuple[str | None, str, str | None, str], ...]
     parameter_sources: tuple[str, ...]
@@ -104,7 +108,7 @@ class SspRun:
     """A run of :func:`simulate_ssp`: ``columns[name][k]`` at ``time_s[k]``.
 
     Columns are ``<element>.<input>`` (what the component received for the step from
-    ``time_s[k]``), ``<system input>`` and a monitor's ``<element>.<output>`` (its value
+    ``time_s[k]``) and a monitor's ``<element>.<output>`` (its value
     after the step from ``time_s[k]``).
     """
 
@@ -194,8 +198,11 @@ def read_ssd(xml: bytes, where: str) -> SspSystem:
                            "transformation; this master runs plain connections")  # fmt: skip
         connections.append((c.get("startElement"), c.get("startConnector"),
                             c.get("endElement"), c.get("endConnector")))  # fmt: skip
-    inputs = tuple(k.get("name") for k in system.iterfind("ssd:Connectors/ssd:Connector", NS)
-                   if k.get("kind") == "input")  # fmt: skip
+    inputs = [k.get("name") for k in system.iterfind("ssd:Connectors/ssd:Connector", NS)
+              if k.get("kind") == "input"]  # fmt: skip
+    if inputs:
+        raise SspError(f"{where}: system input {inputs[0]} has no value here; this master runs "
+                       "systems driven by their components (a signal-source FMU)")  # fmt: skip
     sources = tuple(b.get("source") for b in system.iterfind(
         "ssd:ParameterBindings/ssd:ParameterBinding", NS))  # fmt: skip
     if any(s is None for s in sources):
@@ -207,31 +214,8 @@ def read_ssd(xml: bytes, where: str) -> SspSystem:
     stop = _float(experiment.get("stopTime"), "stopTime", where)
     if not stop > start:
         raise SspError(f"{where}: stopTime {stop} must lie after startTime {start}")
-    return SspSystem(system.get("name"), tuple(components), inputs, tuple(connections),
-                     sources, start, stop)  # fmt: skip
-
-
-def _signal(parameters: dict[str, float], name: str, where: str) -> tuple[np.ndarray, np.ndarray]:
-    times, values = [], []
-    k = 1
-    while f"{name}.time_s[{k}]" in parameters:
-        if f"{name}.value[{k}]" not in parameters:
-            raise SspError(f"{where}: {name}.time_s[{k}] has no {name}.value[{k}]")
-        times.append(parameters[f"{name}.time_s[{k}]"])
-        values.append(parameters[f"{name}.value[{k}]"])
-        k += 1
-    if not times:
-        raise SspError(f"{where}: system input {name} has no signal ({name}.time_s[1] and "
-                       f"{name}.value[1] in a bound parameter set)")  # fmt: skip
-    if any(b <= a for a, b in zip(times, times[1:], strict=False)):
-        raise SspError(f"{where}: {name}.time_s[k] must increase strictly")
-    return np.array(times), np.array(values)
-
-
-def _signal_at(signal: tuple[np.ndarray, np.ndarray], t: float) -> float:
-    times, values = signal
-    k = int(np.searchsorted(times, t + SIGNAL_TIME_TOL_S, side="right")) - 1
-    return float(values[max(k, 0)])
+    return SspSystem(system.get("name"), tuple(components), tuple(connections), sources,
+                     start, stop)  # fmt: skip
 
 
 class _Master:
@@ -241,7 +225,6 @@ class _Master:
                  where: str, position: SspPosition) -> None:  # fmt: skip
         self.system, self.where, self.position = system, where, position
         self.index = {c.name: i for i, c in enumerate(system.components)}
-        self.signals = {name: _signal(parameters, name, where) for name in system.inputs}
         self.values: dict[tuple[str | None, str], float] = {}
         self.slaves: dict[str, Any] = {}
         self.vrs: dict[str, dict[str, int]] = {}
@@ -313,10 +296,6 @@ class _Master:
                            "experiment step in the FMUs); give one")  # fmt: skip
         return h
 
-    def set_system_inputs(self, t: float) -> None:
-        for name, signal in self.signals.items():
-            self.values[(None, name)] = _signal_at(signal, t)
-
     def inputs_of(self, name: str) -> dict[str, float]:
         """The values this component's inputs receive now (those whose source is known)."""
         out = {}
@@ -379,7 +358,6 @@ def _initialize(m: _Master, start: float) -> None:
         slave.setupExperiment(startTime=start)
         slave.enterInitializationMode()
     m.apply_parameters()
-    m.set_system_inputs(start)
     for _ in m.system.components:  # propagate through the loop: each pass reaches one further
         for c in m.system.components:
             m.push_inputs(c.name)
@@ -397,7 +375,22 @@ def _log_outputs(m: _Master, c: SspComponent, log: Any, k: int) -> None:
             log(f"{c.name}.{connector}", k, m.values[(c.name, connector)])
 
 
-def _run(m: _Master, h: float) -> SspRun:
+def _step(m: _Master, t: float, h: float, jacobi: bool, log: Any) -> None:
+    """One communication step from ``t``: every component's inputs set (and logged), its
+    ``doStep``; its outputs read at once (Gauss-Seidel) or after every step (Jacobi)."""
+    for c in m.system.components:
+        for connector, value in m.push_inputs(c.name).items():
+            log(f"{c.name}.{connector}", value)
+        m.position.on(DO_STEP, m.index[c.name])
+        m.slaves[c.name].doStep(currentCommunicationPoint=t, communicationStepSize=h)
+        if not jacobi:
+            m.pull_outputs(c)
+    if jacobi:
+        for c in m.system.components:
+            m.pull_outputs(c)
+
+
+def _run(m: _Master, h: float, scheme: str) -> SspRun:
     start, stop = m.system.start_time_s, m.system.stop_time_s
     steps = (stop - start) / h
     if not 0.5 <= steps < MAX_STEPS + 0.5:
@@ -417,15 +410,8 @@ def _run(m: _Master, h: float) -> SspRun:
     for k in range(n):
         t = float(times[k])
         where[Position.SAMPLE], where[Position.TIME_S] = k, t
-        m.set_system_inputs(t)
-        for name in m.system.inputs:
-            log(name, k, m.values[(None, name)])
+        _step(m, t, h, scheme == "jacobi", lambda name, value, k=k: log(name, k, value))
         for c in m.system.components:
-            for connector, value in m.push_inputs(c.name).items():
-                log(f"{c.name}.{connector}", k, value)
-            m.position.on(DO_STEP, m.index[c.name])
-            m.slaves[c.name].doStep(currentCommunicationPoint=t, communicationStepSize=h)
-            m.pull_outputs(c)
             if c.name in monitors:
                 _log_outputs(m, c, log, k)
     for name, slave in m.slaves.items():
@@ -436,12 +422,13 @@ def _run(m: _Master, h: float) -> SspRun:
 
 def simulate_ssp(
     ssp_path: str | Path, *, out_csv: str | Path | None = None, step_size_s: float | None = None,
-    timeout_s: float | None = None, isolate: bool = True,
+    timeout_s: float | None = None, isolate: bool = True, scheme: str = "gauss-seidel",
 ) -> SspRun:  # fmt: skip
     """Run the system of an SSP with gatetwin's master (see the module); write ``out_csv``.
 
     ``timeout_s`` bounds each FMI call (default :data:`TIMEOUT_S`); ``isolate=False`` runs
-    the FMUs in this process, unprotected (for debugging).
+    the FMUs in this process, unprotected (for debugging); ``scheme`` is one of
+    :data:`SCHEMES`.
 
     Raises
     ------
@@ -457,10 +444,12 @@ def simulate_ssp(
     limit = TIMEOUT_S if timeout_s is None else float(timeout_s)
     if not 0 < limit < math.inf:
         raise SspError(f"timeout {timeout_s} s must be a finite number of seconds > 0")
+    if scheme not in SCHEMES:
+        raise SspError(f"scheme {str(scheme)[:40]!r} is not one of {', '.join(SCHEMES)}")
     with tempfile.TemporaryDirectory(prefix="gatetwin-ssp-") as tmp:
         folder = Path(tmp)
         system, parameters = _unpack(path, folder, where)
-        task = SspTask(system, folder, parameters, where, step_size_s)
+        task = SspTask(system, folder, parameters, where, step_size_s, scheme)
         if isolate:
             from gatetwin.validate.isolation import run_task
 
@@ -486,9 +475,10 @@ class SspTask:
     name = "gatetwin-simulate-ssp"
 
     def __init__(self, system: SspSystem, folder: Path, parameters: dict[str, float],
-                 where: str, step_size_s: float | None) -> None:  # fmt: skip
+                 where: str, step_size_s: float | None, scheme: str = "gauss-seidel",
+                 ) -> None:  # fmt: skip
         self.system, self.folder, self.parameters = system, folder, parameters
-        self.where, self.step_size_s = where, step_size_s
+        self.where, self.step_size_s, self.scheme = where, step_size_s, scheme
 
     def position(self, shared: Any) -> SspPosition:
         return SspPosition(shared, tuple(c.name for c in self.system.components))
@@ -500,7 +490,7 @@ class SspTask:
         try:
             h = master.step_size_s(self.step_size_s)
             _initialize(master, self.system.start_time_s)
-            return _run(master, h)
+            return _run(master, h, self.scheme)
         except FMICallException as exc:
             name = position.names[int(position.values[position.COMPONENT])]
             detail = master.last_problem(name)
@@ -543,5 +533,5 @@ def _unpack(path: Path, folder: Path, where: str) -> tuple[SspSystem, dict[str, 
     return system, parameters
 
 
-__all__ = ["SIGNAL_TIME_TOL_S", "TIMEOUT_S", "SspComponent", "SspPosition", "SspRun",
+__all__ = ["SCHEMES", "TIMEOUT_S", "SspComponent", "SspPosition", "SspRun",
            "SspSystem", "SspTask", "read_ssd", "simulate_ssp"]  # fmt: skip

@@ -3,24 +3,33 @@
 The package holds ``SystemStructure.ssd``, the plant FMU (``resources/plant.fmu``, C
 backend), the controller FMU (``resources/controller.fmu``: the PI of
 :mod:`gatetwin.fmu.controller` or the MPC of :mod:`gatetwin.fmu.mpc_controller`), optionally
-the observer FMU (``resources/observer.fmu``, :mod:`gatetwin.fmu.observer_fmu`) and one
+the observer FMU (``resources/observer.fmu``, :mod:`gatetwin.fmu.observer_fmu`), the
+scenario FMU (``resources/scenario.fmu``, :mod:`gatetwin.fmu.signal_source`) and one
 parameter set (``resources/closed_loop.ssv``) bound to the system. The system
 ``closed_loop`` has
 
-* elements ``controller``, ``observer`` (if packed) and ``plant``, in the order
+* elements ``controller``, ``observer`` (if packed), ``plant`` and ``scenario``, in the order
   :func:`gatetwin.ssp.simulate_ssp` steps them in, connected plant ``level_<gauge>_mm`` →
-  controller ``level_<gauge>_mm`` and controller ``opening_mm`` → plant ``opening_mm``;
+  controller ``level_<gauge>_mm``, controller ``opening_mm`` → plant ``opening_mm``, scenario
+  ``setpoint_mm`` → controller and scenario ``flow_m3h`` → plant and controller;
 * the observer reads what is measured at the gate: plant ``level_<gauge>_mm``, controller
-  ``opening_mm`` (the opening held from this sample on) and the system's ``flow_m3h``;
+  ``opening_mm`` (the opening held from this sample on) and the scenario's ``flow_m3h``;
   nothing reads its outputs (the master logs them);
-* inputs ``setpoint_mm`` (→ controller) and ``flow_m3h`` (→ plant and controller), and outputs
-  ``level_<gauge>_mm`` and ``opening_mm``;
-* the scenario as system parameters: input ``X`` is piecewise constant, ``X.value[k]`` from
-  ``X.time_s[k]`` on (``k`` from 1, the first at the start time); set-points are absolute
-  levels (the scenario's offsets added to the plant's steady level at the start inputs);
-* the controller's parameters in the same parameter set, named ``controller.<parameter>``:
-  the PI's start opening, tuning and limits; the MPC's start opening (its schedule and
-  settings are the FMU's own start values).
+* no connectors of its own: the scenario is a component, so an engine needs nothing
+  outside the standard to run the loop (and ecos, which reads connections between
+  components only, runs it);
+* the scenario's tables (``scenario.X.time_s[k]``, ``scenario.X.value[k]``: ``X`` held at
+  ``X.value[k]`` from ``X.time_s[k]`` on, ``k`` from 1, the first at the start time; the
+  set-points are absolute levels, the scenario's offsets added to the plant's steady level
+  at the start inputs) and the controller's parameters (``controller.<parameter>``: the PI's
+  start opening, tuning and limits; the MPC's start opening) in the parameter set, each
+  equal to the FMU's own start value, so an engine that does not apply parameter bindings
+  runs the same loop;
+* a default experiment from 0 to the scenario's end.
+
+The scenario is the last element: a master stepping the elements in document order
+(Gauss-Seidel) then gives the controller the set-point at the point its step starts from;
+one stepping them together (Jacobi) does so in any order.
 
 The MPC and the observer cover a scheduled FOPDT without effect blocks: for a model with
 effect blocks they are built on its FOPDT with the blocks dropped when asked
@@ -51,6 +60,7 @@ from gatetwin.ssp.master import MAX_STEPS
 
 if TYPE_CHECKING:
     from gatetwin.fmu.controller import ControllerDescription
+    from gatetwin.fmu.signal_source import TableSignal
     from gatetwin.modelfile import ModelFile
     from gatetwin.mpc.demo import DemoSettings
     from gatetwin.mpc.loop import Scenario
@@ -62,6 +72,7 @@ PLANT_SOURCE = "resources/plant.fmu"
 CONTROLLER_SOURCE = "resources/controller.fmu"
 PARAMETERS_SOURCE = "resources/closed_loop.ssv"
 OBSERVER_SOURCE = "resources/observer.fmu"
+SCENARIO_SOURCE = "resources/scenario.fmu"
 #: Controller parameters the parameter set carries (the PI's; the MPC's: the start opening).
 CONTROLLER_PARAMETERS = ("start_opening_mm", "gain_mm_per_mm", "integral_time_s",
                          "tracking_time_s", "opening_min_mm", "opening_max_mm",
@@ -102,13 +113,28 @@ def _pi_parameters(desc: ControllerDescription, start_opening_mm: float
     return [(n, values[n], units[n]) for n in CONTROLLER_PARAMETERS]
 
 
+def table_signals(signals: dict[str, list[tuple[float, float]]]) -> tuple[TableSignal, ...]:
+    """The scenario FMU's signals (held between knots) of :func:`scenario_signals`."""
+    from gatetwin.fmu.signal_source import TableSignal
+
+    return tuple(
+        TableSignal(name, SIGNAL_UNITS[name], tuple(t for t, _ in points),
+                    tuple(v for _, v in points))
+        for name, points in signals.items()
+    )  # fmt: skip
+
+
 def _parameters(
-    controller: list[tuple[str, float, str]], signals: dict[str, list[tuple[float, float]]]
+    controller: list[tuple[str, float, str]], signals: tuple[TableSignal, ...]
 ) -> list[tuple[str, float, str]]:
+    """The parameter set: the controller's, then every scenario table's (its start values)."""
     out = [(f"controller.{n}", value, unit) for n, value, unit in controller]
-    for name, points in signals.items():
-        for k, (t, v) in enumerate(points, start=1):
-            out += [(f"{name}.time_s[{k}]", t, "s"), (f"{name}.value[{k}]", v, SIGNAL_UNITS[name])]
+    for s in signals:
+        out.append((f"scenario.{s.name}.linear", 1.0 if s.linear else 0.0, "1"))
+        out += [(f"scenario.{s.name}.time_s[{k}]", t, "s")
+                for k, t in enumerate(s.times_s, start=1)]  # fmt: skip
+        out += [(f"scenario.{s.name}.value[{k}]", v, s.unit)
+                for k, v in enumerate(s.values, start=1)]  # fmt: skip
     return out
 
 
@@ -139,20 +165,17 @@ def _connections(system: object, level: str, observer: bool) -> None:
     connections = etree.SubElement(system, f"{{{SSD}}}Connections")
     links = [(("plant", level), ("controller", level)),
              (("controller", "opening_mm"), ("plant", "opening_mm")),
-             ((None, "setpoint_mm"), ("controller", "setpoint_mm")),
-             ((None, "flow_m3h"), ("plant", "flow_m3h")),
-             ((None, "flow_m3h"), ("controller", "flow_m3h")),
-             (("plant", level), (None, level)),
-             (("controller", "opening_mm"), (None, "opening_mm"))]  # fmt: skip
+             (("scenario", "setpoint_mm"), ("controller", "setpoint_mm")),
+             (("scenario", "flow_m3h"), ("plant", "flow_m3h")),
+             (("scenario", "flow_m3h"), ("controller", "flow_m3h"))]  # fmt: skip
     if observer:
         links += [(("plant", level), ("observer", level)),
                   (("controller", "opening_mm"), ("observer", "opening_mm")),
-                  ((None, "flow_m3h"), ("observer", "flow_m3h"))]  # fmt: skip
+                  (("scenario", "flow_m3h"), ("observer", "flow_m3h"))]  # fmt: skip
     for start, end in links:
-        attrs = {"startConnector": start[1], "endConnector": end[1]}
-        attrs.update({"startElement": start[0]} if start[0] else {})
-        attrs.update({"endElement": end[0]} if end[0] else {})
-        etree.SubElement(connections, f"{{{SSD}}}Connection", attrs)
+        etree.SubElement(connections, f"{{{SSD}}}Connection", startElement=start[0],
+                         startConnector=start[1], endElement=end[0],
+                         endConnector=end[1])  # fmt: skip
 
 
 def _units(root: object, used: set[str]) -> None:
@@ -180,14 +203,6 @@ def ssd_xml(
                          version="1.0", name=name, generationTool="gatetwin")  # fmt: skip
     system = etree.SubElement(root, f"{{{SSD}}}System", name="closed_loop",
                               description=description)  # fmt: skip
-    connectors = etree.SubElement(system, f"{{{SSD}}}Connectors")
-    for signal, unit in SIGNAL_UNITS.items():
-        _connector(connectors, signal, "input", unit)
-    _connector(connectors, level, "output", "mm")
-    _connector(connectors, "opening_mm", "output", "mm")
-    for pname, _, unit in parameters:
-        if not pname.startswith("controller."):
-            _connector(connectors, pname, "parameter", unit)
     bindings = etree.SubElement(system, f"{{{SSD}}}ParameterBindings")
     etree.SubElement(bindings, f"{{{SSD}}}ParameterBinding", source=PARAMETERS_SOURCE)
     elements = etree.SubElement(system, f"{{{SSD}}}Elements")
@@ -221,6 +236,15 @@ def ssd_xml(
         (level, "output", "mm"),
     ):
         _connector(p_conn, cname, kind, unit)  # fmt: skip
+    scenario = etree.SubElement(elements, f"{{{SSD}}}Component", name="scenario",
+                                type="application/x-fmu-sharedlibrary",
+                                source=SCENARIO_SOURCE)  # fmt: skip
+    s_conn = etree.SubElement(scenario, f"{{{SSD}}}Connectors")
+    for signal, unit in SIGNAL_UNITS.items():
+        _connector(s_conn, signal, "output", unit)
+    for pname, _, unit in parameters:
+        if pname.startswith("scenario."):
+            _connector(s_conn, pname.split(".", 1)[1], "parameter", unit)
     _connections(system, level, observer)
     used = {u for _, _, u in parameters} | {"mm", "m3/h"}
     _units(root, used | ({u for _, u in observer_outputs()} if observer else set()))
@@ -296,10 +320,11 @@ def write_ssp(
     else:
         own = [("start_opening_mm", float(scn.opening_mm), "mm")]
     base = rest_level_mm(model.plant, scn.opening_mm, scn.flow_m3h)
-    parameters = _parameters(own, scenario_signals(scn, base))
+    signals = table_signals(scenario_signals(scn, base))
+    parameters = _parameters(own, signals)
     text = (f"Closed loop of {model.name} with its {controller.upper()} controller"
-            f"{' and its observer' if observer else ''}, scenario {scn.name}; inputs are "
-            "piecewise constant: X.value[k] from X.time_s[k] on")  # fmt: skip
+            f"{' and its observer' if observer else ''}, scenario {scn.name} (the scenario "
+            "component: X held at X.value[k] from X.time_s[k] on)")  # fmt: skip
     ssd = ssd_xml(f"{model.name}_closed_loop", model.plant.gauge, parameters, scn.duration_s,
                   text, observer=observer)  # fmt: skip
     ssv = parameter_set_xml("closed_loop", parameters)
@@ -307,7 +332,7 @@ def write_ssp(
         problems = schema_problems(xml, schema)
         if problems:
             raise ExportError(f"{target}: the written {schema} document is invalid: {problems[0]}")
-    parts = _Parts(model, desc, covered, s, observer)
+    parts = _Parts(model, desc, covered, s, observer, signals, period, float(scn.opening_mm))
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
@@ -346,20 +371,28 @@ class _Parts:
     covered: FopdtPlant | None
     settings: DemoSettings
     observer: bool
+    signals: tuple[TableSignal, ...]
+    period_s: float
+    start_opening_mm: float
 
 
 def _pack(work: Path, target: Path, parts: _Parts, ssd: bytes, ssv: bytes) -> None:
     from gatetwin.fmu import export_fmu
     from gatetwin.fmu.c_build import zip_folder
     from gatetwin.fmu.provenance import fmu_provenance
+    from gatetwin.fmu.signal_source import export_signal_source
 
     model = parts.model
     package = work / "package"
     (package / "resources").mkdir(parents=True)
     (package / SSD_NAME).write_bytes(ssd)
     (package / PARAMETERS_SOURCE).write_bytes(ssv)
+    # at rest where the scenario starts, also for an engine that sets no input before
+    # initialising the FMUs
+    flow = next(s.values[0] for s in parts.signals if s.name == "flow_m3h")
     export_fmu(model.plant, package / PLANT_SOURCE, backend="c", model_name=model.name,
-               provenance=fmu_provenance(model))  # fmt: skip
+               provenance=fmu_provenance(model),
+               start_inputs=(parts.start_opening_mm, flow))  # fmt: skip
     if parts.pi is not None:
         from gatetwin.fmu.controller import build_controller_fmu
 
@@ -370,17 +403,21 @@ def _pack(work: Path, target: Path, parts: _Parts, ssd: bytes, ssv: bytes) -> No
         from gatetwin.fmu.mpc_controller import export_mpc_controller
 
         export_mpc_controller(parts.covered, package / CONTROLLER_SOURCE,
-                              settings=parts.settings.mpc,
-                              model_name=f"{model.name}_mpc")  # fmt: skip
+                              settings=parts.settings.mpc, model_name=f"{model.name}_mpc",
+                              start_opening_mm=parts.start_opening_mm)  # fmt: skip
     if parts.observer:
         from gatetwin.fmu.observer_fmu import export_observer
 
         export_observer(parts.covered, package / OBSERVER_SOURCE,
                         model_name=f"{model.name}_observer")  # fmt: skip
+    export_signal_source(parts.signals, package / SCENARIO_SOURCE, step_size_s=parts.period_s,
+                         model_identifier=f"{model.name}_scenario",
+                         provenance={"model": model.name})  # fmt: skip
     built = work / target.name
     zip_folder(package, built)
     os.replace(built, target)
 
 
 __all__ = ["CONTROLLER_SOURCE", "OBSERVER_SOURCE", "PARAMETERS_SOURCE", "PLANT_SOURCE",
-           "SSD_NAME", "observer_outputs", "scenario_signals", "ssd_xml", "write_ssp"]  # fmt: skip
+           "SCENARIO_SOURCE", "SSD_NAME", "observer_outputs", "scenario_signals", "ssd_xml",
+           "table_signals", "write_ssp"]  # fmt: skip
