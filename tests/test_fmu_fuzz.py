@@ -133,8 +133,9 @@ def _plant_and_provenance(case: str):
     return replace(PLANTS[family](), effects=effects), VALIDITY
 
 
-#: The sanitizer builds alone take over a minute: the module runs with CI's slow subset.
-pytestmark = pytest.mark.slow
+#: The sanitizer builds alone take over a minute: the module runs with CI's slow subset, on
+#: one worker (CI's slow run distributes by group), so they are made once.
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("fuzz")]
 
 
 @pytest.fixture(scope="module")

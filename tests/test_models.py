@@ -46,7 +46,13 @@ def assert_close_json(a, b, path="$"):
         assert a == b, path
 
 
+#: The two slow tests share the regenerated models (a minute): one worker runs both (CI's slow
+#: run distributes by group).
+REGENERATED = pytest.mark.xdist_group("regenerated_models")
+
+
 @pytest.mark.slow
+@REGENERATED
 def test_repository_models_are_not_stale(regenerated):
     fresh = sorted(p.name for p in regenerated.glob("*.json"))
     stored = sorted(p.name for p in MODELS.glob("*.json"))
@@ -57,6 +63,7 @@ def test_repository_models_are_not_stale(regenerated):
 
 
 @pytest.mark.slow
+@REGENERATED
 def test_identification_here_is_the_identification_on_a_pool(regenerated, tmp_path):
     """The API's ``identify_folder`` of the folder's name (one gauge after another in this
     process) saves the pool's model files to the bit (the numerical libraries on one thread
