@@ -5,12 +5,23 @@
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <string.h>
 
 #include "component.h"
 
 #define GT_VARIABLE_ENTRY(name, kind, start) {name, kind, start},
 const PlantVariable plant_variables[GT_N_REAL] = {GT_VARIABLES(GT_VARIABLE_ENTRY)};
 #undef GT_VARIABLE_ENTRY
+
+void component_set_defaults(ModelData *m)
+{
+    int vr;
+    memset(m, 0, sizeof *m);
+    for (vr = 0; vr < GT_N_REAL; vr++) {
+        m->real[vr] = plant_variables[vr].start;
+    }
+    m->parameters_changed = 1;
+}
 
 void plant_message(PlantMessage *msg, const char *format, ...)
 {

@@ -47,6 +47,10 @@ PlantStatus component_check_flags(const int *flags, int n_flags, int state_initi
 
 #include GT_COMPONENT_HEADER /* ModelData */
 
+/* ModelData zeroed, every Real variable at its start value, the parameters to be checked:
+ * what each component's plant_set_defaults starts from. */
+void component_set_defaults(ModelData *m);
+
 /* Called by the glue. */
 void plant_set_defaults(ModelData *m);
 PlantStatus plant_initialize(ModelData *m, PlantMessage *msg);

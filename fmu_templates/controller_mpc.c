@@ -165,13 +165,8 @@ static void set_outputs(ModelData *m, double opening, double level, double activ
 
 void plant_set_defaults(ModelData *m)
 {
-    int vr;
-    memset(m, 0, sizeof *m);
-    for (vr = 0; vr < GT_N_REAL; vr++) {
-        m->real[vr] = plant_variables[vr].start;
-    }
+    component_set_defaults(m);
     m->real[VR_OPENING_MM] = m->real[VR_START_OPENING_MM];
-    m->parameters_changed = 1;
 }
 
 /* At rest at start_opening_mm with the level and discharge measured now, as

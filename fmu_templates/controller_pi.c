@@ -13,7 +13,6 @@
  * later. Before the first step the output is start_opening_mm.
  */
 #include <math.h>
-#include <string.h>
 
 #include "component.h"
 #include "pi_law.h"
@@ -98,12 +97,7 @@ static double samples_in(const ModelData *m, double step_s, PlantMessage *msg)
 
 void plant_set_defaults(ModelData *m)
 {
-    int vr;
-    memset(m, 0, sizeof *m);
-    for (vr = 0; vr < GT_N_REAL; vr++) {
-        m->real[vr] = plant_variables[vr].start;
-    }
-    m->parameters_changed = 1;
+    component_set_defaults(m);
 }
 
 PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)

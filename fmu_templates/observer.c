@@ -87,14 +87,9 @@ static void sample(ModelData *m, double y, double e, double q)
 
 void plant_set_defaults(ModelData *m)
 {
-    int vr;
-    memset(m, 0, sizeof *m);
-    for (vr = 0; vr < GT_N_REAL; vr++) {
-        m->real[vr] = plant_variables[vr].start;
-    }
+    component_set_defaults(m);
     m->real[VR_FILTERED_LEVEL_MM] = m->real[VR_LEVEL];
     m->real[VR_PREDICTED_LEVEL_MM] = m->real[VR_LEVEL];
-    m->parameters_changed = 1;
 }
 
 /* At rest at the opening, level and discharge measured now, as OnlineObserver.reset. */

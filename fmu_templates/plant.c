@@ -161,12 +161,7 @@ static const StepCache *step_cache(ModelData *m, double flow_m3h)
 
 void plant_set_defaults(ModelData *m)
 {
-    int vr;
-    memset(m, 0, sizeof *m);
-    for (vr = 0; vr < GT_N_REAL; vr++) {
-        m->real[vr] = plant_variables[vr].start;
-    }
-    m->parameters_changed = 1;
+    component_set_defaults(m);
 }
 
 /* Checked inputs and parameters, and the equilibrium they define (u, knot position, x0). */

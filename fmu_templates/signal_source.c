@@ -10,7 +10,6 @@
  * read them gives each the signal at the communication point its step starts from.
  */
 #include <math.h>
-#include <string.h>
 
 #include "component.h"
 #include "signal_law.h"
@@ -56,12 +55,7 @@ static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
 
 void plant_set_defaults(ModelData *m)
 {
-    int vr;
-    memset(m, 0, sizeof *m);
-    for (vr = 0; vr < GT_N_REAL; vr++) {
-        m->real[vr] = plant_variables[vr].start;
-    }
-    m->parameters_changed = 1;
+    component_set_defaults(m);
 }
 
 PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
