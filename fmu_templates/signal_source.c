@@ -1,8 +1,8 @@
 /* A scenario as an FMU (component.h): no inputs, one output per tabulated signal. Each
- * signal's knots are fixed parameters (<name>.time_s[k], <name>.value[k], k from 1) and
- * <name>.linear says how its value runs between them (0: held from each knot on; 1: linear);
- * the output at time t is gt_signal_value, generated from gatetwin.ssp.signal_law
- * (signal_law.c). model_config.h lists the signals in GT_SIGNALS(X) as
+ * signal's knots are fixed parameters (<name>_table.time_s[k], <name>_table.value[k], k from
+ * 1) and <name>_table.linear says how its value runs between them (0: held from each knot on;
+ * 1: linear); the output at time t is gt_signal_value, generated from
+ * gatetwin.mpc.signal_law (signal_law.c). model_config.h lists the signals in GT_SIGNALS(X) as
  * X(output vr, linear vr, vr of the first time, vr of the first value, number of knots).
  *
  * The outputs hold the value at the instance's time: at the start time after initialisation,
@@ -126,6 +126,11 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
                           m->real[vr]);
             return PLANT_ERROR;
         }
+    }
+    if (m->initialized && m->parameters_changed) {
+        /* the knots are fixed: nothing sets them once initialisation has ended */
+        plant_message(msg, "state says its fixed parameters changed after initialisation");
+        return PLANT_ERROR;
     }
     if (!m->parameters_changed && check_parameters(m, msg) != PLANT_OK) {
         return PLANT_ERROR;

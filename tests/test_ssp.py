@@ -15,7 +15,7 @@ import pytest
 
 from fmu_support import compiler, with_zip_bomb
 from gatetwin.cli import main
-from gatetwin.errors import ExportError
+from gatetwin.errors import ExportError, SspError
 from gatetwin.modelfile import read_model_file
 from gatetwin.mpc.demo import DemoSettings, demo_scenarios
 from gatetwin.mpc.loop import loop_metrics
@@ -23,7 +23,13 @@ from gatetwin.ssp import simulate_ssp, write_ssp
 from gatetwin.ssp.documents import SSD_SCHEMA, SSV_SCHEMA, read_parameter_set, schema_problems
 from gatetwin.ssp.master import MAX_STEPS, read_ssd
 from gatetwin.ssp.reference import python_loop
-from gatetwin.ssp.write import CONTROLLER_SOURCE, OBSERVER_SOURCE, PARAMETERS_SOURCE, SSD_NAME
+from gatetwin.ssp.write import (
+    CONTROLLER_SOURCE,
+    OBSERVER_SOURCE,
+    PARAMETERS_SOURCE,
+    SCENARIO_SOURCE,
+    SSD_NAME,
+)
 from test_validate_isolation import build_hostile
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -119,7 +125,8 @@ def test_fmpys_ssp_runner_gives_the_jacobi_run(package, jacobi_run, monkeypatch)
     the values the FMUs hold after initialisation, so the plant gets a closed gate and no
     inflow for 1.2 s. With that one step given the start values the package sets (each
     input's start value is what its source gives at the start), the runs are equal to the
-    bit but for the engines' time sums (1e-9)."""
+    bit: the same FMU binaries given the same doubles in the same order (each FMU keeps its
+    own time; the engines' communication points only have to pass its check)."""
     import fmpy.ssp.simulation as runner
 
     def first_step_at_start_values(component, time, step_size, _do_step=runner.do_step):
@@ -139,7 +146,7 @@ def test_fmpys_ssp_runner_gives_the_jacobi_run(package, jacobi_run, monkeypatch)
         # fmpy's row k holds the connectors after the step from t_k: an input as it goes
         # into the step from t_(k+1)
         if kinds[name] == "input":
-            assert np.max(np.abs(out[name][:-1] - column[1:])) <= SAME_ARITHMETIC, name
+            assert np.array_equal(out[name][:-1], column[1:]), name
             compared += 1
     assert compared == 5 and np.ptp(out["plant.opening_mm"]) > 1  # every input, and it acts
 
@@ -147,7 +154,7 @@ def test_fmpys_ssp_runner_gives_the_jacobi_run(package, jacobi_run, monkeypatch)
 def test_ecos_runs_the_package_as_the_jacobi_master(package, jacobi_run):
     """ecos (``ecospy``) runs the package as it is: Jacobi, from the values the FMUs hold
     after initialisation; every input of every component and every monitored output equal
-    to the bit but for the engines' time sums (1e-9)."""
+    to the bit (the same binaries given the same doubles in the same order)."""
     _compare_ecos(package, jacobi_run)
 
 
@@ -169,41 +176,111 @@ def _compare_ecos(package: Path, run) -> None:
         # row k: after k steps; an input then holds what goes into the step from t_k, an
         # output what the step from t_(k-1) gave
         ours = got[:-1, i] if kinds[name] == "input" else got[1:, i]
-        assert np.max(np.abs(ours - run.columns[name])) <= SAME_ARITHMETIC, name
+        assert np.array_equal(ours, run.columns[name]), name
+
+
+def _scenario_run(fmu: Path, stop_s: float, **start_values: float):
+    """fmpy's run of a scenario FMU at 1.2 s steps; ``(result, logged messages)``."""
+    from fmpy import simulate_fmu
+
+    messages: list[str] = []
+
+    def logger(_env, _name, _status, _category, message):
+        messages.append(message.decode() if isinstance(message, bytes) else str(message))
+
+    try:
+        out = simulate_fmu(str(fmu), stop_time=stop_s, step_size=1.2, output_interval=1.2,
+                           start_values=start_values, debug_logging=True,
+                           logger=logger)  # fmt: skip
+    except Exception as exc:  # noqa: BLE001 - fmpy's FMICallException
+        return exc, messages
+    return out, messages
 
 
 def test_the_scenario_fmu_gives_its_tables(tmp_path):
     """The scenario FMU's outputs are :func:`signal_value` of its tables at each point (the
-    C is generated from it), held or linear; bad tables are refused by the export, and by
-    the FMU when a parameter set breaks them."""
-    from fmpy import simulate_fmu
-
+    C is generated from it), held or linear; tables it cannot run are refused by the
+    export in one line naming the knot, and by the FMU (an FMI error, the reason logged)
+    when a parameter set breaks them."""
     from gatetwin.fmu.signal_source import TableSignal, export_signal_source
-    from gatetwin.ssp.signal_law import TIME_TOL_S, signal_value
+    from gatetwin.mpc.signal_law import TIME_TOL_S, signal_value
 
     held = TableSignal("setpoint_mm", "mm", (0.0, 6.0, 12.0), (100.0, 110.0, 90.0))
     ramp = TableSignal("flow_m3h", "m3/h", (1.0, 10.0), (50.0, 60.0), linear=True)
     fmu = export_signal_source([held, ramp], tmp_path / "s.fmu", step_size_s=1.2)
-    out = simulate_fmu(str(fmu), stop_time=14.4, step_size=1.2, output_interval=1.2)
-    for s in (held, ramp):
-        want = [signal_value(t, list(s.times_s), list(s.values), len(s.times_s),
-                             float(s.linear), TIME_TOL_S) for t in out["time"]]  # fmt: skip
-        assert np.array_equal(out[s.name], want), s.name
-    assert out["setpoint_mm"][5] == 110.0  # 5 x 1.2 summed lands within the tolerance of 6 s
+    out, _ = _scenario_run(fmu, 14.4)
+    for sig in (held, ramp):
+        want = [signal_value(t, list(sig.times_s), list(sig.values), len(sig.times_s),
+                             float(sig.linear), TIME_TOL_S) for t in out["time"]]  # fmt: skip
+        assert np.array_equal(out[sig.name], want), sig.name
+    assert list(out["setpoint_mm"][:7]) == [100.0] * 5 + [110.0] * 2
     assert out["flow_m3h"][0] == 50.0 and out["flow_m3h"][-1] == 60.0  # held outside
     assert 50.0 < out["flow_m3h"][4] < 60.0  # linear between the knots
-    with pytest.raises(ExportError, match="increase strictly"):
-        export_signal_source([TableSignal("x", "mm", (0.0, 0.0), (1.0, 2.0))],
-                             tmp_path / "x.fmu", step_size_s=1.0)  # fmt: skip
-    with pytest.raises(ExportError, match="not a finite number"):
-        export_signal_source([TableSignal("x", "mm", (0.0,), (math.nan,))],
+    for bad, match in (
+        (TableSignal("x", "mm", (0.0, 0.0), (1.0, 2.0)), r"time 2 \(0.0 s\) must lie after"),
+        (TableSignal("x", "mm", (0.0,), (math.nan,)), "knot 1 .* is not finite"),
+        (TableSignal("x", "mm", (0.0, 5e9), (1.0, 2.0)), "x_table.time_s.2. = 5e.09 is beyond"),
+    ):
+        with pytest.raises(ExportError, match=match):
+            export_signal_source([bad], tmp_path / "x.fmu", step_size_s=1.0)
+    with pytest.raises(ExportError, match="names signal x twice"):
+        export_signal_source([TableSignal("x", "mm", (0.0,), (1.0,))] * 2,
                              tmp_path / "x.fmu", step_size_s=1.0)  # fmt: skip
     assert not (tmp_path / "x.fmu").exists()
-    from fmpy.fmi1 import FMICallException
+    for name, value, reason in (
+        ("setpoint_mm_table.time_s[2]", 20.0, r"time_s.3. = 12 s must lie after \S+.2. = 20 s"),
+        ("setpoint_mm_table.linear", 0.5, "must be 0 .held. or 1 .linear."),
+        ("setpoint_mm_table.value[1]", 1e300, "must be finite with"),
+    ):
+        failed, messages = _scenario_run(fmu, 2.4, **{name: value})
+        assert isinstance(failed, Exception), name
+        assert any(re.search(reason, m) for m in messages), (name, messages)
 
-    with pytest.raises(FMICallException):  # the FMU's own check, logged
-        simulate_fmu(str(fmu), stop_time=2.4, step_size=1.2,
-                     start_values={"setpoint_mm.time_s[2]": 20.0})  # fmt: skip
+
+def test_a_knot_is_reached_on_a_point_formed_as_a_running_sum():
+    """The knot rule is relative: a knot at a communication point is in force there whether
+    the point is k h or a running sum of h, which lags k h by more than 1e-9 s after a few
+    ten thousand steps of 1.2 s (the FMUs count their time so)."""
+    from gatetwin.mpc.signal_law import TIME_TOL_S, in_force
+
+    steps, h = 36_000, 1.2
+    summed = 0.0
+    for _ in range(steps):
+        summed += h
+    knot = steps * h
+    assert knot - summed > TIME_TOL_S  # an absolute 1e-9 s would miss this point
+    assert in_force(knot, summed, TIME_TOL_S) == 1.0
+    assert in_force(knot, knot, TIME_TOL_S) == 1.0
+    assert in_force(knot, knot - h, TIME_TOL_S) == 0.0  # not a step early
+    # the relative margin: in force just within it, not just beyond it
+    margin = TIME_TOL_S * knot
+    assert in_force(knot, knot - 0.5 * margin, TIME_TOL_S) == 1.0
+    assert in_force(knot, knot - 2.0 * margin, TIME_TOL_S) == 0.0
+
+
+def test_every_parameter_in_the_set_is_its_fmus_start_value(tmp_path):
+    """An engine that applies no parameter set (ecos applies only bindings on components;
+    FMPy none unless given) runs the same loop: every value of the set is the start value
+    of the FMU it names, also for a scenario that starts elsewhere than the demo's point."""
+    from dataclasses import replace
+
+    from fmpy import read_model_description
+
+    scn = replace(demo_scenarios(6.0, DemoSettings())[0], opening_mm=30.0)
+    out = write_ssp(read_model_file(MODEL), tmp_path / "loop.ssp", scenario=scn)
+    parameters = read_parameter_set(_read(out, PARAMETERS_SOURCE), "ssv")
+    folder = tmp_path / "x"
+    with zipfile.ZipFile(out) as zf:
+        zf.extractall(folder)
+    starts = {}
+    for element, source in (("controller", CONTROLLER_SOURCE), ("scenario", SCENARIO_SOURCE),
+                            ("plant", "resources/plant.fmu")):  # fmt: skip
+        md = read_model_description(str(folder / source))
+        starts.update({f"{element}.{v.name}": float(v.start) for v in md.modelVariables
+                       if v.start is not None})  # fmt: skip
+    assert parameters and all(starts[n] == v for n, v in parameters.items()), [
+        n for n, v in parameters.items() if starts.get(n) != v]  # fmt: skip
+    assert starts["controller.start_opening_mm"] == 30.0 == starts["plant.opening_mm"]
 
 
 def test_bad_packages_and_requests_are_one_line_without_output(package, tmp_path, capsys):
@@ -271,6 +348,27 @@ def _refused_line(package: Path, tmp_path: Path, capsys) -> str:
     assert len(err) == 1 and err[0].startswith("gatetwin: error:"), err
     assert not out.exists()
     return err[0]
+
+
+def test_system_connectors_and_an_unknown_scheme_are_refused_in_one_line(package, tmp_path,
+                                                                         capsys):  # fmt: skip
+    """What drives the loop must be a component: a system input, or a connection to a system
+    connector, is refused (nothing would give it a value); so is a scheme the master lacks."""
+    ssd = _read(package, SSD_NAME)
+    system_input = ssd.replace(
+        b"<ssd:ParameterBindings>",
+        b'<ssd:Connectors><ssd:Connector name="setpoint_mm" kind="input"><ssc:Real/>'
+        b"</ssd:Connector></ssd:Connectors><ssd:ParameterBindings>", 1)  # fmt: skip
+    to_system = ssd.replace(b'startElement="scenario" ', b"", 1)
+    assert system_input != ssd and to_system != ssd
+    for body, reason in ((system_input, "system input setpoint_mm has no value here"),
+                         (to_system, "joins a system connector")):  # fmt: skip
+        changed = _repacked(package, tmp_path / "changed.ssp",
+                            lambda name, data, body=body: (
+                                body if name == SSD_NAME else data))  # fmt: skip
+        assert reason in _refused_line(changed, tmp_path, capsys)
+    with pytest.raises(SspError, match="scheme 'seidel' is not one of gauss-seidel, jacobi"):
+        simulate_ssp(package, scheme="seidel")
 
 
 def test_two_components_of_one_name_are_refused_before_any_is_instantiated(package, tmp_path,
@@ -460,7 +558,7 @@ def test_the_observer_in_the_ssp_logs_the_python_observers_estimates(mpc_package
 
 def test_ecos_runs_the_mpc_and_observer_package_as_the_jacobi_master(mpc_package):
     """The MPC controller, the observer (a monitor: its outputs compared too), the plant and
-    the scenario in ecos: the Jacobi master's run to the bit but for the time sums."""
+    the scenario in ecos: the Jacobi master's run to the bit."""
     run = simulate_ssp(mpc_package, scheme="jacobi")
     assert any(name.startswith("observer.") for name in run.columns)
     _compare_ecos(mpc_package, run)

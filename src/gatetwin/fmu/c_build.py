@@ -13,11 +13,13 @@ import os
 import shlex
 import shutil
 import subprocess
+import tempfile
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-from gatetwin.errors import ExportError
+from gatetwin.errors import ExportError, OutputError
 from gatetwin.fmu.description import (
     ComponentInterface,
     CoSimulationFlags,
@@ -225,6 +227,32 @@ def build_description_xml(desc: ComponentInterface, c_files: tuple[str, ...]) ->
     ET.SubElement(config, "Library", name="m", description="the C math library (libm)")
     ET.indent(root)
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8") + b"\n"
+
+
+def fmu_target(out_path: str | os.PathLike[str]) -> Path:
+    """``out_path`` as a path, refused unless it ends in ``.fmu``."""
+    target = Path(out_path)
+    if target.suffix.lower() != ".fmu":
+        raise ExportError(f"output {target} must end in .fmu")
+    return target
+
+
+def write_atomically(target: Path, build: Callable[[Path, str], Path]) -> Path:
+    """``build(work, file_name)`` in a folder beside ``target`` (removed afterwards); what it
+    returns is moved onto ``target``, so a failed build leaves nothing behind."""
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
+            os.replace(build(Path(tmp), target.name), target)
+    except OSError as exc:
+        raise OutputError(f"{target}: cannot write the FMU ({exc.strerror or exc})") from None
+    return target
+
+
+def c_double(value: float) -> str:
+    """``value`` as a C double literal (``repr``, with ``.0`` where it has no point)."""
+    text = repr(float(value))
+    return text if any(c in text for c in ".en") else text + ".0"
 
 
 def zip_folder(folder: Path, out: Path) -> None:

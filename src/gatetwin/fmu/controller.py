@@ -29,6 +29,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import os
 import re
 import shutil
@@ -179,8 +180,10 @@ def describe_pi_controller(
     *,
     settings: DemoSettings | None = None,
     provenance: dict[str, Any] | None = None,
+    start_opening_mm: float | None = None,
 ) -> ControllerDescription:
-    """The PI controller FMU's description for ``plant`` (an FOPDT; SIMC tuning).
+    """The PI controller FMU's description for ``plant`` (an FOPDT; SIMC tuning at the
+    settings' point); ``start_opening_mm`` (default the settings') is where it starts at rest.
 
     Raises
     ------
@@ -201,14 +204,17 @@ def describe_pi_controller(
         pi = pi_controller(plant, s)
     except GatetwinError as exc:
         raise ExportError(f"PI tuning: {exc}") from None
-    level = rest_level_mm(plant, s.opening_mm, s.flow_m3h)
-    variables = _pi_variables(plant.gauge, pi, s.opening_mm, s.flow_m3h, level)
+    start = s.opening_mm if start_opening_mm is None else float(start_opening_mm)
+    if not math.isfinite(start):
+        raise ExportError(f"start opening {start_opening_mm} mm must be finite")
+    level = rest_level_mm(plant, start, s.flow_m3h)
+    variables = _pi_variables(plant.gauge, pi, start, s.flow_m3h, level)
     facts = {
         "controller": "pi",
         "tuning": pi.tuning.to_dict(),
         "settings": dataclasses.asdict(pi.settings),
         "tracking_time_s": pi.tracking_time_s,
-        "start_opening_mm": s.opening_mm,
+        "start_opening_mm": start,
         **(provenance or {}),
     }
     t = pi.tuning

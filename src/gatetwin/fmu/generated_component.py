@@ -12,20 +12,19 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 import uuid
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from gatetwin.errors import ExportError, OutputError
 from gatetwin.fmu.c_build import (
     FMI_APIS,
     GENERATED_SUPPORT_FILES,
     GLUE_CORE_HEADERS,
     GLUE_CORE_SOURCES,
+    c_double,
+    fmu_target,
     templates_dir,
+    write_atomically,
 )
 from gatetwin.fmu.description import (
     FmuDescription,
@@ -96,31 +95,6 @@ def code_digest(component_files: tuple[str, ...], mpc_modules: tuple[str, ...]) 
     for n in mpc_modules:
         digest.update((mpc / n).read_bytes())
     return digest.hexdigest()[:16]
-
-
-def fmu_target(out_path: str | os.PathLike[str]) -> Path:
-    """``out_path`` as a path, refused unless it ends in ``.fmu``."""
-    target = Path(out_path)
-    if target.suffix.lower() != ".fmu":
-        raise ExportError(f"output {target} must end in .fmu")
-    return target
-
-
-def write_atomically(target: Path, build: Callable[[Path, str], Path]) -> Path:
-    """``build(work, file_name)`` in a folder beside ``target`` (removed afterwards); what it
-    returns is moved onto ``target``, so a failed build leaves nothing behind."""
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
-            os.replace(build(Path(tmp), target.name), target)
-    except OSError as exc:
-        raise OutputError(f"{target}: cannot write the FMU ({exc.strerror or exc})") from None
-    return target
-
-
-def c_double(value: float) -> str:
-    text = repr(float(value))
-    return text if any(c in text for c in ".en") else text + ".0"
 
 
 def config_header(

@@ -7,15 +7,15 @@ the standard.
 
 The FMU is built from the plant FMU's unchanged glue (``fmi2_glue.c``, ``component.h``,
 ``component.c``) around ``signal_data.h`` and ``signal_source.c``, which calls
-``gt_signal_value``, generated from :func:`gatetwin.ssp.signal_law.signal_value` by
+``gt_signal_value``, generated from :func:`gatetwin.mpc.signal_law.signal_value` by
 :mod:`gatetwin.plant.ast_render`.
 
 Variables (value references in this order), for each signal ``X`` of ``n`` knots:
 
 * output ``X`` (discrete if held, continuous if linear);
-* fixed parameters ``X.linear`` (0: each value held from its knot on; 1: linear between
-  knots), ``X.time_s[1]`` … ``X.time_s[n]`` (increasing strictly), ``X.value[1]`` …
-  ``X.value[n]``.
+* fixed parameters ``X_table.linear`` (0: each value held from its knot on; 1: linear
+  between knots), ``X_table.time_s[1]`` … ``X_table.time_s[n]`` (increasing strictly),
+  ``X_table.value[1]`` … ``X_table.value[n]``.
 
 The start values are the tables given; a parameter set may replace them (same number of
 knots) before initialisation ends.
@@ -30,20 +30,22 @@ import math
 import os
 import re
 import shutil
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from gatetwin.errors import ExportError, OutputError
+from gatetwin.errors import ExportError
 from gatetwin.fmu.c_build import (
     CFLAGS,
     FLAGS,
     FMI_APIS,
     build_description_xml,
+    c_double,
     compile_shared,
+    fmu_target,
     templates_dir,
+    write_atomically,
     zip_folder,
 )
 from gatetwin.fmu.description import (
@@ -54,6 +56,7 @@ from gatetwin.fmu.description import (
     model_description_xml,
     variable_table_lines,
 )
+from gatetwin.fmu.limits import MAX_COMMUNICATION_STEP_S, check_parameter_values
 
 #: The FMI API the scenario FMU carries.
 FMI_API = FMI_APIS["2.0"]
@@ -94,11 +97,13 @@ class TableSignal:
         if not 1 <= n <= MAX_KNOTS or len(self.values) != n:
             raise ExportError(f"signal {self.name}: {n} times and {len(self.values)} values; "
                               f"need as many of each, 1 to {MAX_KNOTS}")  # fmt: skip
-        bad = [x for x in (*self.times_s, *self.values) if not math.isfinite(x)]
-        if bad:
-            raise ExportError(f"signal {self.name}: {bad[0]} is not a finite number")
-        if any(b <= a for a, b in zip(self.times_s, self.times_s[1:], strict=False)):
-            raise ExportError(f"signal {self.name}: its times must increase strictly")
+        for k, (t, v) in enumerate(zip(self.times_s, self.values, strict=True), start=1):
+            if not (math.isfinite(t) and math.isfinite(v)):
+                raise ExportError(f"signal {self.name}: knot {k} ({t} s, {v} {self.unit}) is "
+                                  "not finite")  # fmt: skip
+            if k > 1 and not t > self.times_s[k - 2]:
+                raise ExportError(f"signal {self.name}: time {k} ({t} s) must lie after time "
+                                  f"{k - 1} ({self.times_s[k - 2]} s)")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -129,13 +134,14 @@ def _variables(signals: Sequence[TableSignal]) -> tuple[list[VariableSpec], list
         how = "linear between its knots" if s.linear else "held from each knot on"
         rows.append((s.name, "output", "continuous" if s.linear else "discrete", "calculated",
                      s.unit, s.description or f"The signal {s.name}, {how}", None))  # fmt: skip
-        rows.append((f"{s.name}.linear", "parameter", "fixed", "exact", "1",
+        table = f"{s.name}_table"
+        rows.append((f"{table}.linear", "parameter", "fixed", "exact", "1",
                      "0: each value held from its knot on; 1: linear between knots",
                      1.0 if s.linear else 0.0))  # fmt: skip
-        rows += [(f"{s.name}.time_s[{k}]", "parameter", "fixed", "exact", "s",
+        rows += [(f"{table}.time_s[{k}]", "parameter", "fixed", "exact", "s",
                   f"Time of knot {k} (increasing strictly)", t)
                  for k, t in enumerate(s.times_s, start=1)]  # fmt: skip
-        rows += [(f"{s.name}.value[{k}]", "parameter", "fixed", "exact", s.unit,
+        rows += [(f"{table}.value[{k}]", "parameter", "fixed", "exact", s.unit,
                   f"Value at knot {k}", v) for k, v in enumerate(s.values, start=1)]  # fmt: skip
     variables = [VariableSpec(r[0], vr, *r[1:]) for vr, r in enumerate(rows)]
     return variables, layout
@@ -149,13 +155,19 @@ def describe_signal_source(
     signals of one name, a name that is not a C identifier or a step that is not > 0."""
     if not _IDENTIFIER.fullmatch(model_identifier):
         raise ExportError(f"scenario name {model_identifier!r} must be a C identifier")
-    if not signals or len({s.name for s in signals}) != len(signals):
-        raise ExportError("a scenario needs one or more signals, each name once")
+    if not signals:
+        raise ExportError("a scenario needs one or more signals")
+    names = [s.name for s in signals]
+    twice = [n for n in names if names.count(n) > 1]
+    if twice:
+        raise ExportError(f"a scenario names signal {twice[0]} twice")
     for s in signals:
         s.check()
-    if not (math.isfinite(step_size_s) and step_size_s > 0):
-        raise ExportError(f"scenario step {step_size_s} s must be a number > 0")
+    if not 0 < step_size_s <= MAX_COMMUNICATION_STEP_S:
+        raise ExportError(f"scenario step {step_size_s} s must be > 0 and at most "
+                          f"{MAX_COMMUNICATION_STEP_S:g} s")  # fmt: skip
     variables, layout = _variables(signals)
+    check_parameter_values(variables)  # the FMU checks the same at initialisation
     facts = {"signals": [s.name for s in signals], **(provenance or {})}
     summary = ("gatetwin scenario: " + ", ".join(
         f"{s.name} ({len(s.times_s)} knot(s), {'linear' if s.linear else 'held'})"
@@ -168,13 +180,12 @@ def describe_signal_source(
 
 def config_header(desc: SignalSourceDescription) -> str:
     """``model_config.h``: the glue's head, the signals' layout and the variable table."""
-    from gatetwin.fmu.description import _c_double
-    from gatetwin.ssp.signal_law import TIME_TOL_S
+    from gatetwin.mpc.signal_law import TIME_TOL_S
 
     rows = " ".join(f"X({o}u, {lin}u, {t}u, {v}u, {n})" for o, lin, t, v, n in desc.layout)
     lines = [
         *component_config_lines(desc, "signal_data.h"),
-        f"#define GT_SIGNAL_TIME_TOL_S {_c_double(TIME_TOL_S)}",
+        f"#define GT_SIGNAL_TIME_TOL_S {c_double(TIME_TOL_S)}",
         f"#define GT_N_SIGNALS {len(desc.layout)}",
         "/* X(output vr, linear vr, vr of the first time, vr of the first value, knots) */",
         f"#define GT_SIGNALS(X) {rows}",
@@ -183,9 +194,9 @@ def config_header(desc: SignalSourceDescription) -> str:
 
 
 def generated_signal_law() -> dict[str, str]:
-    """File name -> text of the C rendering of :mod:`gatetwin.ssp.signal_law`."""
+    """File name -> text of the C rendering of :mod:`gatetwin.mpc.signal_law`."""
+    from gatetwin.mpc import signal_law
     from gatetwin.plant.ast_render import c_module
-    from gatetwin.ssp import signal_law
 
     source, header = c_module(signal_law, signal_law.RENDERED_C, PREFIX)
     return {"signal_law.c": source, "signal_law.h": header}
@@ -194,7 +205,7 @@ def generated_signal_law() -> dict[str, str]:
 def _code_digest() -> str:
     """sha256 (first 16 hex digits) of the code the scenario FMU is built from."""
     templates = templates_dir()
-    law = Path(__file__).resolve().parents[1] / "ssp" / "signal_law.py"
+    law = Path(__file__).resolve().parents[1] / "mpc" / "signal_law.py"
     digest = hashlib.sha256()
     names = sorted(set(SOURCES + HEADERS) - set(GENERATED))
     for path in [*(templates / n for n in names), law]:
@@ -222,7 +233,7 @@ def build_signal_source(desc: SignalSourceDescription, work: Path, out: Path) ->
     (sources / "BUILD.txt").write_text(
         "Build the FMU binary from this folder (any C99 compiler with the same flags):\n\n"
         f"    {line}\n\nmodel_config.h is generated by gatetwin (gatetwin.fmu.signal_source), "
-        "signal_law.c and signal_law.h\nfrom gatetwin.ssp.signal_law; the other files are "
+        "signal_law.c and signal_law.h\nfrom gatetwin.mpc.signal_law; the other files are "
         "gatetwin's fixed FMU templates.\n",
         encoding="utf-8",
     )
@@ -237,6 +248,13 @@ def build_signal_source(desc: SignalSourceDescription, work: Path, out: Path) ->
     text = json.dumps(desc.provenance, indent=2, sort_keys=True, allow_nan=False)
     (fmu_dir / "resources" / "provenance.json").write_text(text + "\n", encoding="utf-8")
     zip_folder(fmu_dir, out)
+
+
+def parameter_values(desc: SignalSourceDescription) -> list[tuple[str, float, str]]:
+    """Every parameter of the scenario FMU as ``(name, start value, unit)``: what a parameter
+    set holding its tables carries."""
+    return [(v.name, float(v.start), v.unit) for v in desc.variables
+            if v.causality == "parameter" and v.start is not None]  # fmt: skip
 
 
 def export_signal_source(
@@ -254,20 +272,15 @@ def export_signal_source(
     OutputError
         The FMU cannot be written where asked.
     """
-    target = Path(out_path)
-    if target.suffix.lower() != ".fmu":
-        raise ExportError(f"output {target} must end in .fmu")
+    target = fmu_target(out_path)
     desc = describe_signal_source(signals, model_identifier, step_size_s, provenance)
-    try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
-            built = Path(tmp) / target.name
-            build_signal_source(desc, Path(tmp), built)
-            os.replace(built, target)
-    except OSError as exc:
-        raise OutputError(f"{target}: cannot write the FMU ({exc.strerror or exc})") from None
-    return target
+
+    def build(work: Path, name: str) -> Path:
+        build_signal_source(desc, work, work / name)
+        return work / name
+
+    return write_atomically(target, build)
 
 
 __all__ = ["MAX_KNOTS", "SignalSourceDescription", "TableSignal", "describe_signal_source",
-           "export_signal_source"]  # fmt: skip
+           "build_signal_source", "export_signal_source", "parameter_values"]  # fmt: skip

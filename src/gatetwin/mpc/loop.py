@@ -66,14 +66,19 @@ class Scenario:
         return int(round(self.duration_s / sample_period_s))
 
     def schedules(self, sample_period_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """Set-point offsets (mm) and discharges (m³/h) at every sample."""
+        """Set-point offsets (mm) and discharges (m³/h) at every sample: a change is in force
+        from the first sample :func:`gatetwin.mpc.signal_law.in_force` says (the rule of the
+        SSP's scenario FMU)."""
+        from gatetwin.mpc.signal_law import TIME_TOL_S, in_force
+
         t = np.arange(self.samples(sample_period_s)) * sample_period_s
+        reached = np.vectorize(lambda t0, tk: in_force(t0, tk, TIME_TOL_S) > 0.0)
         offset = np.zeros_like(t)
         flow = np.full_like(t, self.flow_m3h)
         for t0, value in sorted(self.setpoint_changes):
-            offset[t >= t0 - 1e-9] = value
+            offset[reached(t0, t)] = value
         for t0, value in sorted(self.flow_changes):
-            flow[t >= t0 - 1e-9] = value
+            flow[reached(t0, t)] = value
         return offset, flow
 
     def event_times_s(self) -> list[float]:

@@ -1,9 +1,10 @@
 """The closed loop as an SSP 1.0 System Structure package, and a master that runs one.
 
-:func:`write_ssp` packs a model's plant FMU and controller FMU with a
-``SystemStructure.ssd`` connecting them and a parameter set holding the scenario
-(:mod:`gatetwin.ssp.write`); :func:`simulate_ssp` runs such a package with gatetwin's own
-fixed-step master through fmpy (:mod:`gatetwin.ssp.master`). The documents are checked
+:func:`write_ssp` packs a model's plant FMU, controller FMU and scenario FMU (the set-point
+and discharge tables, :mod:`gatetwin.fmu.signal_source`) with a ``SystemStructure.ssd``
+connecting them and a parameter set of their start values (:mod:`gatetwin.ssp.write`);
+:func:`simulate_ssp` runs such a package with gatetwin's own fixed-step master through fmpy,
+Gauss-Seidel or Jacobi (:mod:`gatetwin.ssp.master`). The documents are checked
 against the SSP 1.0 schemas fmpy ships (:mod:`gatetwin.ssp.documents`).
 """
 

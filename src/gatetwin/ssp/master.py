@@ -96,8 +96,8 @@ class SspSystem:
 
     name: str
     components: tuple[SspComponent, ...]
-    #: (start element or None, start connector, end element or None, end connector)
-    connections: tuple[tuple[str | None, str, str | None, str], ...]
+    #: (start element, start connector, end element, end connector)
+    connections: tuple[tuple[str, str, str, str], ...]
     parameter_sources: tuple[str, ...]
     start_time_s: float
     stop_time_s: float
@@ -196,6 +196,10 @@ def read_ssd(xml: bytes, where: str) -> SspSystem:
         if len(c):
             raise SspError(f"{where}: connection to {c.get('endConnector')} has a "
                            "transformation; this master runs plain connections")  # fmt: skip
+        if c.get("startElement") is None or c.get("endElement") is None:
+            raise SspError(f"{where}: the connection to {c.get('endConnector')} joins a "
+                           "system connector; this master runs connections between "
+                           "components")  # fmt: skip
         connections.append((c.get("startElement"), c.get("startConnector"),
                             c.get("endElement"), c.get("endConnector")))  # fmt: skip
     inputs = [k.get("name") for k in system.iterfind("ssd:Connectors/ssd:Connector", NS)

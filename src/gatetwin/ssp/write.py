@@ -18,13 +18,15 @@ parameter set (``resources/closed_loop.ssv``) bound to the system. The system
 * no connectors of its own: the scenario is a component, so an engine needs nothing
   outside the standard to run the loop (and ecos, which reads connections between
   components only, runs it);
-* the scenario's tables (``scenario.X.time_s[k]``, ``scenario.X.value[k]``: ``X`` held at
-  ``X.value[k]`` from ``X.time_s[k]`` on, ``k`` from 1, the first at the start time; the
-  set-points are absolute levels, the scenario's offsets added to the plant's steady level
-  at the start inputs) and the controller's parameters (``controller.<parameter>``: the PI's
-  start opening, tuning and limits; the MPC's start opening) in the parameter set, each
-  equal to the FMU's own start value, so an engine that does not apply parameter bindings
-  runs the same loop;
+* the scenario's tables (``scenario.X_table.time_s[k]``, ``scenario.X_table.value[k]`` and
+  ``scenario.X_table.linear``, 0: ``X`` held at ``value[k]`` from ``time_s[k]`` on, ``k``
+  from 1, the first at the start time; the set-points are absolute levels, the scenario's
+  offsets added to the plant's steady level at the start inputs) and the controller's
+  parameters (``controller.<parameter>``: the PI's start opening, tuning and limits; the
+  MPC's start opening) in the parameter set, each equal to the FMU's own start value, so an
+  engine that does not apply parameter bindings runs the same loop (the plant FMU's inputs
+  and the controllers' start opening start at the scenario's first point for the same
+  reason);
 * a default experiment from 0 to the scenario's end.
 
 The scenario is the last element: a master stepping the elements in document order
@@ -60,7 +62,7 @@ from gatetwin.ssp.master import MAX_STEPS
 
 if TYPE_CHECKING:
     from gatetwin.fmu.controller import ControllerDescription
-    from gatetwin.fmu.signal_source import TableSignal
+    from gatetwin.fmu.signal_source import SignalSourceDescription, TableSignal
     from gatetwin.modelfile import ModelFile
     from gatetwin.mpc.demo import DemoSettings
     from gatetwin.mpc.loop import Scenario
@@ -125,17 +127,13 @@ def table_signals(signals: dict[str, list[tuple[float, float]]]) -> tuple[TableS
 
 
 def _parameters(
-    controller: list[tuple[str, float, str]], signals: tuple[TableSignal, ...]
+    controller: list[tuple[str, float, str]], scenario: SignalSourceDescription
 ) -> list[tuple[str, float, str]]:
-    """The parameter set: the controller's, then every scenario table's (its start values)."""
+    """The parameter set: the controller's, then the scenario FMU's (its start values)."""
+    from gatetwin.fmu.signal_source import parameter_values
+
     out = [(f"controller.{n}", value, unit) for n, value, unit in controller]
-    for s in signals:
-        out.append((f"scenario.{s.name}.linear", 1.0 if s.linear else 0.0, "1"))
-        out += [(f"scenario.{s.name}.time_s[{k}]", t, "s")
-                for k, t in enumerate(s.times_s, start=1)]  # fmt: skip
-        out += [(f"scenario.{s.name}.value[{k}]", v, s.unit)
-                for k, v in enumerate(s.values, start=1)]  # fmt: skip
-    return out
+    return out + [(f"scenario.{n}", value, unit) for n, value, unit in parameter_values(scenario)]
 
 
 def _connector(parent: object, name: str, kind: str, unit: str) -> None:
@@ -297,6 +295,7 @@ def write_ssp(
         The package cannot be written where asked.
     """
     from gatetwin.fmu.controller import check_controller_kind, describe_pi_controller, rest_level_mm
+    from gatetwin.fmu.signal_source import describe_signal_source
     from gatetwin.mpc.demo import DemoSettings, demo_scenarios
 
     check_controller_kind(controller)
@@ -315,16 +314,19 @@ def write_ssp(
     if controller == "pi":
         desc = describe_pi_controller(model.plant, f"{model.name}_{controller}", settings=s,
                                       provenance={"model": model.name,
-                                                  "model_sha256": model.sha256})  # fmt: skip
+                                                  "model_sha256": model.sha256},
+                                      start_opening_mm=scn.opening_mm)  # fmt: skip
         own = _pi_parameters(desc, scn.opening_mm)
     else:
         own = [("start_opening_mm", float(scn.opening_mm), "mm")]
     base = rest_level_mm(model.plant, scn.opening_mm, scn.flow_m3h)
     signals = table_signals(scenario_signals(scn, base))
-    parameters = _parameters(own, signals)
+    scenario_fmu = describe_signal_source(signals, f"{model.name}_scenario", period,
+                                          {"model": model.name})  # fmt: skip
+    parameters = _parameters(own, scenario_fmu)
     text = (f"Closed loop of {model.name} with its {controller.upper()} controller"
             f"{' and its observer' if observer else ''}, scenario {scn.name} (the scenario "
-            "component: X held at X.value[k] from X.time_s[k] on)")  # fmt: skip
+            "component: X held at X_table.value[k] from X_table.time_s[k] on)")  # fmt: skip
     ssd = ssd_xml(f"{model.name}_closed_loop", model.plant.gauge, parameters, scn.duration_s,
                   text, observer=observer)  # fmt: skip
     ssv = parameter_set_xml("closed_loop", parameters)
@@ -332,7 +334,8 @@ def write_ssp(
         problems = schema_problems(xml, schema)
         if problems:
             raise ExportError(f"{target}: the written {schema} document is invalid: {problems[0]}")
-    parts = _Parts(model, desc, covered, s, observer, signals, period, float(scn.opening_mm))
+    parts = _Parts(model, desc, covered, s, observer, signals, scenario_fmu,
+                   float(scn.opening_mm))  # fmt: skip
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
@@ -372,7 +375,7 @@ class _Parts:
     settings: DemoSettings
     observer: bool
     signals: tuple[TableSignal, ...]
-    period_s: float
+    scenario: SignalSourceDescription
     start_opening_mm: float
 
 
@@ -380,7 +383,7 @@ def _pack(work: Path, target: Path, parts: _Parts, ssd: bytes, ssv: bytes) -> No
     from gatetwin.fmu import export_fmu
     from gatetwin.fmu.c_build import zip_folder
     from gatetwin.fmu.provenance import fmu_provenance
-    from gatetwin.fmu.signal_source import export_signal_source
+    from gatetwin.fmu.signal_source import build_signal_source
 
     model = parts.model
     package = work / "package"
@@ -410,9 +413,8 @@ def _pack(work: Path, target: Path, parts: _Parts, ssd: bytes, ssv: bytes) -> No
 
         export_observer(parts.covered, package / OBSERVER_SOURCE,
                         model_name=f"{model.name}_observer")  # fmt: skip
-    export_signal_source(parts.signals, package / SCENARIO_SOURCE, step_size_s=parts.period_s,
-                         model_identifier=f"{model.name}_scenario",
-                         provenance={"model": model.name})  # fmt: skip
+    (work / "scenario").mkdir()
+    build_signal_source(parts.scenario, work / "scenario", package / SCENARIO_SOURCE)
     built = work / target.name
     zip_folder(package, built)
     os.replace(built, target)
