@@ -23,6 +23,21 @@ void component_set_defaults(ModelData *m)
     m->parameters_changed = 1;
 }
 
+PlantStatus component_check_step(const ModelData *m, double step_s, PlantMessage *msg)
+{
+    if (!(step_s > 0.0 && step_s <= GT_MAX_COMMUNICATION_STEP_S)) {
+        plant_message(msg, "communication step %.17g s must be > 0 and at most %g s (the limit)",
+                      step_s, GT_MAX_COMMUNICATION_STEP_S);
+        return PLANT_ERROR;
+    }
+    if (!(fabs(m->time_s + step_s) <= GT_MAX_TIME_S)) {
+        plant_message(msg, "communication step to t = %.17g s passes the time limit %g s",
+                      m->time_s + step_s, GT_MAX_TIME_S);
+        return PLANT_ERROR;
+    }
+    return PLANT_OK;
+}
+
 void plant_message(PlantMessage *msg, const char *format, ...)
 {
     va_list args;

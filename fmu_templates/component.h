@@ -50,6 +50,9 @@ PlantStatus component_check_flags(const int *flags, int n_flags, int state_initi
 /* ModelData zeroed, every Real variable at its start value, the parameters to be checked:
  * what each component's plant_set_defaults starts from. */
 void component_set_defaults(ModelData *m);
+/* A communication step of step_s from m->time_s: > 0, at most GT_MAX_COMMUNICATION_STEP_S and
+ * ending within GT_MAX_TIME_S; else PLANT_ERROR saying which. */
+PlantStatus component_check_step(const ModelData *m, double step_s, PlantMessage *msg);
 
 /* Called by the glue. */
 void plant_set_defaults(ModelData *m);

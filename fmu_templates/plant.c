@@ -206,14 +206,7 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     if (check_inputs(opening_mm, flow_m3h, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
-    if (!(step_s > 0.0 && step_s <= GT_MAX_COMMUNICATION_STEP_S)) {
-        plant_message(msg, "communication step %.17g s must be > 0 and at most %g s (the limit)",
-                      step_s, GT_MAX_COMMUNICATION_STEP_S);
-        return PLANT_ERROR;
-    }
-    if (!(fabs(m->time_s + step_s) <= GT_MAX_TIME_S)) {
-        plant_message(msg, "communication step to t = %.17g s passes the time limit %g s",
-                      m->time_s + step_s, GT_MAX_TIME_S);
+    if (component_check_step(m, step_s, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
     if (check_parameters_if_changed(m, msg) != PLANT_OK) {
