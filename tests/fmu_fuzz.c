@@ -220,9 +220,9 @@ static void read_spec(const char *path)
         spec_line(text, path, ++line);
     }
     fclose(file);
-    if (!spec.guid[0] || spec.n_real == 0 || spec.n_inputs == 0 || spec.n_outputs == 0 ||
+    if (!spec.guid[0] || spec.n_real == 0 || spec.n_outputs == 0 ||
         spec.data_size < 8 * (1 + (size_t)spec.n_real) || spec.period_vr >= (long)spec.n_real) {
-        bad_spec(path, 0, "needs a guid, inputs, outputs, a data_size holding time and every "
+        bad_spec(path, 0, "needs a guid, outputs, a data_size holding time and every "
                           "variable, a sample_period among the variables");
     }
     for (k = 0; k < spec.n_int_fields; k++) {
@@ -648,7 +648,9 @@ static void op_misc(Fuzz *f)
 {
     const Api *api = f->api;
     long long logs_before;
-    fmi2ValueReference vr[2] = {spec.outputs[0], spec.inputs[0]};
+    /* an FMU without inputs (a signal source) is asked about its output twice */
+    fmi2ValueReference vr[2] = {spec.outputs[0],
+                                spec.n_inputs ? spec.inputs[0] : spec.outputs[0]};
     fmi2Real real[2] = {0.0, 0.0}, number;
     fmi2Integer order[2] = {1, 1}, integer;
     fmi2Status status;

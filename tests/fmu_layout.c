@@ -5,7 +5,7 @@
  * and the component's ModelData, whatever the component. Prints `data_size` (sizeof
  * ModelData) and one `int_field NAME OFFSET` per int the component's state checks must guard:
  * `parameters_changed` (every component, component.h), and the fields of the components this
- * file knows (a plant, the PI and MPC controllers, the observers); another component gets
+ * file knows (a plant, the PI and MPC controllers, the observers, the scenario); another component gets
  * parameters_changed only.
  *
  * With the argument `cache` (a plant only) it prints `NAME OFFSET` for the fields of the step
@@ -61,7 +61,7 @@ int main(int argc, char **argv)
     INT_FIELD(parameters_changed);
 #if defined(GATETWIN_PLANT_DATA_H) || defined(GATETWIN_CONTROLLER_DATA_H) || \
     defined(GATETWIN_MPC_DATA_H) || defined(GATETWIN_OBSERVER_DATA_H) || \
-    defined(GATETWIN_OBSERVER_ENVELOPE_DATA_H)
+    defined(GATETWIN_OBSERVER_ENVELOPE_DATA_H) || defined(GATETWIN_SIGNAL_DATA_H)
     INT_FIELD(initialized);
 #endif
 #ifdef GATETWIN_MPC_DATA_H

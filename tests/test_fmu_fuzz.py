@@ -9,7 +9,7 @@ its modelDescription.xml (and its state's layout, tests/fmu_layout.c). One FMU p
 family: the envelope FOPDT and the physical model of the repository (with their validity
 envelopes), a FOPDT and an ARX plant carrying every effect block; the PI controller FMU
 of the envelope FOPDT; the MPC controller FMU and the observer FMU of its FOPDT (without the
-seiche they do not cover), both with casadi-generated arithmetic.
+seiche they do not cover), both with casadi-generated arithmetic; the scenario FMU of an SSP.
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ VALIDITY = {"validity": {"opening_mm": [10.0, 40.0], "flow_m3h": [30.0, 85.0],
 #: three times a sample).
 SEQUENCES = {"fopdt_envelope": 4000, "fopdt_effects": 4000, "arx_effects": 3000,
              "physical": 1000, "pi_controller": 3000, "mpc_controller": 150,
-             "observer": 1000, "observer_envelope": 100}  # fmt: skip
+             "observer": 1000, "observer_envelope": 100, "scenario": 3000}  # fmt: skip
 #: The MPC controller FMU's horizon: short, to keep its build and its samples quick (the
 #: code paths are those of any horizon).
 MPC_HORIZON = 10
@@ -94,6 +94,15 @@ def _export(case: str, folder: Path) -> Path:
     """The FMI 2.0 C FMU of ``case``."""
     if case in ("mpc_controller", "observer", "observer_envelope"):
         return _export_generated(case, folder)
+    if case == "scenario":  # an SSP's scenario: a held and a linear table, no inputs
+        from gatetwin.fmu.signal_source import TableSignal, export_signal_source
+
+        signals = [
+            TableSignal("setpoint_mm", "mm", (0.0, 6.0, 12.0), (180.0, 200.0, 170.0)),
+            TableSignal("flow_m3h", "m3/h", (0.0, 60.0), (40.0, 60.0), linear=True),
+        ]
+        return export_signal_source(signals, folder / f"{case}.fmu", step_size_s=1.2,
+                                    model_identifier=f"fuzz_{case}")  # fmt: skip
     if case == "pi_controller":
         model = read_model_file(MODELS / "fopdt_3F.json")
         return export_controller(model, "pi", folder / f"{case}.fmu", model_name=f"fuzz_{case}")
