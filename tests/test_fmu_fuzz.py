@@ -43,7 +43,7 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 #: A validity envelope for the test plants (their knots span 30..85 m3/h).
 VALIDITY = {"validity": {"opening_mm": [10.0, 40.0], "flow_m3h": [30.0, 85.0],
                          "level_mm": [150.0, 450.0]}}  # fmt: skip
-#: case -> sequences in the default run (16,250 in all, seconds of fuzzing on one core; a
+#: case -> sequences in the default run (19,250 in all, seconds of fuzzing on one core; a
 #: physical step of 1e5 s integrates 1.7e5 RK4 sub-steps, so the physical FMU gets fewer; the
 #: MPC's initialisation iterates the Riccati map and every sample solves a QP, ~70 ms a
 #: sequence under the sanitizers, so it gets fewest; the envelope observer bisects the gate law
