@@ -33,9 +33,7 @@ MODEL = TESTS.parent / "models" / "fopdt_3F.json"
 WINE = shutil.which("wine") or shutil.which("wine64")
 needs_zig = pytest.mark.skipif(not zig_available(), reason="ziglang (gatetwin[cross]) absent")
 #: Minutes of cross-compiling and of wine and qemu runs: CI runs the module with the slow subset
-#: One worker runs the module (CI's slow run distributes by group): its FMUs are exported
-#: once, and Zig's first builds for each target (minutes on a fresh machine) happen once.
-pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("platforms")]
+pytestmark = pytest.mark.slow
 #: The FMI 2.0 co-simulation functions every binary must export.
 FMI2_FUNCTIONS = {
     "fmi2GetTypesPlatform", "fmi2GetVersion", "fmi2SetDebugLogging", "fmi2Instantiate",
