@@ -12,6 +12,14 @@ from typing import Any
 
 from gatetwin.errors import OutputError
 
+__all__ = [
+    "check_writable",
+    "undone_on_failure",
+    "write_bytes_atomic",
+    "write_json_atomic",
+    "write_text_atomic",
+]
+
 
 def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
     """Write ``data`` to ``path`` through a temporary file renamed into place.

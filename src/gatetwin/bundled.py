@@ -10,6 +10,8 @@ from pathlib import Path
 
 from gatetwin.errors import GatetwinError
 
+__all__ = ["bundled_records_dir", "bundled_swmm_model"]
+
 
 def bundled_records_dir() -> Path:
     """The folder of the bundled records (``gatetwin/data/records``).

@@ -7,6 +7,25 @@ left to propagate as ordinary Python exceptions.
 
 from __future__ import annotations
 
+__all__ = [
+    "ControlError",
+    "ExportError",
+    "FlumeError",
+    "GatetwinError",
+    "IdentificationError",
+    "ModelFileError",
+    "NoWindowError",
+    "OnsetError",
+    "OutputError",
+    "PipelineError",
+    "PlantError",
+    "RecordError",
+    "ReportError",
+    "SimulationError",
+    "SspError",
+    "ValidationError",
+]
+
 
 class GatetwinError(Exception):
     """Base class of all errors gatetwin reports to a user."""

@@ -24,6 +24,23 @@ from gatetwin.plant.model import Plant, check_operating_storage, plant_from_dict
 from gatetwin.records.limits import open_regular
 from gatetwin.version import __version__
 
+__all__ = [
+    "FLOW_METER_ACCURACY_M3H",
+    "SCHEMA_ID",
+    "SCHEMA_MAJOR",
+    "SCHEMA_VERSION",
+    "UNITS",
+    "ModelFile",
+    "applies_to",
+    "model_document",
+    "physical_document",
+    "read_model_file",
+    "schema_text",
+    "validity_envelope",
+    "write_model_file",
+    "write_model_files",
+]
+
 SCHEMA_ID = "https://gatetwin.invalid/schema/model-1.json"
 SCHEMA_VERSION = "1.0"
 SCHEMA_MAJOR = SCHEMA_VERSION.split(".")[0]

@@ -34,6 +34,21 @@ from typing import Any
 
 from gatetwin.errors import ModelFileError
 
+__all__ = [
+    "MAX_DEPTH",
+    "MAX_FILE_BYTES",
+    "MAX_TEXT_CHARS",
+    "SHOW_CHARS",
+    "check_general_rules",
+    "check_model_document",
+    "check_plant_section",
+    "format_path",
+    "model_schema",
+    "parse_model_json",
+    "show",
+    "text_problem",
+]
+
 #: Largest model file read, bytes (the bundled ones are ~14 kB).
 MAX_FILE_BYTES = 4 * 1024 * 1024
 #: Deepest nesting of objects and arrays (the bundled files reach 6).

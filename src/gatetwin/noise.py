@@ -47,6 +47,24 @@ from scipy import optimize
 from gatetwin.records import Record
 from gatetwin.records.record import per_record_memo
 
+__all__ = [
+    "CORRELATION_LAGS",
+    "MAD_TO_SD",
+    "MAX_CORRELATION_S",
+    "METHOD_DIFFERENCES",
+    "METHOD_HOLDS",
+    "METHOD_UNCORRECTED",
+    "MIN_STRETCH_SAMPLES",
+    "STRETCH_GAP_FACTOR",
+    "NoiseFloor",
+    "flow_steps",
+    "hold_openings",
+    "noise_floor",
+    "plain_pooled_sd",
+    "record_noise_floor",
+    "steady_stretches",
+]
+
 MIN_STRETCH_SAMPLES = 24
 MAD_TO_SD = 1.4826
 #: A time step longer than this many nominal periods ends a steady stretch (a logging gap).

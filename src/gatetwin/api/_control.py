@@ -17,6 +17,8 @@ import numpy as np
 from gatetwin.errors import GatetwinError
 from gatetwin.plant.model import ArxPlant
 
+__all__ = ["DT_RTOL", "arx_polynomials", "transfer_function", "zoh_fopdt"]
+
 #: Relative tolerance for "dt is the ARX model's own sample period".
 DT_RTOL = 1e-9
 

@@ -14,6 +14,8 @@ from gatetwin.api._model import Model
 from gatetwin.errors import GatetwinError
 from gatetwin.records import Record
 
+__all__ = ["Diagnosis", "diagnose"]
+
 
 @dataclass(frozen=True)
 class Diagnosis:

@@ -21,6 +21,8 @@ from gatetwin.api._model import Model, ModelSet, model_from_document
 from gatetwin.errors import IdentificationError
 from gatetwin.records import Record, StaticTable, read_record, read_static_table
 
+__all__ = ["AUTO_FAMILY", "FAMILIES", "identify", "identify_folder"]
+
 #: Families :func:`identify` fits from one record (``auto``: by the record's test type).
 FAMILIES = ("auto", "fopdt", "arx", "physical")
 #: The family ``auto`` picks per test type.

@@ -27,6 +27,8 @@ if TYPE_CHECKING:  # model files and plants pull in scipy: imported where they a
     from gatetwin.modelfile import ModelFile
     from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant
 
+__all__ = ["Model", "ModelSet", "OperatingPoint", "load_model", "model_from_document"]
+
 #: FMI versions :meth:`Model.export_fmu` writes.
 
 

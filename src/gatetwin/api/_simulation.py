@@ -18,6 +18,8 @@ from gatetwin.errors import GatetwinError
 if TYPE_CHECKING:  # the plant package pulls in scipy: imported where it is used
     from gatetwin.plant.model import Plant
 
+__all__ = ["SimulationResult", "require_pandas", "simulate_plant"]
+
 
 def require_pandas() -> Any:
     """The pandas module, or a one-line :class:`GatetwinError` saying it is missing."""

@@ -11,6 +11,8 @@ from typing import Any
 from gatetwin.api._simulation import require_pandas
 from gatetwin.records import Record, read_record
 
+__all__ = ["ValidationReport", "validate"]
+
 
 def _many(value: Any, single: tuple[type, ...]) -> list[Any]:
     return [value] if isinstance(value, single) else list(value)

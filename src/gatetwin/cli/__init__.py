@@ -27,6 +27,8 @@ from gatetwin.records.sidecar import TEST_TYPES
 from gatetwin.records.summary import format_record_summary, format_static_summary
 from gatetwin.version import __version__
 
+__all__ = ["EXIT_ERROR", "Command", "build_parser", "main", "print_to_stderr"]
+
 #: Exit code for a refused input or a failed command.
 EXIT_ERROR = 2
 

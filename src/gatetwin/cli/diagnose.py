@@ -10,6 +10,8 @@ from typing import Any
 from gatetwin._io import write_json_atomic
 from gatetwin.errors import GatetwinError
 
+__all__ = ["add_diagnose_arguments", "add_spread_arguments", "run_diagnose", "spread_settings"]
+
 
 def add_diagnose_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("record", metavar="RECORD.csv", nargs="+",

@@ -12,6 +12,24 @@ from typing import Any
 from gatetwin._io import check_writable, undone_on_failure, write_json_atomic
 from gatetwin.errors import GatetwinError, IdentificationError
 
+__all__ = [
+    "TEST_CHOICES",
+    "add_export_arguments",
+    "add_export_controller_arguments",
+    "add_export_observer_arguments",
+    "add_identify_arguments",
+    "add_models_arguments",
+    "add_observe_arguments",
+    "add_routine_arguments",
+    "run_export",
+    "run_export_controller",
+    "run_export_observer",
+    "run_identify",
+    "run_models",
+    "run_observe",
+    "run_routine",
+]
+
 TEST_CHOICES = ("step", "prbs")
 
 

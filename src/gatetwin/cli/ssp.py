@@ -8,6 +8,8 @@ from dataclasses import replace
 from gatetwin._io import check_writable
 from gatetwin.errors import GatetwinError
 
+__all__ = ["add_simulate_ssp_arguments", "add_ssp_arguments", "run_simulate_ssp", "run_ssp"]
+
 
 def add_ssp_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("model", metavar="MODEL.json", help="FOPDT model file")

@@ -10,6 +10,8 @@ from typing import Any
 
 from gatetwin.errors import GatetwinError
 
+__all__ = ["DEMO_DEFAULT", "add_swmm_arguments", "run_swmm", "run_swmm_demo", "run_swmm_experiment"]
+
 
 def add_swmm_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="swmm_command", metavar="SUBCOMMAND", required=True,

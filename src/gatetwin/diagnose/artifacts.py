@@ -24,6 +24,14 @@ from gatetwin.plant.model import Plant
 from gatetwin.plant.simulate import PlantSimulator
 from gatetwin.records import Record
 
+__all__ = [
+    "export_and_validate",
+    "harness_inputs",
+    "model_name",
+    "reference_on_grid",
+    "write_augmented_model",
+]
+
 
 def model_name(record: Record, gauge: str, effect: str) -> str:
     """A C identifier for the augmented model: ``<record>_<gauge>_<effect>``."""

@@ -34,6 +34,15 @@ from gatetwin.identify.prbs import identify_prbs
 from gatetwin.plant.model import ArxPlant, FopdtPlant, PhysicalPlant, Plant, Schedule
 from gatetwin.records import Record
 
+__all__ = [
+    "Baseline",
+    "flat_knots",
+    "identify_baseline",
+    "model_baseline",
+    "record_span_s",
+    "refit",
+]
+
 _T_GRID_S = np.geomspace(3.0, 400.0, 16)
 _L_GRID_S = (0.0, 0.6, 1.5, 3.0, 6.0, 12.0, 24.0)
 

@@ -25,6 +25,8 @@ from gatetwin.identify.preprocess import reconstructed_opening
 from gatetwin.noise import flow_steps
 from gatetwin.records import Record
 
+__all__ = ["INPUTS", "DiagnosisData", "Move", "commanded_opening", "prepare"]
+
 INPUTS = ("command", "reconstructed")
 
 

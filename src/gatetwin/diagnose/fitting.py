@@ -30,6 +30,23 @@ from gatetwin.diagnose.grid_sim import simulate_grid
 from gatetwin.errors import GatetwinError
 from gatetwin.plant.model import FopdtPlant, Plant, Schedule
 
+__all__ = [
+    "ARX_COEFFICIENT_SHIFT",
+    "FOPDT_ADJUST",
+    "GRID_DEAD_TIMES_S",
+    "GRID_TIME_CONSTANTS_S",
+    "PENALTY_MM",
+    "Fit",
+    "Parametrization",
+    "adjusted",
+    "baseline_bounds",
+    "effective_n",
+    "fit_plant",
+    "grid_start",
+    "plant_parametrization",
+    "rmse",
+]
+
 #: Residual of a parameter vector the plant cannot be built or run with, mm.
 PENALTY_MM = 1e4
 #: Baseline adjustments, FOPDT then ARX: (name, lower, upper, neutral).

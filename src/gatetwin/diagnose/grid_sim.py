@@ -29,6 +29,8 @@ from gatetwin.plant.effects import EffectSet
 from gatetwin.plant.kernel_render import numba_functions
 from gatetwin.plant.model import ArxPlant, FopdtPlant, Plant
 
+__all__ = ["GridInputs", "grid_index", "grid_inputs", "simulate_grid"]
+
 
 @dataclass(frozen=True)
 class GridInputs:

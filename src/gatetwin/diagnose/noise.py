@@ -24,6 +24,16 @@ from gatetwin import noise as shared
 from gatetwin.diagnose.data import DiagnosisData
 from gatetwin.noise import NoiseFloor
 
+__all__ = [
+    "FALSE_ALARM",
+    "WINDOW_S",
+    "noise_floor",
+    "regions",
+    "steady_stretches",
+    "threshold_mm",
+    "windows",
+]
+
 WINDOW_S = 30.0
 #: Chance that a white residual at the noise floor raises a window (or a region) anywhere.
 FALSE_ALARM = 0.01

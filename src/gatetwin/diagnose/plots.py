@@ -12,6 +12,8 @@ import numpy as np
 
 from gatetwin.diagnose.data import DiagnosisData
 
+__all__ = ["diagnosis_png"]
+
 
 def diagnosis_png(
     data: DiagnosisData,

@@ -32,6 +32,21 @@ from gatetwin.diagnose.grid_sim import simulate_grid
 from gatetwin.errors import GatetwinError
 from gatetwin.identify.metrics import Whiteness, residual_whiteness
 
+__all__ = [
+    "CONTRIBUTION_WINDOW",
+    "SCORE_THRESHOLD",
+    "TIE_SCORE",
+    "WHITENESS_LAGS",
+    "CandidateResult",
+    "block_contribution",
+    "choose",
+    "evaluate",
+    "fit_candidate",
+    "rmse_parts",
+    "score",
+    "whiteness",
+]
+
 SCORE_THRESHOLD = 10.0
 TIE_SCORE = 2.0
 CONTRIBUTION_WINDOW = 20

@@ -34,6 +34,8 @@ from gatetwin.diagnose.fitting import Fit, effective_n
 from gatetwin.diagnose.grid_sim import GridInputs, simulate_grid
 from gatetwin.plant.effects import effect_dict
 
+__all__ = ["SUGGEST_STRENGTH", "Signature", "move_coefficients", "signatures"]
+
 SUGGEST_STRENGTH = 2.0
 
 

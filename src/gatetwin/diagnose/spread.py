@@ -22,6 +22,8 @@ from gatetwin.diagnose.workflow import DiagnosisSettings, diagnose_record
 if TYPE_CHECKING:
     from gatetwin.fleet.execute import FleetSettings
 
+__all__ = ["DiagnoseTask", "diagnose_records", "diagnose_task"]
+
 #: Sub-folders of a task's private folder: the figure, the FMUs and augmented model file.
 _PLOTS, _FMUS = "plots", "fmus"
 

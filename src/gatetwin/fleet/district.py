@@ -29,6 +29,30 @@ from gatetwin.flume.experiments import Scenario
 from gatetwin.flume.logger import FLUME_VERSION, LoggerConfig, log_run
 from gatetwin.flume.simulate import run_flume, spin_up, steady_gate_depth_m
 
+__all__ = [
+    "DISTRICT_DX_M",
+    "FIT_FLOWS_M3H",
+    "GAUGE",
+    "GAUGE_DISTANCE_M",
+    "HELD_OUT_FLOW_M3H",
+    "POST_STEP_S",
+    "PRE_STEP_S",
+    "SPIN_UP_S",
+    "STATIC_OFFSETS_MM",
+    "STATIC_SAMPLES",
+    "STEP_MM",
+    "TARGET_LEVEL_MM",
+    "GateTruth",
+    "district_gates",
+    "expected_samples",
+    "gate_conditions",
+    "operating_opening_mm",
+    "static_table_csv",
+    "truth_document",
+    "write_district",
+    "write_gate",
+]
+
 #: The one gauge of a district gate: the upstream level sensor 1.1 m from the gate.
 GAUGE = "U"
 GAUGE_DISTANCE_M = 1.1

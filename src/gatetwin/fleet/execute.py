@@ -26,6 +26,21 @@ from typing import Any
 
 from gatetwin.errors import GatetwinError
 
+__all__ = [
+    "POOL_THREADS",
+    "WORKER_POLL_S",
+    "Crashed",
+    "FleetSettings",
+    "Progress",
+    "Task",
+    "connect",
+    "default_workers",
+    "map_tasks",
+    "run_tasks",
+    "shared_pool",
+    "spawn_environment",
+]
+
 Progress = Callable[[str], None]
 
 #: Threads of the numerical libraries in a local pool's processes, set where the caller's

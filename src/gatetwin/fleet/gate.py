@@ -22,6 +22,19 @@ from typing import Any
 from gatetwin.errors import GatetwinError
 from gatetwin.fleet.execute import FleetSettings, Progress, run_tasks
 
+__all__ = [
+    "FAMILIES",
+    "GateJob",
+    "failed_summary",
+    "gate_summary",
+    "identify_gate",
+    "identify_histories",
+    "identify_history",
+    "is_routine_history",
+    "routine_summary",
+    "run_gates",
+]
+
 #: Model-file families, by the prefix of the model name.
 FAMILIES = ("fopdt", "physical", "arx")
 

@@ -29,6 +29,16 @@ from gatetwin.flume.config import FlumeConfig
 from gatetwin.flume.logger import FLUME_VERSION
 from gatetwin.flume.routine import ROUTINE_DX_M, RoutineSettings, routine_history
 
+__all__ = [
+    "DISTRICT_CONTROLS",
+    "ROUTINE_NAME",
+    "base_flow_m3h",
+    "gate_control",
+    "routine_flume",
+    "write_routine_district",
+    "write_routine_gate",
+]
+
 #: How district gates are driven: ``mixed`` puts every fourth gate under level control.
 DISTRICT_CONTROLS = ("schedule", "pi", "mixed")
 #: File stem of a gate's history.

@@ -30,6 +30,8 @@ from gatetwin.fleet.summary import (
     summary_paths,
 )
 
+__all__ = ["run_fleet", "write_gate_outputs"]
+
 
 def write_gate_outputs(result: dict[str, Any], out: Path) -> list[Path]:
     """Write one identified gate's model files (and FMUs) into ``out/<gate>/``, and each

@@ -26,6 +26,14 @@ from gatetwin.errors import GatetwinError
 from gatetwin.fleet.summary import summary_paths
 from gatetwin.records.chunks import HISTORY_SUFFIXES
 
+__all__ = [
+    "GateRecords",
+    "discover_gates",
+    "is_history_folder",
+    "is_one_records_folder",
+    "sidecar_gate",
+]
+
 _GLOB_CHARS = frozenset("*?[")
 #: A gate name becomes a folder name in the output: letters, digits, ``._-``, no leading dot.
 _GATE_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]*")

@@ -20,6 +20,16 @@ import numpy as np
 
 from gatetwin import __version__
 
+__all__ = [
+    "HEADER",
+    "SUMMARY_SCHEMA",
+    "fleet_document",
+    "fleet_figure_png",
+    "fleet_html",
+    "fleet_markdown",
+    "summary_paths",
+]
+
 SUMMARY_SCHEMA = "gatetwin-fleet/1"
 
 

@@ -24,6 +24,8 @@ from gatetwin.flume.paper_targets import GAUGES, STEP_TABLES
 from gatetwin.flume.simulate import spin_up
 from gatetwin.flume.solver import Grid
 
+__all__ = ["calibrate_gate", "constant_cd_for", "main", "steady_depths_mm"]
+
 _CONSTANT = dict(r_low=0.0, r_high=10.0)
 
 

@@ -11,6 +11,8 @@ from dataclasses import dataclass, field, replace
 
 from gatetwin.errors import FlumeError
 
+__all__ = ["PAPER_GAUGES_M", "FlumeConfig", "GateLaw"]
+
 #: Gauge name → distance upstream of the gate, m (the paper's Figure 1).
 PAPER_GAUGES_M: dict[str, float] = {"1D": 3.0, "2E": 2.1, "3F": 1.1, "4G": 0.7, "5H": 0.2}
 

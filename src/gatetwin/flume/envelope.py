@@ -26,6 +26,22 @@ from gatetwin.flume.scenario import Breakpoints, Scenario
 from gatetwin.flume.simulate import steady_gate_depth_m
 from gatetwin.records.sidecar import VALIDATION_ROLE
 
+__all__ = [
+    "ENVELOPE_FLOW_M3H",
+    "ENVELOPE_LEVEL_MM",
+    "ENVELOPE_OPENING_MM",
+    "LEVEL_MARGIN_MM",
+    "START_S",
+    "both_scenario",
+    "envelope_openings_mm",
+    "envelope_scenarios",
+    "flow_steps_scenario",
+    "in_band",
+    "moves_scenario",
+    "random_moves_scenario",
+    "steady_levels_mm",
+]
+
 #: Discharge span of the calibrated envelope, m³/h.
 ENVELOPE_FLOW_M3H = (30.0, 80.0)
 #: Opening span of the calibrated envelope, mm.

@@ -13,6 +13,8 @@ from numba import njit
 
 from gatetwin.flume.config import GateLaw
 
+__all__ = ["CONTRACTION", "G", "discharge_coefficient", "gate_law_array", "unit_discharge"]
+
 G = 9.81
 #: Contraction coefficient used only for the free/submerged transition (vena contracta).
 CONTRACTION = 0.61

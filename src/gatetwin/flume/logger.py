@@ -28,6 +28,8 @@ from gatetwin.flume.config import FlumeConfig
 from gatetwin.flume.gate import G
 from gatetwin.flume.simulate import FlumeRun
 
+__all__ = ["FLUME_VERSION", "LoggedRecord", "LoggerConfig", "froude", "log_run"]
+
 FLUME_VERSION = "1.0"
 
 

@@ -7,6 +7,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+__all__ = [
+    "GAUGES",
+    "STEP_TABLES",
+    "TABLE_2",
+    "TABLE_3",
+    "TABLE_4",
+    "TABLE_5",
+    "ArxRow",
+    "StaticGainRow",
+    "StepTable",
+]
+
 GAUGES = ("1D", "2E", "3F", "4G", "5H")
 
 

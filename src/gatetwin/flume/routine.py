@@ -31,6 +31,26 @@ from gatetwin.flume.logger import LoggedRecord, LoggerConfig, log_run
 from gatetwin.flume.simulate import FlumeRun, run_flume, spin_up
 from gatetwin.identify.fopdt_driven import fit_fopdt_driven
 
+__all__ = [
+    "CONTROL_MODES",
+    "LEVEL_BAND_MM",
+    "ROUTINE_DX_M",
+    "TRUTH_POST_S",
+    "TRUTH_PRE_S",
+    "TRUTH_SPIN_UP_S",
+    "LocalFopdt",
+    "RoutineSettings",
+    "inflow_m3h",
+    "local_fopdt",
+    "logged_opening",
+    "moves_of",
+    "opening_for_level",
+    "operator_schedule",
+    "routine_history",
+    "routine_run",
+    "run_pi_loop",
+]
+
 #: Cell size of routine runs, m: the pool's slow mode (what K and T describe) is the same
 #: to 4 digits at 0.1 m and 0.5 m, and 0.5 m runs a week at 1.2 s in a few seconds.
 ROUTINE_DX_M = 0.5

@@ -14,6 +14,8 @@ import numpy as np
 
 from gatetwin.errors import FlumeError
 
+__all__ = ["Breakpoints", "Scenario", "with_inflow"]
+
 Breakpoints = tuple[tuple[float, float], ...]
 
 

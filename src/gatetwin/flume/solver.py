@@ -23,6 +23,17 @@ from numba import njit
 from gatetwin.flume.config import FlumeConfig
 from gatetwin.flume.gate import G, gate_law_array, unit_discharge
 
+__all__ = [
+    "Grid",
+    "HydraulicState",
+    "advance",
+    "law_of",
+    "leaf_speed",
+    "leaf_step",
+    "tailwater_of",
+    "time_step_s",
+]
+
 
 @dataclass(frozen=True)
 class Grid:

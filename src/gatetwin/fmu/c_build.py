@@ -29,6 +29,38 @@ from gatetwin.fmu.description import (
 )
 from gatetwin.fmu.description3 import model_description_xml3
 
+__all__ = [
+    "CFLAGS",
+    "COMMON_HEADERS",
+    "COMMON_SOURCES",
+    "FLAGS",
+    "FMI_APIS",
+    "GENERATED_SUPPORT_FILES",
+    "GENERATED_SUPPORT_SOURCES",
+    "GLUE_CORE_HEADERS",
+    "GLUE_CORE_SOURCES",
+    "HOST_FLAGS",
+    "KERNEL_HEADERS",
+    "KERNEL_PREFIX",
+    "KERNEL_SOURCES",
+    "FmiApi",
+    "build_c_fmu",
+    "build_description_xml",
+    "build_generated_component",
+    "c_double",
+    "check_fmi_version",
+    "compile_shared",
+    "find_compiler",
+    "fmu_target",
+    "generated_blocks",
+    "generated_kernel",
+    "source_files",
+    "templates_dir",
+    "write_atomically",
+    "write_sources",
+    "zip_folder",
+]
+
 #: Compile flags of every C FMU; -ffp-contract=off keeps compilers from fusing a*b+c into
 #: one FMA, which would change results in the last bit against the Python reference. -O3
 #: lets GCC vectorise loops of unknown length (the MPC controller's QP updates: its doStep

@@ -25,6 +25,15 @@ import numpy as np
 from gatetwin.errors import ExportError, GatetwinError
 from gatetwin.plant.model import OPENING_RANGE_MM, ArxPlant, PhysicalPlant, Plant
 
+__all__ = [
+    "MAX_GAUGE_CHARS",
+    "c_string_literal",
+    "check_finite_response",
+    "check_well_formed",
+    "gauge_name_ok",
+    "xml_text",
+]
+
 #: Characters XML 1.0 cannot hold (tab, newline and carriage return it can).
 _NOT_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
 #: What a string literal of model_config.h may contain (variable names, GUID, identifier).

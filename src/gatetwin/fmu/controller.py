@@ -444,10 +444,13 @@ def export_controller(
 __all__ = [
     "CONTROLLER_KINDS",
     "ControllerDescription",
+    "build_controller_fmu",
     "check_controller_kind",
     "controller_config_header",
     "describe_pi_controller",
     "export_controller",
     "generated_pi_law",
     "pi_files",
+    "rest_level_mm",
+    "write_controller_sources",
 ]

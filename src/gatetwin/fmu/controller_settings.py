@@ -64,6 +64,24 @@ from gatetwin.plant.model import (
     steady_depth_m,
 )
 
+__all__ = [
+    "BISECTION_STEPS",
+    "DISTURBANCE_SHARE",
+    "GAIN_FLOOR",
+    "HORIZON_MAX",
+    "HORIZON_MIN",
+    "LEGACY_SAMPLE_PERIOD_S",
+    "LINEARISATION_KNOTS",
+    "SETTLING_TIME_CONSTANTS",
+    "controller_plant",
+    "derived_settings",
+    "horizon",
+    "level_band_mm",
+    "observer_settings",
+    "opening_rate_mm_s",
+    "sample_period_s",
+]
+
 #: Longest MPC horizon, samples (the step's cost grows about as N³; 100 is what the C MPC
 #: solves within a sample on the flume's 1.2 s).
 HORIZON_MAX = 100

@@ -22,6 +22,8 @@ from gatetwin.modelfile import ModelFile
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import Record
 
+__all__ = ["REL_TOL", "write_cross_check"]
+
 #: Relative tolerance an importer compares the output with (far above the 1e-9 mm agreement
 #: of the renderings, far below any model error).
 REL_TOL = 1e-6

@@ -72,6 +72,29 @@ from gatetwin.plant.simulate import (
     FOPDT_MAX_STEP_S,
 )
 
+__all__ = [
+    "COMMUNICATION_POINT_RTOL",
+    "LOG_CATEGORIES",
+    "MAX_ARX_ORDER",
+    "UNITS",
+    "CoSimulationFlags",
+    "ComponentInterface",
+    "FmuDescription",
+    "VariableSpec",
+    "component_config_lines",
+    "describe",
+    "finished_xml",
+    "guid_of",
+    "initial_dependencies",
+    "model_config_header",
+    "model_description_xml",
+    "output_name",
+    "shared_elements",
+    "slave_config",
+    "variable_table_lines",
+    "xml_bool",
+]
+
 #: Largest ARX orders the FMUs accept (fixed-size C state).
 MAX_ARX_ORDER = 8
 #: doStep refuses a currentCommunicationPoint further than this (relative) from the FMU's time.

@@ -29,6 +29,8 @@ from gatetwin.fmu.description import (
     xml_bool,
 )
 
+__all__ = ["TIME_NAME", "model_description_xml3", "time_vr"]
+
 #: Name of FMI 3.0's independent variable.
 TIME_NAME = "time"
 

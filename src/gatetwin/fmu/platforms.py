@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 from gatetwin.errors import ExportError
 
+__all__ = ["HOST", "PLATFORMS", "Platform", "platforms_of", "resolve", "zig_available", "zig_cc"]
+
 
 @dataclass(frozen=True)
 class Platform:

@@ -11,6 +11,8 @@ from typing import Any
 
 from gatetwin.modelfile import ModelFile
 
+__all__ = ["fmu_provenance"]
+
 
 def fmu_provenance(model: ModelFile) -> dict[str, Any]:
     """The provenance an FMU of ``model`` stores (JSON data: lists, no tuples).

@@ -26,6 +26,23 @@ from gatetwin.fmu.description import (
     slave_config,
 )
 
+__all__ = [
+    "BLOCKS",
+    "ELEMENTARY",
+    "FLAGS",
+    "GUARD",
+    "KERNEL",
+    "STATE",
+    "TEMPLATE",
+    "blocks_source",
+    "build_python_fmu",
+    "guard_source",
+    "kernel_source",
+    "module_name",
+    "module_source",
+    "slave_source",
+]
+
 TEMPLATE = Path(__file__).with_name("slave_template.py")
 BLOCKS = Path(__file__).resolve().parents[1] / "plant" / "blocks.py"
 _CONFIG_LINE = 'CONFIG_JSON = "{}"  # replaced at export by gatetwin.fmu.python_build'

@@ -283,4 +283,5 @@ def export_signal_source(
 
 
 __all__ = ["MAX_KNOTS", "SignalSourceDescription", "TableSignal", "describe_signal_source",
-           "build_signal_source", "export_signal_source", "parameter_values"]  # fmt: skip
+           "build_signal_source", "config_header", "export_signal_source",
+           "generated_signal_law", "parameter_values"]  # fmt: skip

@@ -37,6 +37,16 @@ from typing import Any, ClassVar
 from pythonfmu import Fmi2Slave
 from pythonfmu.enums import Fmi2Status
 
+__all__ = [
+    "PINNED_REFERENCES",
+    "STATE_FORMAT",
+    "STATE_VERSION",
+    "FmiRefusedError",
+    "GuardedSlave",
+    "RefusedError",
+    "StateHandle",
+]
+
 #: References each state handle holds on itself against hosts that free a state twice.
 PINNED_REFERENCES = 64
 #: ``format`` of a serialised state; ``version`` changes when its layout does.

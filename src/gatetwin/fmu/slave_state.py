@@ -11,6 +11,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+__all__ = ["FX_KEYS", "STATE_KEYS", "StateError", "check_state"]
+
 
 class StateError(ValueError):
     """A restored state that does not fit this model (the message names the first fault)."""

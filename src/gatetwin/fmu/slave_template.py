@@ -60,6 +60,17 @@ from gatetwin.plant.blocks import (  # replaced by the module's source at export
 
 # END gatetwin.plant.blocks
 
+__all__ = [
+    "CONFIG",
+    "CONFIG_JSON",
+    "ERROR",
+    "OK",
+    "WARNING",
+    "GatetwinPlant",
+    "PlantError",
+    "interp_clamped",
+]
+
 CONFIG_JSON = "{}"  # replaced at export by gatetwin.fmu.python_build
 CONFIG: dict[str, Any] = json.loads(CONFIG_JSON)
 

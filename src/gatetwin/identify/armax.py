@@ -41,6 +41,8 @@ from gatetwin.identify.pem import PemOrders
 from gatetwin.identify.pemfit import PemFit, fit_pem
 from gatetwin.identify.preprocess import Segments
 
+__all__ = ["HR_ORDER", "fit_armax", "hannan_rissanen"]
+
 #: Orders ``na = nb`` of the long ARX model of the Hannan-Rissanen start.
 HR_ORDER = 10
 

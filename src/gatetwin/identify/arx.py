@@ -49,6 +49,19 @@ from gatetwin.identify.preprocess import (
     segment_mask,
 )
 
+__all__ = [
+    "MAX_CONDITION",
+    "ArxFit",
+    "Deviations",
+    "check_orders",
+    "deviations",
+    "fit_arx",
+    "fit_from_lag_products",
+    "predict_one_step",
+    "regression_rows",
+    "simulate_free",
+]
+
 
 @dataclass(frozen=True)
 class ArxFit:

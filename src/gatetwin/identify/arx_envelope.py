@@ -26,6 +26,8 @@ from gatetwin.plant.model import ArxPlant, PhysicalPlant, Schedule, envelope_poi
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import Record
 
+__all__ = ["POLE_BOUNDS", "EnvelopeArxCondition", "envelope_arx", "fit_condition"]
+
 #: Bounds of the pole: a stable, non-oscillating first-order mode.
 POLE_BOUNDS = (0.05, 0.9995)
 

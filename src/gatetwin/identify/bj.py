@@ -28,6 +28,8 @@ from gatetwin.identify.pem import PemOrders, innovations, reflect_into_unit_disc
 from gatetwin.identify.pemfit import PemFit, fit_pem
 from gatetwin.identify.preprocess import Segments
 
+__all__ = ["bj_start", "fit_bj"]
+
 
 def _ar_start(residuals: list[np.ndarray], nd: int) -> np.ndarray:
     """Least-squares AR(nd) coefficients (``+`` convention) of per-segment residuals."""

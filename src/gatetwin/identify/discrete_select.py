@@ -52,6 +52,19 @@ from gatetwin.identify.preprocess import Segments, segment_mask
 from gatetwin.identify.serial import finite_or_none
 from gatetwin.records import Record
 
+__all__ = [
+    "TIE_PERCENT",
+    "DiscreteCandidate",
+    "DiscreteSelection",
+    "StructureOrders",
+    "choose_structure",
+    "compare_structures",
+    "fit_estimation_summary",
+    "fit_structure",
+    "score_candidate",
+    "select_discrete",
+]
+
 #: Hold-out fits closer than this (percentage points) count as a tie.
 TIE_PERCENT = 1e-6
 

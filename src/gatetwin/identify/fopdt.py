@@ -24,6 +24,8 @@ from scipy import linalg, optimize
 from gatetwin.errors import IdentificationError
 from gatetwin.identify.serial import finite_or_none, none_to_nan
 
+__all__ = ["ROUND_OFF", "FopdtFit", "PaperStepResult", "fit_fopdt", "paper_step_method"]
+
 #: Threshold floor relative to the level, so that noise-free data (sigma_pre = 0) are
 #: not triggered by floating-point round-off of the pre-window mean.
 ROUND_OFF = 1e-9

@@ -19,6 +19,8 @@ from scipy import optimize, signal
 
 from gatetwin.errors import IdentificationError
 
+__all__ = ["GRID_S", "DrivenFopdtFit", "fit_fopdt_driven", "fopdt_response"]
+
 #: Simulation grid of the fit, s (the response is exact for input linear between points).
 GRID_S = 0.1
 

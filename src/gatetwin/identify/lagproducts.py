@@ -31,6 +31,8 @@ import numpy as np
 
 from gatetwin.errors import IdentificationError
 
+__all__ = ["Key", "LagProducts", "inner", "lag_products"]
+
 Key = tuple[str, int]
 
 

@@ -24,6 +24,22 @@ from gatetwin.identify.lagproducts import inner
 from gatetwin.identify.preprocess import Segments, as_segments, segment_mask
 from gatetwin.identify.serial import finite_or_none
 
+__all__ = [
+    "Z99",
+    "DominantPole",
+    "OneStepMetrics",
+    "SimulationMetrics",
+    "Whiteness",
+    "arx_poles",
+    "dc_gain",
+    "dominant_pole",
+    "free_run_on_segments",
+    "is_stable",
+    "one_step_metrics",
+    "residual_whiteness",
+    "simulation_metrics",
+]
+
 #: Two-sided 99 % quantile of the standard normal distribution.
 Z99 = 2.576
 

@@ -34,6 +34,8 @@ from gatetwin.identify.pem import PemOrders
 from gatetwin.identify.pemfit import PemFit, fit_pem
 from gatetwin.identify.preprocess import Segments
 
+__all__ = ["fit_oe"]
+
 
 def fit_oe(
     u: np.ndarray,

@@ -30,6 +30,8 @@ from gatetwin.identify.metrics import free_run_on_segments, is_stable
 from gatetwin.identify.preprocess import Segments, constant_within_segments, holdout_split
 from gatetwin.identify.serial import finite_or_none
 
+__all__ = ["CRITERIA", "Holdout", "OrderChoice", "OrderRow", "choose", "search_orders"]
+
 #: A hold-out given as a fraction of the record duration or as explicit segment sets.
 Holdout = float | tuple[Segments, Segments]
 

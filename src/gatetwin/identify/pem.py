@@ -57,6 +57,20 @@ from gatetwin.errors import IdentificationError
 from gatetwin.identify.arx import Deviations, check_orders, regression_rows
 from gatetwin.identify.metrics import is_stable
 
+__all__ = [
+    "BLOWN_UP_MM",
+    "STRUCTURES",
+    "PemOrders",
+    "innovations",
+    "is_admissible",
+    "jacobian",
+    "one_step_prediction",
+    "reflect_into_unit_disc",
+    "simulate_segment",
+    "stabilised",
+    "stacked_innovations",
+]
+
 #: The structures of the family, simplest first (the order ties are broken in).
 STRUCTURES = ("arx", "oe", "armax", "bj")
 

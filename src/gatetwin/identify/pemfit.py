@@ -25,6 +25,8 @@ from gatetwin.identify.pem import (
 )
 from gatetwin.identify.preprocess import constant_within_segments
 
+__all__ = ["PemFit", "fit_pem", "from_arx"]
+
 
 @dataclass(frozen=True)
 class PemFit:

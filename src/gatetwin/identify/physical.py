@@ -80,6 +80,41 @@ from gatetwin.plant.model import (
 )
 from gatetwin.records import Record
 
+__all__ = [
+    "ACTUATOR",
+    "AREA_SCAN",
+    "FIXED",
+    "FLOOR",
+    "LAW",
+    "LAWS",
+    "LAW_CORE",
+    "LAW_EVALUATIONS",
+    "NO_SEICHE",
+    "SEICHE",
+    "SEICHE_AMPLITUDE_MAX",
+    "SEICHE_AMPLITUDE_START",
+    "SEICHE_SIGNIFICANCE",
+    "STEADY_HOLD_SAMPLES",
+    "STEADY_SAMPLES",
+    "STORAGE",
+    "TAIL",
+    "TAIL_DEPTH_START",
+    "TAIL_EXPONENT_RANGE",
+    "TAIL_EXPONENT_START",
+    "ZERO_START",
+    "PhysicalFit",
+    "SteadyPoints",
+    "actuator_moves",
+    "data_ranges",
+    "fit_physical",
+    "fixed_parameters",
+    "kernel_simulator",
+    "law_start",
+    "seiche_periods_s",
+    "steady_points",
+    "values_depth",
+]
+
 #: A hold this many sample periods long counts as settled.
 STEADY_HOLD_SAMPLES = 300
 #: Samples averaged at the end of a settled hold.

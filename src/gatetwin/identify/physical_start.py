@@ -16,6 +16,21 @@ from gatetwin.errors import IdentificationError
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.records import Record
 
+__all__ = [
+    "DEPTH_MARGIN",
+    "FINEST_QUANTUM_MM",
+    "SUBSTEPS_PER_TIME_CONSTANT",
+    "TEXTBOOK_CD",
+    "WIDTH_QUANTILE",
+    "area_scan_m2",
+    "depth_bracket_m",
+    "flow_normalisation",
+    "gate_width_m",
+    "max_substep_s",
+    "opening_quantum_mm",
+    "sample_period_s",
+]
+
 #: Free-flow discharge coefficient of a sluice gate at small openings (Henderson, Open
 #: Channel Flow, 1966: 0.60-0.61), used only when the gate's width is not given.
 TEXTBOOK_CD = 0.61

@@ -53,6 +53,8 @@ from gatetwin.identify.serial import finite_or_none
 from gatetwin.identify.step import hold_mean_flow
 from gatetwin.records import Record
 
+__all__ = ["ROWS", "PrbsIdentification", "PrbsSignals", "identify_prbs", "prbs_signals"]
+
 ROWS = ("auto", "hold", "all")
 
 

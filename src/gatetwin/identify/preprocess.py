@@ -33,6 +33,22 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 from gatetwin.errors import IdentificationError
 
+__all__ = [
+    "MAD_TO_SD",
+    "Segments",
+    "SpikeCorrection",
+    "as_segments",
+    "clean_segments",
+    "constant_within_segments",
+    "continuous_segments",
+    "hampel_filter",
+    "holdout_split",
+    "reconstructed_opening",
+    "record_segments",
+    "segment_mask",
+    "split_segments",
+]
+
 #: Segments as accepted by the identification functions.
 Segments = Sequence[tuple[int, int]] | np.ndarray
 

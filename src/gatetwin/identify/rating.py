@@ -36,6 +36,8 @@ from scipy.optimize import least_squares
 
 from gatetwin.errors import IdentificationError
 
+__all__ = ["G", "N_CD", "RatingFit", "Scale", "fit_rating", "fit_static_table", "scale_of"]
+
 G = 9.81
 N_CD = 5
 

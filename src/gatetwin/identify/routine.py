@@ -33,6 +33,21 @@ from gatetwin.identify.serial import finite_or_none
 from gatetwin.records import Record
 from gatetwin.records.segments import StepOnset, is_gap
 
+__all__ = [
+    "RoutineIdentification",
+    "RoutineWindow",
+    "ScheduleBin",
+    "WindowCriteria",
+    "assemble",
+    "gauge_of",
+    "has_level_controller",
+    "identify_routine",
+    "move_events",
+    "no_window_message",
+    "schedule_bins",
+    "tally_event",
+]
+
 
 @dataclass(frozen=True)
 class WindowCriteria:

@@ -42,6 +42,16 @@ from gatetwin.records.chunks import Chunk, History, history_sample_period, iter_
 from gatetwin.records.chunks import open_history as open_history
 from gatetwin.records.segments import RESOLUTION_MM, is_gap
 
+__all__ = [
+    "BASE_MEMORY_MIB",
+    "DEFAULT_CHUNK_ROWS",
+    "MAX_MEMORY_MIB",
+    "ChunkedScan",
+    "chunk_rows_for",
+    "identify_routine_chunked",
+    "scan_routine_history",
+]
+
 #: Rows per chunk by default: about 1.6 h at 1 Hz (a few MiB of columns).
 DEFAULT_CHUNK_ROWS = 65536
 #: Float64 columns beside the levels: time, opening, flow (and the one byte of ``hold``).

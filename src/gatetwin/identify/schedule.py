@@ -30,6 +30,17 @@ from gatetwin.identify.metrics import dc_gain, is_stable
 from gatetwin.identify.rating import RatingFit
 from gatetwin.plant.model import ArxPlant, FopdtPlant, Schedule
 
+__all__ = [
+    "DIGITS",
+    "FOPDT_PARAMETERS",
+    "ArxCondition",
+    "StepCondition",
+    "arx_schedule",
+    "fopdt_schedule",
+    "predict_condition",
+    "smooth_in_flow",
+]
+
 FOPDT_PARAMETERS = ("gain_mm_per_mm", "time_constant_s", "dead_time_s")
 #: Decimals kept in a schedule: far below each parameter's standard error (K ±0.05 mm/mm,
 #: T ±0.5 s, L ±0.5 s, levels ±0.1 mm), so model files do not carry optimiser round-off.

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 
+__all__ = ["finite_list", "finite_or_none", "none_to_nan"]
+
 
 def finite_or_none(value: float | None) -> float | None:
     """``float(value)`` when finite, else ``None`` (JSON ``null``)."""

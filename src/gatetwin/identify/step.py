@@ -19,6 +19,8 @@ from gatetwin.identify.fopdt import FopdtFit, PaperStepResult, fit_fopdt, paper_
 from gatetwin.identify.serial import finite_or_none, none_to_nan
 from gatetwin.records import Record
 
+__all__ = ["GaugeStep", "StepIdentification", "hold_mean_flow", "identify_step"]
+
 
 @dataclass(frozen=True)
 class GaugeStep:

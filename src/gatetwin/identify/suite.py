@@ -42,6 +42,25 @@ from gatetwin.plant.simulate import simulate
 from gatetwin.records import Record, detect_table_kind, read_record, read_static_table
 from gatetwin.records.sidecar import VALIDATION_ROLE
 
+__all__ = [
+    "ARX_ORDERS",
+    "OPENING_BAND_MM",
+    "Identified",
+    "arx_gauge_of",
+    "arx_model",
+    "fopdt_model",
+    "free_run_fit",
+    "gauge_fopdt",
+    "gauge_models",
+    "identify_folder",
+    "identify_records",
+    "load_folder",
+    "load_records",
+    "physical_model",
+    "role_of",
+    "signal_to_noise",
+]
+
 #: Validity band around the operating opening: the step (5 mm) or the PRBS amplitude
 #: (±5 mm) the conditions were identified over, plus 5 mm.
 OPENING_BAND_MM = 10.0

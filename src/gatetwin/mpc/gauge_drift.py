@@ -35,6 +35,18 @@ from gatetwin.errors import ControlError
 from gatetwin.mpc import symbolic as sym
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
 
+__all__ = [
+    "DRIFT_KIND",
+    "THRESHOLD_MM_PER_S",
+    "WINDOW_SAMPLES",
+    "GaugeDriftMonitor",
+    "drift_sample",
+    "gauge_difference",
+    "slope_weights",
+    "with_drift_rule",
+    "with_gauge_rule",
+]
+
 #: Samples the slope is fitted over: 480 s of 1.2 s samples.
 WINDOW_SAMPLES = 400
 #: |slope| of the gauge's difference to the others' mean that raises the flag, mm/s: 1.25

@@ -13,6 +13,8 @@ advances it.
 
 from __future__ import annotations
 
+__all__ = ["RENDERED_C", "pi_step"]
+
 #: The functions rendered into the C controller FMU's generated ``pi_law.c`` (prefix ``gt_``).
 RENDERED_C = ("pi_step",)
 

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import math
 
+__all__ = ["RENDERED_C", "TIME_TOL_S", "in_force", "signal_value"]
+
 #: The functions rendered into the scenario FMU's generated ``signal_law.c`` (prefix ``gt_``).
 RENDERED_C = ("in_force", "signal_value")
 #: A knot at ``time_s[k]`` is in force from the first time ``t`` with ``time_s[k] <= t +

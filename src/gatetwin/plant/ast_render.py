@@ -40,6 +40,8 @@ import inspect
 import math
 import types
 
+__all__ = ["c_module"]
+
 _BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
 _COMPARE = {ast.Gt: ">", ast.GtE: ">=", ast.Lt: "<", ast.LtE: "<=", ast.Eq: "==",
             ast.NotEq: "!="}  # fmt: skip

@@ -24,6 +24,28 @@ import math
 
 from gatetwin.plant import elementary  # the python FMU embeds it beside this module
 
+__all__ = [
+    "RENDERED_C",
+    "arx_envelope_coefficients",
+    "arx_equilibrium",
+    "arx_gain_rescaled",
+    "arx_pole_scaled",
+    "arx_sample",
+    "first_order",
+    "first_order_decay",
+    "flow_scaled",
+    "gain_map",
+    "gain_map_inverse",
+    "grid_index_at_or_after",
+    "lag_interval",
+    "move_toward",
+    "play",
+    "relax",
+    "seiche_advance",
+    "seiche_equilibrium",
+    "seiche_output",
+]
+
 #: The functions rendered into the C FMU's generated ``blocks.c`` (prefix ``gt_``).
 RENDERED_C = ("move_toward", "play", "gain_map", "gain_map_inverse", "flow_scaled",
               "first_order_decay", "relax", "first_order", "seiche_advance",

@@ -57,6 +57,27 @@ from scipy import linalg
 from gatetwin.errors import ModelFileError
 from gatetwin.plant import blocks
 
+__all__ = [
+    "BLOCKS",
+    "BLOCK_FIELDS",
+    "DEFAULT_SUBSTEP_S",
+    "KINDS",
+    "ActuatorBacklash",
+    "ActuatorRateLimit",
+    "EffectBlock",
+    "EffectSet",
+    "FlowDependentGain",
+    "InflowDisturbance",
+    "OpeningNonlinearity",
+    "ParameterSpec",
+    "Seiche",
+    "SensorDrift",
+    "SensorLag",
+    "effect_dict",
+    "parameter_specs",
+    "parse_effects",
+]
+
 #: Evaluation order of the blocks (also the order of their FMU parameters).
 KINDS = (
     "actuator_rate_limit",

@@ -32,6 +32,19 @@ from __future__ import annotations
 
 import math
 
+__all__ = [
+    "RENDERED_C",
+    "REPLACED",
+    "cos",
+    "exp",
+    "expm1",
+    "log",
+    "log1p",
+    "math_calls",
+    "pow",
+    "sin",
+]
+
 #: The ``math`` functions these replace in the C renderings (``pow`` also for ``**``).
 REPLACED = ("exp", "expm1", "log", "log1p", "sin", "cos", "pow")
 #: The functions rendered into ``elementary.c`` (prefix ``gt_``).

@@ -5,6 +5,8 @@ from __future__ import annotations
 from gatetwin.errors import SimulationError
 from gatetwin.plant.model import FLOW_RANGE_M3H, OPENING_RANGE_MM
 
+__all__ = ["check_inputs"]
+
 
 def check_inputs(opening_mm: float, flow_m3h: float) -> None:
     """Refuse NaN or physically impossible inputs (as the FMUs do with fmi2Error)."""

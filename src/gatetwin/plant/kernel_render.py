@@ -23,6 +23,18 @@ from typing import Any
 
 from gatetwin.plant import elementary
 
+__all__ = [
+    "HELPERS",
+    "CValue",
+    "c_function",
+    "c_source",
+    "casadi_kernel",
+    "numba_functions",
+    "numba_kernel",
+    "portable_functions",
+    "portable_kernel",
+]
+
 HELPERS = ("fmin", "fmax", "less", "select", "sqrt", "exp", "log", "floor")
 
 

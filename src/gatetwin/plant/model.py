@@ -35,6 +35,35 @@ from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import EffectSet, parse_effects
 from gatetwin.plant.kernel_render import portable_kernel
 
+__all__ = [
+    "ARX_ORDER_LIMIT",
+    "ENVELOPE_EFFECTS",
+    "FLOW_RANGE_M3H",
+    "FORMAT_DEFAULTS",
+    "LOWER_BOUNDS",
+    "OPENING_RANGE_MM",
+    "OPERATING_STORAGE_RULE",
+    "STORAGE_RULE",
+    "ArxPlant",
+    "FopdtPlant",
+    "PhysicalPlant",
+    "Plant",
+    "Schedule",
+    "check_operating_storage",
+    "check_physical_parameters",
+    "envelope_point",
+    "envelope_steady",
+    "interp_clamped",
+    "kernel_parameters",
+    "local_fopdt",
+    "lowest_operating_room",
+    "physical_kernel_portable",
+    "plant_from_dict",
+    "plant_to_dict",
+    "steady_depth_m",
+    "tangent_point",
+]
+
 #: Inputs outside these bounds are physically impossible for any gate we model: an opening
 #: up to 50 m (the largest radial and lift gates of river barrages open some 20 m) and a
 #: discharge up to 36,000,000 m³/h (10,000 m³/s, a large river's flood through one gate).

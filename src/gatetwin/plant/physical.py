@@ -34,6 +34,8 @@ from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.inputs import SimulationError, check_inputs
 from gatetwin.plant.model import PhysicalPlant, steady_depth_m
 
+__all__ = ["MAX_SUBSTEPS", "PhysicalSimulator"]
+
 #: Most sub-steps one communication step may take.
 MAX_SUBSTEPS = 100_000
 

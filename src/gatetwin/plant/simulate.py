@@ -505,9 +505,11 @@ def simulate(
 
 
 __all__ = [
+    "EffectState",
     "PlantSimulator",
     "SimulationError",
     "check_inputs",
+    "fopdt_parameters",
     "interp_clamped",
     "simulate",
     "simulator_for",

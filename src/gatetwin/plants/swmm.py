@@ -33,6 +33,16 @@ from typing import Any
 from gatetwin.errors import PlantError
 from gatetwin.plants.swmm_inp import InpFile, Orifice
 
+__all__ = [
+    "EXTRA_MESSAGE",
+    "RESOLUTION_MM",
+    "SwmmCore",
+    "SwmmPlantSpec",
+    "gauge_name",
+    "load_pyswmm",
+    "swmm_versions",
+]
+
 #: What a missing ``pyswmm`` says.
 EXTRA_MESSAGE = "the SWMM plant needs the swmm extra: pip install 'gatetwin[swmm]'"
 #: Gauge reading resolution, mm (the loop's gauges read to 0.1 mm).

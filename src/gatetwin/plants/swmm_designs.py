@@ -30,6 +30,17 @@ from gatetwin.plants.swmm_experiments import (
     sidecar,
 )
 
+__all__ = [
+    "Base",
+    "InBank",
+    "Output",
+    "free_schedules",
+    "prbs_schedule",
+    "run_design",
+    "static_table",
+    "step_schedules",
+]
+
 Output = tuple[str, str, dict[str, Any]]
 
 

@@ -43,6 +43,24 @@ from gatetwin._io import write_text_atomic
 from gatetwin.errors import PlantError
 from gatetwin.plants.swmm import RESOLUTION_MM, SwmmCore, swmm_versions
 
+__all__ = [
+    "DESIGNS",
+    "FIT_FLOW_FACTORS",
+    "HELD_OUT_FLOW_FACTOR",
+    "STATIC_FLOW_FACTORS",
+    "STATIC_OPENING_FACTORS",
+    "Schedule",
+    "StepResponse",
+    "check_in_bank",
+    "check_regime",
+    "gate_step_mm",
+    "measure_step",
+    "record_csv",
+    "run_schedule",
+    "sidecar",
+    "write_outputs",
+]
+
 DESIGNS = ("static", "step", "prbs", "free", "all")
 FIT_FLOW_FACTORS = (0.7, 0.85, 1.0, 1.15)
 HELD_OUT_FLOW_FACTOR = 0.92

@@ -17,6 +17,8 @@ from pathlib import Path
 from gatetwin.errors import PlantError
 from gatetwin.records.limits import open_regular
 
+__all__ = ["LINK_SECTIONS", "METRIC_FLOW_UNITS_M3S", "NODE_SECTIONS", "InpFile", "Orifice"]
+
 #: Flow units whose lengths are metres, and their size in m³/s.
 METRIC_FLOW_UNITS_M3S = {"CMS": 1.0, "LPS": 1e-3, "MLD": 1e6 / 1e3 / 86400.0}
 #: Sections whose first word names a node.

@@ -29,6 +29,8 @@ from gatetwin.records.columns import TableColumns, Words, arrow_codes, arrow_flo
 from gatetwin.records.csvtext import parse_header, parse_table
 from gatetwin.records.limits import ENV_MAX_LINE_BYTES
 
+__all__ = ["read_csv"]
+
 #: Bytes the pre-scan reads at a time (alone, and while Arrow parses).
 _BLOCK_BYTES = 8 << 20
 _SMALL_BLOCK = 2 << 20

@@ -28,6 +28,8 @@ from gatetwin.records.checks import (
 )
 from gatetwin.records.units import parse_column
 
+__all__ = ["Bounds", "bounds_from_sidecar"]
+
 #: Quantities whose range a sidecar may set, with their internal field name.
 _RANGE_FIELDS = {"level": "level_mm", "opening": "opening_mm", "flow": "flow_m3h"}
 

@@ -14,6 +14,32 @@ import numpy as np
 
 from gatetwin.errors import RecordError
 
+__all__ = [
+    "FLOW_MAX_M3H",
+    "GAP_MAX_S",
+    "LEVEL_RANGE_MM",
+    "METRES_SUSPECT_BELOW",
+    "OPENING_MAX_MM",
+    "QUOTE_CHARS",
+    "SAMPLE_PERIOD_RANGE_S",
+    "TIME_ABS_MAX_S",
+    "Origin",
+    "check_bounds",
+    "check_finite_or_missing",
+    "check_gaps",
+    "check_hold_words",
+    "check_level",
+    "check_no_missing",
+    "check_non_negative",
+    "check_range",
+    "check_sample_period",
+    "check_time",
+    "column",
+    "hold_from_codes",
+    "hold_from_state",
+    "quote",
+]
+
 #: Physically possible upstream levels, mm: a gauge zero up to 1 m above the sill or bed,
 #: up to 100 m of water (beyond any canal or river gate; outside is a unit or logger
 #: error). Levels logged as elevations above a datum set their own range in the sidecar.

@@ -34,6 +34,15 @@ from gatetwin.records.parquet import PARQUET_SUFFIXES
 from gatetwin.records.sidecar import Sidecar, read_sidecar
 from gatetwin.records.table import read_table
 
+__all__ = [
+    "HISTORY_SUFFIXES",
+    "Chunk",
+    "History",
+    "history_sample_period",
+    "iter_chunks",
+    "open_history",
+]
+
 #: File name endings of the record files a history folder may hold.
 HISTORY_SUFFIXES = (".csv", *PARQUET_SUFFIXES)
 

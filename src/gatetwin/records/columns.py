@@ -22,6 +22,26 @@ from gatetwin.records.units import HeaderUnits, parse_column, to_internal
 if TYPE_CHECKING:
     import pyarrow as pa
 
+__all__ = [
+    "REQUIRED",
+    "TableColumns",
+    "Words",
+    "arrow_codes",
+    "arrow_columns",
+    "arrow_floats",
+    "check_header",
+    "frozen",
+    "gauge_names",
+    "gauge_of_column",
+    "is_record_column",
+    "is_static_column",
+    "record_table",
+    "require_record_columns",
+    "require_static_columns",
+    "static_table",
+    "value_range",
+]
+
 #: The columns every time-series record has besides its level columns (internal names:
 #: ``opening_<unit>`` and ``flow_<unit>`` in any unit of :mod:`gatetwin.records.units`).
 REQUIRED = ("time_s", "opening_mm", "state", "flow_m3h")

@@ -27,6 +27,8 @@ from gatetwin.errors import RecordError
 from gatetwin.records.checks import quote
 from gatetwin.records.columns import TableColumns, Words, check_header
 
+__all__ = ["parse_header", "parse_table"]
+
 _CHUNK_ROWS = 65536
 _FOREIGN_SEPARATORS = (";", "\t", "|")
 #: One cell of a numeric column: empty, or a number of the format's grammar.

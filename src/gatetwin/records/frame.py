@@ -12,6 +12,8 @@ from typing import Any
 from gatetwin.errors import GatetwinError, RecordError
 from gatetwin.records.columns import TableColumns, arrow_columns, is_record_column
 
+__all__ = ["frame_columns", "import_pandas", "is_frame"]
+
 
 def is_frame(value: Any) -> bool:
     """Whether ``value`` is a pandas DataFrame (without importing pandas)."""

@@ -21,6 +21,18 @@ from typing import BinaryIO
 
 from gatetwin.errors import GatetwinError, RecordError
 
+__all__ = [
+    "DEFAULT_MAX_BYTES",
+    "DEFAULT_MAX_LINE_BYTES",
+    "ENV_MAX_BYTES",
+    "ENV_MAX_LINE_BYTES",
+    "MAX_SIDECAR_BYTES",
+    "ReadLimits",
+    "check_unpacked_size",
+    "open_regular",
+    "resolve_limits",
+]
+
 #: Default largest record file, bytes (512 MiB: about 10 million rows of 9 columns).
 DEFAULT_MAX_BYTES = 512 * 1024 * 1024
 #: Default longest CSV line, bytes (64 KiB: some thousand columns).

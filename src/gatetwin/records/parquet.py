@@ -20,6 +20,8 @@ from gatetwin.records.checks import QUOTE_CHARS
 from gatetwin.records.columns import TableColumns, Words, arrow_columns, check_header
 from gatetwin.records.limits import ENV_MAX_BYTES
 
+__all__ = ["PARQUET_SUFFIXES", "parquet_header", "read_parquet"]
+
 #: File name endings read as Parquet.
 PARQUET_SUFFIXES = (".parquet", ".pq")
 #: Rows decoded at a time (a batch at a time keeps the decoded file out of memory).

@@ -42,6 +42,15 @@ from gatetwin.records.sidecar import Sidecar, read_sidecar, sidecar_from_dict
 from gatetwin.records.table import read_table
 from gatetwin.records.units import INTERNAL_UNITS, HeaderUnits
 
+__all__ = [
+    "MEMO_SIZE",
+    "Record",
+    "content_digest",
+    "per_record_memo",
+    "read_record",
+    "record_from_arrays",
+]
+
 
 @dataclass(frozen=True)
 class Record:

@@ -21,6 +21,27 @@ import numpy as np
 from gatetwin.records.checks import Origin
 from gatetwin.records.sidecar import TEST_TYPES
 
+__all__ = [
+    "GAP_FACTOR",
+    "PRBS_DETECT_MIN_STEPS",
+    "PRBS_DROPPED_PER_SEGMENT",
+    "PRBS_MIN_STEPS",
+    "PRBS_MIN_USABLE_SAMPLES",
+    "RESOLUTION_MM",
+    "STEP_DETECT_MAX_STEPS",
+    "STEP_WINDOW_SAMPLES",
+    "HoldSegment",
+    "Segmentation",
+    "Segmented",
+    "StepOnset",
+    "check_method",
+    "choose_test",
+    "detect_test",
+    "find_steps",
+    "is_gap",
+    "segment_holds",
+]
+
 #: Actuator position resolution, mm: smaller opening differences are not steps.
 RESOLUTION_MM = 1.0
 #: A time step longer than this many nominal sample periods is a logging gap.

@@ -20,6 +20,15 @@ from gatetwin.errors import RecordError
 from gatetwin.records.bounds import Bounds, bounds_from_sidecar
 from gatetwin.records.limits import MAX_SIDECAR_BYTES, open_regular
 
+__all__ = [
+    "TEST_TYPES",
+    "VALIDATION_ROLE",
+    "Sidecar",
+    "read_sidecar",
+    "sidecar_from_dict",
+    "sidecar_path",
+]
+
 #: The test types of the data format.
 TEST_TYPES = ("step", "prbs", "free", "routine")
 #: Sidecar ``role`` of a record that is read and validated against but never fitted

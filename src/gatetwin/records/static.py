@@ -26,6 +26,8 @@ from gatetwin.records.limits import ReadLimits
 from gatetwin.records.table import read_header, read_table
 from gatetwin.records.units import INTERNAL_UNITS, parse_column
 
+__all__ = ["StaticTable", "detect_table_kind", "read_static_table"]
+
 
 @dataclass(frozen=True)
 class StaticTable:

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+__all__ = ["format_record_summary", "format_static_summary"]
+
 
 def _fmt_range(stats: dict[str, float] | None, unit: str) -> str:
     if stats is None:

@@ -17,6 +17,8 @@ from gatetwin.records.columns import TableColumns
 from gatetwin.records.limits import ReadLimits, open_regular, resolve_limits
 from gatetwin.records.parquet import PARQUET_SUFFIXES, parquet_header, read_parquet
 
+__all__ = ["is_parquet", "read_header", "read_table"]
+
 
 def is_parquet(path: str | Path) -> bool:
     """Whether ``path`` names a Parquet record (by its ending)."""

@@ -21,6 +21,18 @@ import numpy as np
 from gatetwin.errors import RecordError
 from gatetwin.records.checks import column
 
+__all__ = [
+    "DIMENSION",
+    "FACTORS",
+    "INTERNAL",
+    "INTERNAL_UNITS",
+    "HeaderUnits",
+    "UnitColumn",
+    "header_units",
+    "parse_column",
+    "to_internal",
+]
+
 #: Factor from each accepted unit to the internal unit of its dimension (mm, m³/h).
 FACTORS: dict[str, dict[str, float]] = {
     "length": {"mm": 1.0, "cm": 10.0, "m": 1000.0},

@@ -15,6 +15,8 @@ from gatetwin.report.content import Figure, Section, Table, data_uri, escape, fo
 if TYPE_CHECKING:
     from gatetwin.report.html import Report
 
+__all__ = ["CSS", "render_page"]
+
 CSS = """
 :root { --ink: #1d2430; --muted: #5b6575; --rule: #d5dbe3; --band: #f3f6f9;
         --accent: #1f5f99; --pass: #1b7a3a; --fail: #b3261e; }

@@ -19,6 +19,8 @@ from typing import Any
 
 from gatetwin.errors import ReportError
 
+__all__ = ["Block", "Figure", "Section", "Table", "data_uri", "escape", "format_cell", "png_size"]
+
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 

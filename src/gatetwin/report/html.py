@@ -44,6 +44,19 @@ from gatetwin.report.content import (  # noqa: F401 - re-exported
 )
 from gatetwin.version import __version__
 
+__all__ = [
+    "Block",
+    "Figure",
+    "Report",
+    "ReportError",
+    "Section",
+    "Table",
+    "data_uri",
+    "escape",
+    "format_cell",
+    "png_size",
+]
+
 
 def _as_table(item: Any) -> Table:
     if isinstance(item, Table):

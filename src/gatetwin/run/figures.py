@@ -19,6 +19,22 @@ from gatetwin.identify.arx import predict_one_step  # noqa: E402
 from gatetwin.identify.preprocess import record_segments  # noqa: E402
 from gatetwin.identify.suite import Identified  # noqa: E402
 
+__all__ = [
+    "CAPTIONS",
+    "GAUGE",
+    "arx_prediction",
+    "arx_residuals",
+    "caption",
+    "prbs_record",
+    "schedule_plot",
+    "static_level_vs_flow",
+    "static_level_vs_opening",
+    "step_all_gauges",
+    "step_compare",
+    "step_fit",
+    "write_all",
+]
+
 GAUGE = "3F"
 
 

@@ -25,6 +25,18 @@ from pathlib import Path
 from gatetwin._io import write_text_atomic
 from gatetwin.errors import PipelineError
 
+__all__ = [
+    "MARKER",
+    "RUN_PID_FILE",
+    "Identity",
+    "check_replaceable",
+    "clean_stale_work",
+    "keep_aside",
+    "make_work_dir",
+    "make_world_readable",
+    "replace_output",
+]
+
 #: File marking a directory as written by ``gatetwin run`` (only such are replaced).
 MARKER = ".gatetwin-run"
 #: File in a run's temporary folder: the running process's id and host.

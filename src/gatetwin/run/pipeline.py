@@ -35,7 +35,22 @@ from gatetwin.run.outdir import (
     replace_output,
 )
 
-__all__ = ["MARKER", "STAGES", "PipelineContext", "PipelineStage", "run_pipeline"]
+__all__ = [
+    "MARKER",
+    "STAGES",
+    "PipelineContext",
+    "PipelineStage",
+    "check_records",
+    "export_fmus",
+    "export_model_fmus",
+    "find_records",
+    "identify_models",
+    "run_pipeline",
+    "stage_times_markdown",
+    "tables_and_figures",
+    "write_record_summary",
+    "write_summary",
+]
 
 
 @dataclass

@@ -9,6 +9,36 @@ from __future__ import annotations
 import os
 from typing import Any
 
+__all__ = [
+    "CONTROLLER_KINDS",
+    "DIAGNOSE",
+    "DIAGNOSE_HEADER",
+    "FAMILY_GAUGE",
+    "FAMILY_NAMES",
+    "FLOOR_NOTE",
+    "FLOW_MEDIAN_SAMPLES",
+    "MATRIX_FAIL_UNDER",
+    "MATRIX_TITLES",
+    "MPC_COLUMNS",
+    "MPC_CONTROLLERS",
+    "MPC_HEADER",
+    "MPC_MINUTES",
+    "MPC_PLANTS",
+    "ONE_FLOW_SPREAD_M3H",
+    "applicable_pairs",
+    "closed_loop_artefacts",
+    "closed_loop_fmu_task",
+    "compare_families",
+    "diagnose_records",
+    "mpc_demo",
+    "mpc_demo_task",
+    "mpc_table",
+    "not_diagnosed",
+    "operating_points",
+    "validate_all",
+    "write_report",
+]
+
 #: The run's pass criterion for the validation matrix: a free-running linear model of a
 #: nonlinear gate on noisy data. Gauge noise (SD up to ~2.4 mm after a step) caps a perfect
 #: model near 94 % on a step record; 70 % leaves room for the linearisation over a 5–10 mm

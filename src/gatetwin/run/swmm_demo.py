@@ -444,8 +444,11 @@ def summary_markdown(doc: dict[str, Any]) -> str:
 __all__ = [
     "DemoRequest",
     "closed_loops",
-    "rule_opening_mm",
+    "controller_fmu_loops",
+    "export_twins",
     "identify_twins",
+    "rule_opening_mm",
     "run_swmm_demo",
     "summary_markdown",
+    "validate_twins",
 ]

@@ -14,6 +14,16 @@ import numpy as np
 from gatetwin.flume.paper_targets import STEP_TABLES, TABLE_4, TABLE_5
 from gatetwin.identify.suite import Identified
 
+__all__ = [
+    "Table",
+    "all_tables",
+    "arx_table",
+    "consistency_table",
+    "schedule_table",
+    "step_table",
+    "worst_deviation",
+]
+
 
 @dataclass(frozen=True)
 class Table:

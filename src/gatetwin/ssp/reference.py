@@ -22,6 +22,8 @@ if TYPE_CHECKING:
     from gatetwin.mpc.loop import ClosedLoopRun, Scenario
     from gatetwin.plant.model import Plant
 
+__all__ = ["python_loop"]
+
 
 def python_loop(
     package: str | Path, plant: Plant, scenario: Scenario, settings: DemoSettings,

@@ -25,6 +25,16 @@ from gatetwin.identify.serial import finite_or_none
 from gatetwin.records import Record
 from gatetwin.records.record import per_record_memo
 
+__all__ = [
+    "STEP_METRICS",
+    "FreeRunMetrics",
+    "StepComparison",
+    "compare_steps",
+    "free_run_metrics",
+    "noise_floor_fit_percent",
+    "worst_step_differences",
+]
+
 
 @dataclass(frozen=True)
 class FreeRunMetrics:

@@ -22,6 +22,8 @@ from gatetwin.plant.simulate import simulate
 from gatetwin.records import Record
 from gatetwin.validate.compare import free_run_metrics, noise_floor_fit_percent
 
+__all__ = ["families_markdown", "family_row", "local_form"]
+
 
 def local_form(plant: FopdtPlant) -> FopdtPlant:
     """The FOPDT around its operating line: the envelope removed."""

@@ -32,6 +32,35 @@ from gatetwin.records import GAP_FACTOR, gauge_of_column
 from gatetwin.records.limits import check_unpacked_size, open_regular
 from gatetwin.validate.mapping import VariableMap
 
+__all__ = [
+    "CALLS",
+    "DO_STEP",
+    "FMI_VERSIONS",
+    "FMU_CALLS",
+    "FREE_INSTANCE",
+    "GET_REAL",
+    "INITIALISE",
+    "INPUTS",
+    "INSTANTIATE",
+    "LOADING",
+    "MAX_FMU_STEPS",
+    "SENDING",
+    "SET_REAL",
+    "STARTING",
+    "STATUS_NAMES",
+    "TERMINATE",
+    "CommunicationGrid",
+    "FmuInfo",
+    "Position",
+    "communication_grid",
+    "inspect_fmu",
+    "output_for_gauge",
+    "run_fmu",
+    "simulate_extracted",
+    "static_findings",
+    "unsafe_member",
+]
+
 #: FMI versions the harness runs (co-simulation).
 FMI_VERSIONS = ("2.0", "3.0")
 #: The inputs every gatetwin plant FMU has, in the order they are set.

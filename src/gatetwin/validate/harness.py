@@ -82,6 +82,24 @@ from gatetwin.validate.mapping import VariableMap
 from gatetwin.validate.thresholds import Check, Threshold
 from gatetwin.validate.validity import Envelope, ValidityFinding, read_envelope, record_validity
 
+__all__ = [
+    "MATRIX_METRICS",
+    "RUN_CHECK",
+    "VALIDITY_CHECK",
+    "WHITENESS_MAX_LAG",
+    "FmuValidation",
+    "RecordValidation",
+    "Trace",
+    "flat_metrics",
+    "matrix_cells",
+    "matrix_markdown",
+    "not_finite_cause",
+    "prepare_inputs",
+    "validate_fmu",
+    "validate_matrix",
+    "validity_text",
+]
+
 #: Largest lag of the residual whiteness test, samples.
 WHITENESS_MAX_LAG = 25
 

@@ -70,6 +70,23 @@ from gatetwin.validate.fmu_runner import (
     simulate_extracted,
 )
 
+__all__ = [
+    "HOST_GRACE_S",
+    "STOP_GRACE_S",
+    "TIMEOUT_BASE_S",
+    "TIMEOUT_PER_STEP_S",
+    "FmuTask",
+    "RunRequest",
+    "RunResult",
+    "check_timeout",
+    "default_timeout_s",
+    "host_main",
+    "run_in_process",
+    "run_isolated",
+    "run_task",
+    "start_host",
+]
+
 #: Wall-clock limit of one FMU × record run when none is given: this base, s ...
 TIMEOUT_BASE_S = 10.0
 #: ... plus this much per communication step, s. Through fmpy a C FMU takes about 10 µs a

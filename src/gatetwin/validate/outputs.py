@@ -22,6 +22,17 @@ from gatetwin.validate.harness import VALIDITY_CHECK, FmuValidation, RecordValid
 from gatetwin.validate.thresholds import FAILED, NOT_APPLICABLE
 from gatetwin.version import __version__
 
+__all__ = [
+    "JUNIT_PREFIX",
+    "OutputPaths",
+    "junit_xml",
+    "outside_message",
+    "plot_name",
+    "plot_record",
+    "validation_document",
+    "write_outputs",
+]
+
 #: JUnit ``classname`` prefix of every test case.
 JUNIT_PREFIX = "gatetwin.validate"
 

@@ -33,6 +33,15 @@ from gatetwin.validate.validity import read_envelope
 if TYPE_CHECKING:
     from gatetwin.fleet.execute import FleetSettings
 
+__all__ = [
+    "MatrixTask",
+    "RecordTask",
+    "validate_fmu_spread",
+    "validate_matrices",
+    "validate_matrix_task",
+    "validate_record_task",
+]
+
 
 @dataclass(frozen=True)
 class RecordTask:

@@ -24,6 +24,18 @@ from gatetwin.errors import ValidationError
 from gatetwin.identify.serial import finite_or_none
 from gatetwin.validate.compare import STEP_METRICS
 
+__all__ = [
+    "FAILED",
+    "HIGHER_IS_BETTER",
+    "LOWER_IS_BETTER",
+    "NOT_APPLICABLE",
+    "PASSED",
+    "Check",
+    "Threshold",
+    "parse_threshold",
+    "parse_thresholds",
+]
+
 #: Metrics where a higher value is better: a threshold on them is a lower limit.
 HIGHER_IS_BETTER = ("fit_percent", "fit_vs_floor", "r2", "ljung_box_p")
 #: Metrics where a lower value is better: a threshold on them is an upper limit.

@@ -37,6 +37,18 @@ from gatetwin.errors import ValidationError
 from gatetwin.modelfile import FLOW_METER_ACCURACY_M3H
 from gatetwin.records.segments import RESOLUTION_MM
 
+__all__ = [
+    "LABELS",
+    "LEVEL_TOLERANCE_SIGMAS",
+    "PROVENANCE",
+    "QUANTITIES",
+    "TOLERANCES",
+    "Envelope",
+    "ValidityFinding",
+    "read_envelope",
+    "record_validity",
+]
+
 #: The quantities of an envelope, in report order.
 QUANTITIES = ("opening_mm", "flow_m3h", "level_mm")
 #: Word and unit of each quantity in messages.

@@ -20,6 +20,8 @@ from gatetwin.diagnose.fitting import Fit
 from gatetwin.plant.effects import effect_dict
 from gatetwin.plant.model import Plant
 
+__all__ = ["Candidate", "Context"]
+
 
 @dataclass(frozen=True)
 class Context:

@@ -9,6 +9,8 @@ from __future__ import annotations
 from gatetwin.diagnose.candidates.base import Candidate, Context
 from gatetwin.diagnose.fitting import Fit
 
+__all__ = ["DriftCandidate"]
+
 
 class DriftCandidate(Candidate):
     kind = "sensor_drift"

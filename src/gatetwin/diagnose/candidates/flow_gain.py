@@ -18,6 +18,8 @@ from gatetwin.diagnose.candidates.base import Candidate, Context
 from gatetwin.plant.effects import effect_dict
 from gatetwin.plant.model import FopdtPlant, Plant
 
+__all__ = ["FlowGainCandidate"]
+
 
 class FlowGainCandidate(Candidate):
     kind = "flow_dependent_gain"

@@ -15,6 +15,8 @@ from gatetwin.diagnose.candidates.base import Candidate, Context
 from gatetwin.diagnose.fitting import Fit
 from gatetwin.plant.effects import effect_dict
 
+__all__ = ["InflowCandidate"]
+
 
 class InflowCandidate(Candidate):
     kind = "inflow_disturbance"

@@ -10,6 +10,8 @@ from __future__ import annotations
 from gatetwin.diagnose.candidates.base import Candidate, Context
 from gatetwin.diagnose.fitting import Fit
 
+__all__ = ["LagCandidate"]
+
 
 class LagCandidate(Candidate):
     kind = "sensor_lag"

@@ -10,6 +10,8 @@ import numpy as np
 
 from gatetwin.diagnose.candidates.base import Candidate, Context
 
+__all__ = ["NonlinearityCandidate"]
+
 
 class NonlinearityCandidate(Candidate):
     kind = "opening_nonlinearity"

@@ -11,6 +11,8 @@ from __future__ import annotations
 from gatetwin.diagnose.candidates.base import Candidate, Context
 from gatetwin.diagnose.fitting import Fit
 
+__all__ = ["RateLimitCandidate"]
+
 
 class RateLimitCandidate(Candidate):
     kind = "actuator_rate_limit"

@@ -11,6 +11,8 @@ from __future__ import annotations
 from gatetwin.diagnose.candidates.base import Candidate, Context
 from gatetwin.diagnose.fitting import Fit
 
+__all__ = ["SeicheCandidate"]
+
 
 class SeicheCandidate(Candidate):
     kind = "seiche"
