@@ -61,6 +61,19 @@ PlantStatus plant_check_parameter_values(const double *real, PlantMessage *msg)
     return PLANT_OK;
 }
 
+PlantStatus component_check_reals(const double *real, PlantMessage *msg)
+{
+    int vr;
+    for (vr = 0; vr < GT_N_REAL; vr++) {
+        if (!isfinite(real[vr])) {
+            plant_message(msg, "state value of %s = %g is not finite", plant_variables[vr].name,
+                          real[vr]);
+            return PLANT_ERROR;
+        }
+    }
+    return PLANT_OK;
+}
+
 PlantStatus component_check_flags(const int *flags, int n_flags, int state_initialized,
                                   int initialized, PlantMessage *msg)
 {

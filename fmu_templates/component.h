@@ -44,6 +44,9 @@ PlantStatus plant_check_parameter_values(const double *real, PlantMessage *msg);
  * `initialized` flag (state_initialized) is the one the instance's mode needs. */
 PlantStatus component_check_flags(const int *flags, int n_flags, int state_initialized,
                                   int initialized, PlantMessage *msg);
+/* A restored state's Real variables: every value in `real` (indexed by value reference)
+ * finite; else PLANT_ERROR naming the first that is not. */
+PlantStatus component_check_reals(const double *real, PlantMessage *msg);
 
 #include GT_COMPONENT_HEADER /* ModelData */
 

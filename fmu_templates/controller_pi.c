@@ -169,7 +169,6 @@ PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMe
 
 PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage *msg)
 {
-    int vr;
     if ((m->initialized != 0 && m->initialized != 1) ||
         (m->parameters_changed != 0 && m->parameters_changed != 1)) {
         plant_message(msg, "state flags %d, %d are not 0 or 1", m->initialized,
@@ -188,12 +187,8 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
                       GT_MAX_TIME_S);
         return PLANT_ERROR;
     }
-    for (vr = 0; vr < GT_N_REAL; vr++) {
-        if (!isfinite(m->real[vr])) {
-            plant_message(msg, "state value of %s = %g is not finite", plant_variables[vr].name,
-                          m->real[vr]);
-            return PLANT_ERROR;
-        }
+    if (component_check_reals(m->real, msg) != PLANT_OK) {
+        return PLANT_ERROR;
     }
     /* parameters the state says were checked must pass the checks */
     if (!m->parameters_changed && check_parameters(m, msg) != PLANT_OK) {

@@ -316,7 +316,6 @@ static PlantStatus check_flags(const ModelData *m, int initialized, PlantMessage
 
 PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage *msg)
 {
-    int vr;
     if (check_flags(m, initialized, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
@@ -325,12 +324,8 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
                       m->time_s, m->flow_in_force_m3h, GT_MAX_TIME_S);
         return PLANT_ERROR;
     }
-    for (vr = 0; vr < GT_N_REAL; vr++) {
-        if (!isfinite(m->real[vr])) {
-            plant_message(msg, "state value of %s = %g is not finite", plant_variables[vr].name,
-                          m->real[vr]);
-            return PLANT_ERROR;
-        }
+    if (component_check_reals(m->real, msg) != PLANT_OK) {
+        return PLANT_ERROR;
     }
     /* parameters the state says were checked must pass the checks */
     if (!m->parameters_changed && check_parameters(m, msg) != PLANT_OK) {

@@ -104,7 +104,6 @@ PlantStatus plant_output(const ModelData *m, unsigned vr, double *value, PlantMe
 PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage *msg)
 {
     const int flags[2] = {m->initialized, m->parameters_changed};
-    int vr;
     if (component_check_flags(flags, 2, m->initialized, initialized, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
@@ -113,12 +112,8 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
                       GT_MAX_TIME_S);
         return PLANT_ERROR;
     }
-    for (vr = 0; vr < GT_N_REAL; vr++) {
-        if (!isfinite(m->real[vr])) {
-            plant_message(msg, "state value of %s = %g is not finite", plant_variables[vr].name,
-                          m->real[vr]);
-            return PLANT_ERROR;
-        }
+    if (component_check_reals(m->real, msg) != PLANT_OK) {
+        return PLANT_ERROR;
     }
     if (m->initialized && m->parameters_changed) {
         /* the knots are fixed: nothing sets them once initialisation has ended */

@@ -75,9 +75,10 @@ def _band_ranges() -> dict[str, tuple[float, float]]:
 
 #: The long run: ten times as many.
 SLOW_FACTOR = 10
-#: A check the PI controller makes on a state it restores (every variable finite), and the
-#: line without it: the fuzzer must notice the state the controller then accepts.
-PLANTED_BUG = ("if (!isfinite(m->real[vr])) {", "if (0) {")
+#: A check every component makes on a state it restores (every Real variable finite, in
+#: component.c), and the line without it: the fuzzer must notice the state the PI controller
+#: then accepts.
+PLANTED_BUG = ("if (!isfinite(real[vr])) {", "if (0) {")
 
 
 class Fuzzed(NamedTuple):
@@ -220,11 +221,12 @@ def test_long_fuzzing_finds_nothing(fuzzers, case):
 
 
 def test_the_fuzzer_finds_a_state_check_left_out(fuzzers, tmp_path):
-    """The PI controller rebuilt without one of its state checks is caught (exit 1)."""
+    """The PI controller rebuilt without one of its state checks (component.c's, which every
+    component shares) is caught (exit 1)."""
     planted = Path(shutil.copytree(fuzzers["pi_controller"].extracted, tmp_path / "planted"))
-    code = (planted / "sources" / "controller_pi.c").read_text(encoding="utf-8")
+    code = (planted / "sources" / "component.c").read_text(encoding="utf-8")
     assert code.count(PLANTED_BUG[0]) == 1
-    (planted / "sources" / "controller_pi.c").write_text(code.replace(*PLANTED_BUG),
+    (planted / "sources" / "component.c").write_text(code.replace(*PLANTED_BUG),
                                                          encoding="utf-8")  # fmt: skip
     run = _run(fuzzers, "pi_controller", 20261123, SEQUENCES["pi_controller"],
                build_sanitized(planted, tmp_path))  # fmt: skip
