@@ -9,6 +9,7 @@ The FMU folder gets ``binaries/<platform>/<modelIdentifier>.so`` (built with ``$
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import shlex
 import shutil
@@ -18,6 +19,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from gatetwin.errors import ExportError, OutputError
 from gatetwin.fmu.description import (
@@ -54,6 +56,7 @@ __all__ = [
     "fmu_target",
     "generated_blocks",
     "generated_kernel",
+    "package_host_fmu",
     "source_files",
     "templates_dir",
     "write_atomically",
@@ -295,6 +298,32 @@ def zip_folder(folder: Path, out: Path) -> None:
         for path in sorted(folder.rglob("*")):
             if path.is_file():
                 zf.write(path, path.relative_to(folder).as_posix())
+
+
+def package_host_fmu(
+    desc: ComponentInterface,
+    fmu_dir: Path,
+    c_files: tuple[str, ...],
+    out: Path,
+    provenance: dict[str, Any],
+    fmi_version: str = "2.0",
+) -> None:
+    """Finish a component FMU whose ``fmu_dir/sources`` hold ``c_files``: the host's binary in
+    ``fmi_version``'s folder, modelDescription.xml, ``resources/provenance.json``
+    (``provenance``), all zipped into ``out``."""
+    from fmpy import platform, platform_tuple, sharedLibraryExtension
+
+    folder = platform if fmi_version == "2.0" else platform_tuple
+    binary = fmu_dir / "binaries" / folder / f"{desc.model_identifier}{sharedLibraryExtension}"
+    binary.parent.mkdir(parents=True)
+    compile_shared(fmu_dir / "sources", c_files, binary)
+    flags = dataclasses.replace(FLAGS, source_files=c_files)
+    render = model_description_xml if fmi_version == "2.0" else model_description_xml3
+    (fmu_dir / "modelDescription.xml").write_bytes(render(desc, flags, tool="gatetwin (C backend)"))
+    (fmu_dir / "resources").mkdir()
+    text = json.dumps(provenance, indent=2, sort_keys=True, allow_nan=False)
+    (fmu_dir / "resources" / "provenance.json").write_text(text + "\n", encoding="utf-8")
+    zip_folder(fmu_dir, out)
 
 
 def build_generated_component(

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import json
 import math
 import os
 import re
@@ -42,24 +41,20 @@ from typing import TYPE_CHECKING, Any
 from gatetwin.errors import ExportError, OutputError
 from gatetwin.fmu.c_build import (
     CFLAGS,
-    FLAGS,
     FMI_APIS,
     build_description_xml,
     check_fmi_version,
-    compile_shared,
+    package_host_fmu,
     templates_dir,
-    zip_folder,
 )
 from gatetwin.fmu.controller_settings import controller_plant, derived_settings
 from gatetwin.fmu.description import (
     VariableSpec,
     component_config_lines,
     guid_of,
-    model_description_xml,
     output_name,
     variable_table_lines,
 )
-from gatetwin.fmu.description3 import model_description_xml3
 from gatetwin.plant.model import FopdtPlant, Plant
 from gatetwin.plant.simulate import ARX_MAX_SUBSTEPS, ARX_STEP_RTOL
 
@@ -355,22 +350,9 @@ def build_controller_fmu(
 ) -> None:
     """Lay out the controller FMU in ``work/fmu`` (sources, the host's binary, resources,
     modelDescription.xml) in ``fmi_version``'s layout and zip it into ``out``."""
-    from fmpy import platform, platform_tuple, sharedLibraryExtension
-
     fmu_dir = work / "fmu"
-    sources = fmu_dir / "sources"
-    c_files = write_controller_sources(desc, sources, fmi_version)
-    folder = platform if fmi_version == "2.0" else platform_tuple
-    binary = fmu_dir / "binaries" / folder / f"{desc.model_identifier}{sharedLibraryExtension}"
-    binary.parent.mkdir(parents=True)
-    compile_shared(sources, c_files, binary)
-    flags = dataclasses.replace(FLAGS, source_files=c_files)
-    render = model_description_xml if fmi_version == "2.0" else model_description_xml3
-    (fmu_dir / "modelDescription.xml").write_bytes(render(desc, flags, tool="gatetwin (C backend)"))
-    (fmu_dir / "resources").mkdir()
-    text = json.dumps(desc.provenance, indent=2, sort_keys=True, allow_nan=False)
-    (fmu_dir / "resources" / "provenance.json").write_text(text + "\n", encoding="utf-8")
-    zip_folder(fmu_dir, out)
+    c_files = write_controller_sources(desc, fmu_dir / "sources", fmi_version)
+    package_host_fmu(desc, fmu_dir, c_files, out, desc.provenance, fmi_version)
 
 
 def export_controller(

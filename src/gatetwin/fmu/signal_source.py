@@ -23,9 +23,7 @@ knots) before initialisation ends.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
-import json
 import math
 import os
 import re
@@ -38,22 +36,19 @@ from typing import Any
 from gatetwin.errors import ExportError
 from gatetwin.fmu.c_build import (
     CFLAGS,
-    FLAGS,
     FMI_APIS,
     build_description_xml,
     c_double,
-    compile_shared,
     fmu_target,
+    package_host_fmu,
     templates_dir,
     write_atomically,
-    zip_folder,
 )
 from gatetwin.fmu.description import (
     UNITS,
     VariableSpec,
     component_config_lines,
     guid_of,
-    model_description_xml,
     variable_table_lines,
 )
 from gatetwin.fmu.limits import MAX_COMMUNICATION_STEP_S, check_parameter_values
@@ -216,8 +211,6 @@ def _code_digest() -> str:
 def build_signal_source(desc: SignalSourceDescription, work: Path, out: Path) -> None:
     """Lay out the scenario FMU in ``work/fmu`` (sources, the host's binary, resources,
     modelDescription.xml) and zip it into ``out``."""
-    from fmpy import platform, sharedLibraryExtension
-
     fmu_dir = work / "fmu"
     sources = fmu_dir / "sources"
     sources.mkdir(parents=True)
@@ -238,16 +231,7 @@ def build_signal_source(desc: SignalSourceDescription, work: Path, out: Path) ->
         encoding="utf-8",
     )
     (sources / "buildDescription.xml").write_bytes(build_description_xml(desc, SOURCES))
-    binary = fmu_dir / "binaries" / platform / f"{desc.model_identifier}{sharedLibraryExtension}"
-    binary.parent.mkdir(parents=True)
-    compile_shared(sources, SOURCES, binary)
-    flags = dataclasses.replace(FLAGS, source_files=SOURCES)
-    xml = model_description_xml(desc, flags, tool="gatetwin (C backend)")
-    (fmu_dir / "modelDescription.xml").write_bytes(xml)
-    (fmu_dir / "resources").mkdir()
-    text = json.dumps(desc.provenance, indent=2, sort_keys=True, allow_nan=False)
-    (fmu_dir / "resources" / "provenance.json").write_text(text + "\n", encoding="utf-8")
-    zip_folder(fmu_dir, out)
+    package_host_fmu(desc, fmu_dir, SOURCES, out, desc.provenance)
 
 
 def parameter_values(desc: SignalSourceDescription) -> list[tuple[str, float, str]]:
