@@ -774,16 +774,14 @@ def values_depth(points: SteadyPoints) -> float:
 
 
 def _conductance_m2s(points: SteadyPoints, values: dict[str, float]) -> np.ndarray:
-    """∂Q_g/∂h at every steady point (the kernel's central difference), m²/s."""
+    """∂Q_g/∂h at every steady point (:func:`~gatetwin.plant.physical_kernel.gate_flow_slopes`),
+    m²/s."""
     p = list(_vector(values))
-    d = kernel.DEPTH_DIFFERENCE_M
     out = []
     for e, q in zip(points.opening_mm, points.flow_m3h, strict=True):
         gate = kernel.actuator_target_mm(float(e), p)
         h, tail = kernel.steady_depth_m(gate, float(q), p), kernel.tail_steady_m(float(q), p)
-        upper = kernel.gate_flow_m3s(h + d, tail, gate, float(q), p)
-        lower = kernel.gate_flow_m3s(h - d, tail, gate, float(q), p)
-        out.append((upper - lower) / (2.0 * d))
+        out.append(kernel.gate_flow_slopes(h, tail, gate, float(q), p)[0])
     return np.asarray(out)
 
 

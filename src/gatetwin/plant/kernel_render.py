@@ -16,6 +16,7 @@ kernel's own functions, so the arithmetic is never written again:
 from __future__ import annotations
 
 import math
+import re
 import types
 from collections.abc import Callable
 from functools import cache
@@ -220,6 +221,20 @@ _C_HELPERS: dict[str, Any] = {
 }
 
 
+def _live(lines: list[str], uses: list[str]) -> list[str]:
+    """The traced ``lines`` that ``uses`` depend on, in order: a value the function computes
+    but does not return (a derivative of a branch not taken, one of a pair of slopes) is left
+    out, as the C compiler would, so that no unused variable is declared."""
+    needed = set(re.findall(r"\bt\d+\b", " ".join(uses)))
+    kept = []
+    for line in reversed(lines):
+        name, expression = line.split(" = ", 1)
+        if name.split()[-1] in needed:
+            kept.append(line)
+            needed |= set(re.findall(r"\bt\d+\b", expression))
+    return kept[::-1]
+
+
 def c_function(module: types.ModuleType, name: str, args: tuple[str, ...], n_out: int,
                prefix: str) -> tuple[str, str]:  # fmt: skip
     """C definition and prototype of the kernel function ``name``."""
@@ -237,7 +252,8 @@ def c_function(module: types.ModuleType, name: str, args: tuple[str, ...], n_out
     outs = ", ".join(f"double *out{i}" for i in range(n_out))
     signature = (f"void {prefix}{name}(" + "".join(f"double {a}, " for a in args)
                  + f"const double *p, {outs})")  # fmt: skip
-    body = [*trace.lines, *(f"    *out{i} = {_c(r)};" for i, r in enumerate(results))]
+    returns = [f"    *out{i} = {_c(r)};" for i, r in enumerate(results)]
+    body = [*_live(trace.lines, returns), *returns]
     return signature + "\n{\n" + "\n".join(body) + "\n}\n", signature + ";"
 
 

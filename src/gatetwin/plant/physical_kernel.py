@@ -72,6 +72,7 @@ __all__ = [
     "PARAMETERS",
     "RATIO_MIN",
     "RENDERED",
+    "SLOPE_MIN_M2S",
     "SPEED_FLOOR",
     "TAIL_EXPONENT_MIN",
     "CdLaw",
@@ -84,12 +85,14 @@ __all__ = [
     "fmax",
     "fmin",
     "gate_flow_m3s",
+    "gate_flow_slopes",
     "has_floor",
     "has_tail",
     "held_steady_depth_m",
     "law_bisection_step",
     "law_discharge_coefficient",
     "law_gate_flow_m3s",
+    "law_gate_flow_slopes",
     "less",
     "level_mm",
     "log",
@@ -105,6 +108,7 @@ __all__ = [
     "substep",
     "substep_count",
     "tail_outflow_m3s",
+    "tail_outflow_slope_m2s",
     "tail_pool_piece",
     "tail_secant_time_constant_s",
     "tail_steady_m",
@@ -169,8 +173,11 @@ BISECTION_STEPS = 44
 DEPTH_MAX_INDEX = 20
 #: Smallest exponent of the tail pool's outflow (keeps its steady depth defined).
 TAIL_EXPONENT_MIN = 0.05
-#: Half-width of the central difference of the gate law in the depth, m.
+#: Depth gap below which the envelope's secant is the tangent (the gap is not resolved), m.
 DEPTH_DIFFERENCE_M = 1e-6
+#: Smallest slope of a discharge in a depth the time constants divide by, m²/s (a closed gate
+#: passes nothing at any depth; the floor keeps the division defined).
+SLOPE_MIN_M2S = 5e-10
 
 
 # -- helpers every rendering rebinds -------------------------------------------------------------
@@ -239,6 +246,16 @@ def tail_outflow_m3s(tail_m: float, p: list[float]) -> float:
     return select(less(RATIO_MIN, fraction), p[18] / 3600.0 * power, 0.0)
 
 
+def tail_outflow_slope_m2s(tail_m: float, p: list[float]) -> float:
+    """∂Q_t/∂h_t of :func:`tail_outflow_m3s`, m²/s."""
+    span = fmax(p[22] - p[23], DEPTH_MIN_M)
+    fraction = fmax(tail_m - p[23], 0.0) / span
+    beta = fmax(p[24], TAIL_EXPONENT_MIN)
+    power = exp(beta * log(fmax(fraction, RATIO_MIN)))
+    slope = p[18] / 3600.0 * beta * power / fmax(fraction, RATIO_MIN) / span
+    return select(less(RATIO_MIN, fraction), slope, 0.0)
+
+
 def gate_flow_m3s(depth_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
                   p: list[float]) -> float:  # fmt: skip
     """Discharge under the gate, m³/s (underflow against the tailwater, capped at critical)."""
@@ -256,6 +273,45 @@ def law_gate_flow_m3s(depth_m: float, tail_m: float, opening_mm: float,
     free = cd * p[9] * e * sqrt(2.0 * G * fmax(h - tailwater, 0.0))
     critical = p[9] * sqrt(G) * 0.5443310539518174 * h * sqrt(h)  # (2/3)^1.5 h^1.5
     return fmin(free, critical)
+
+
+def gate_flow_slopes(depth_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
+                     p: list[float]) -> tuple[float, float]:  # fmt: skip
+    """∂Q_g/∂h and ∂Q_g/∂h_t of :func:`gate_flow_m3s`, m²/s: its derivatives, written from the
+    same law (where a bound of the law holds, the derivative of the bounded branch)."""
+    return law_gate_flow_slopes(depth_m, tail_m, opening_mm, cd_law(flow_m3h, p), p)
+
+
+def law_gate_flow_slopes(depth_m: float, tail_m: float, opening_mm: float, law: CdLaw,
+                         p: list[float]) -> tuple[float, float]:  # fmt: skip
+    """:func:`gate_flow_slopes` with Cd's curve at the discharge given (:func:`cd_law`)."""
+    c_small, c_large, middle, width, shape = law
+    above = select(less(DEPTH_MIN_M, depth_m), 1.0, 0.0)  # d h / d depth
+    h = fmax(depth_m, DEPTH_MIN_M)
+    e = fmax(opening_mm, 0.0) / 1000.0
+    ratio = e / h
+    clamped = fmax(ratio, RATIO_MIN)
+    z = (log(clamped) - middle) / width
+    grow = exp(z)
+    share = exp(-shape * log(1.0 + grow))
+    cd = c_large + (c_small - c_large) * share
+    # dCd/dh: through the logistic in ln r, r = e/h
+    dcd_dz = -(c_small - c_large) * shape * share * grow / (1.0 + grow)
+    dcd_dh = select(less(RATIO_MIN, ratio), dcd_dz / width * (-1.0 / h), 0.0) * above
+    tailwater = select(has_tail(p), fmax(tail_m, 0.5 * e), 0.0)
+    # d tailwater / d h_t: 1 where the tail pool's depth is the tailwater
+    drowning = select(has_tail(p), select(less(0.5 * e, tail_m), 1.0, 0.0), 0.0)
+    head = fmax(h - tailwater, 0.0)
+    root = sqrt(2.0 * G * head)
+    # d sqrt(2 g head) / d head, 0 where the head is gone
+    droot = select(less(0.0, head), G / fmax(root, 1e-300), 0.0)
+    free = cd * p[9] * e * root
+    free_h = p[9] * e * (dcd_dh * root + cd * droot * above)
+    free_t = -p[9] * e * cd * droot * drowning
+    critical = p[9] * sqrt(G) * 0.5443310539518174 * h * sqrt(h)
+    critical_h = p[9] * sqrt(G) * 0.5443310539518174 * 1.5 * sqrt(h) * above
+    below = less(free, critical)  # fmin(free, critical) is the free underflow
+    return select(below, free_h, critical_h), select(below, free_t, 0.0)
 
 
 def storage_area_m2(depth_m: float, p: list[float]) -> float:
@@ -387,14 +443,13 @@ def time_constant_s(depth_m: float, opening_mm: float, flow_m3h: float, p: list[
     answers with two modes; this is the first moment of that answer to a gate step (the
     single time constant whose first-order answer encloses the same area),
     A (1 + b/c) / (∂Q_g/∂h), with b = −∂Q_g/∂h_t the tailwater's hold on the gate and
-    c = ∂Q_t/∂h_t the tail pool's outlet (derivatives by central differences).
+    c = ∂Q_t/∂h_t the tail pool's outlet (:func:`gate_flow_slopes`,
+    :func:`tail_outflow_slope_m2s`).
     """
-    d = DEPTH_DIFFERENCE_M
     tail = tail_steady_m(flow_m3h, p)
-    drowned = gate_flow_m3s(depth_m, tail - d, opening_mm, flow_m3h, p) - gate_flow_m3s(
-        depth_m, tail + d, opening_mm, flow_m3h, p)  # fmt: skip
-    outlet = tail_outflow_m3s(tail + d, p) - tail_outflow_m3s(tail - d, p)
-    factor = 1.0 + select(has_tail(p), drowned / fmax(outlet, 1e-15), 0.0)
+    drowned = -gate_flow_slopes(depth_m, tail, opening_mm, flow_m3h, p)[1]
+    outlet = tail_outflow_slope_m2s(tail, p)
+    factor = 1.0 + select(has_tail(p), drowned / fmax(outlet, SLOPE_MIN_M2S), 0.0)
     return pool_time_constant_s(depth_m, tail, opening_mm, flow_m3h, p) * factor
 
 
@@ -402,12 +457,10 @@ def pool_time_constant_s(depth_m: float, tail_m: float, opening_mm: float, flow_
                          p: list[float]) -> float:  # fmt: skip
     """The upstream pool's own time constant at depth ``depth_m`` with the tail pool held at
     ``tail_m``: A / (∂Q_g/∂h), s."""
-    d = DEPTH_DIFFERENCE_M
-    upper = gate_flow_m3s(depth_m + d, tail_m, opening_mm, flow_m3h, p)
-    lower = gate_flow_m3s(depth_m - d, tail_m, opening_mm, flow_m3h, p)
+    slope = gate_flow_slopes(depth_m, tail_m, opening_mm, flow_m3h, p)[0]
     # a closed gate passes nothing at any depth: no finite time constant (the floor keeps the
     # division defined; the level then barely moves)
-    return storage_area_m2(depth_m, p) * (2.0 * d) / fmax(upper - lower, 1e-15)
+    return storage_area_m2(depth_m, p) / fmax(slope, SLOPE_MIN_M2S)
 
 
 def secant_time_constant_s(
@@ -435,7 +488,7 @@ def secant_time_constant_s(
     level's gap (exact when the offset does not grow with discharge, ``o₂ = 0``, and the gauge
     has no floor; at a floor the level's gap understates the pool's, and the secant so
     reckoned followed SWMM's far gauges better than the pool's gap did). Within one
-    central-difference step of the target, or where the gate law does not grow with the depth
+    ``DEPTH_DIFFERENCE_M`` of the target, or where the gate law does not grow with the depth
     (a closed gate, the critical-flow cap), the tangent itself.
     """
     tail = tail_steady_m(flow_m3h, p)
@@ -458,8 +511,7 @@ def tail_secant_time_constant_s(
     tail = tail_m
     depth = fmax(steady_m - (target_mm - level_mm) / 1000.0, DEPTH_LOW_M)
     gap = steady_m - depth
-    slope = (gate_flow_m3s(steady_m + d, tail, opening_mm, flow_m3h, p)
-             - gate_flow_m3s(steady_m - d, tail, opening_mm, flow_m3h, p)) / (2.0 * d)  # fmt: skip
+    slope = gate_flow_slopes(steady_m, tail, opening_mm, flow_m3h, p)[0]
     imbalance = flow_m3h / 3600.0 - gate_flow_m3s(depth, tail, opening_mm, flow_m3h, p)
     # the secant holds where the gap is resolved and the gate law grows with the depth
     # across it (imbalance and gap of one sign); elsewhere the tangent
@@ -486,16 +538,14 @@ def tail_pool_piece(
     an inflow change the tail pool, slower than the upstream one, holds the gate back for as
     long as it takes to fill or drain.
     """
-    d = DEPTH_DIFFERENCE_M
     target = level_mm(steady_m, opening_mm, flow_m3h, p)
     tangent = pool_time_constant_s(steady_m, tail_m, opening_mm, flow_m3h, p)
     tau = tail_secant_time_constant_s(x_mm, target, steady_m, tangent, tail_m, opening_mm,
                                       flow_m3h, p)  # fmt: skip
     depth = fmax(steady_m - (target - x_mm) / 1000.0, DEPTH_LOW_M)
     passing = gate_flow_m3s(depth, tail_m, opening_mm, flow_m3h, p)
-    drowned = (gate_flow_m3s(depth, tail_m - d, opening_mm, flow_m3h, p)
-               - gate_flow_m3s(depth, tail_m + d, opening_mm, flow_m3h, p)) / (2.0 * d)  # fmt: skip
-    outlet = (tail_outflow_m3s(tail_m + d, p) - tail_outflow_m3s(tail_m - d, p)) / (2.0 * d)
+    drowned = -gate_flow_slopes(depth, tail_m, opening_mm, flow_m3h, p)[1]
+    outlet = tail_outflow_slope_m2s(tail_m, p)
     area = fmax(p[21], AREA_MIN_M2)
     rate = fmax((drowned + outlet) / area, 1e-12)
     filled = (passing - tail_outflow_m3s(tail_m, p)) / area * (1.0 - exp(-rate * dt_s)) / rate
