@@ -1,7 +1,6 @@
 """The C rendering of the effect blocks (generated from gatetwin.plant.blocks) computes what
-the Python functions compute with gatetwin.plant.elementary's exp, log, sin, ... (the functions
-it calls in place of the C library's), to the bit, and the renderer refuses what it cannot
-translate."""
+the Python functions compute, to the bit (both call this platform's C library for exp, log,
+sin, ...), and the renderer refuses what it cannot translate."""
 
 from __future__ import annotations
 
@@ -14,14 +13,9 @@ import numpy as np
 import pytest
 
 from gatetwin.fmu.c_build import CFLAGS, find_compiler, generated_blocks
-from gatetwin.plant import blocks as plain_blocks
+from gatetwin.plant import blocks
 from gatetwin.plant.ast_render import c_module
-from gatetwin.plant.kernel_render import portable_functions
 from gatetwin.plant.model import ARX_ORDER_LIMIT
-
-#: The blocks as the C rendering computes them (RENDERED_C etc. from the module itself).
-blocks = portable_functions(plain_blocks)
-blocks.RENDERED_C = plain_blocks.RENDERED_C
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +26,7 @@ def library(tmp_path_factory):
     out = folder / "blocks.so"
     # the FMU's own flags, but with the functions visible to ctypes
     flags = [f for f in CFLAGS if not f.startswith("-fvisibility")]
-    subprocess.run([*find_compiler(), *flags, "-o", str(out), "blocks.c", "elementary.c", "-lm"],
+    subprocess.run([*find_compiler(), *flags, "-o", str(out), "blocks.c", "-lm"],
                    cwd=folder, check=True, capture_output=True)  # fmt: skip
     return ctypes.CDLL(str(out))
 
@@ -252,13 +246,12 @@ REFUSED = {
     "def f(x: float) -> float:\n    return g(x)\n": "f: call",
     "def f(a: list[float], n: int) -> float:\n    for i in range(n):\n        a[i] = 0.0\n"
     "    else:\n        return 1.0\n    return 0.0\n": "f: loop",
-    # the C library's exp and pow differ by platform: only through a named replacement
-    "import math\n\ndef f(x: float) -> float:\n    return math.exp(x)\n": "f: math.exp",
-    "def f(x: float) -> float:\n    return x ** 1.5\n": "f: math.pow",
+    # a math function the renderer does not know
+    "import math\n\ndef f(x: float) -> float:\n    return math.tanh(x)\n": "f: call",
 }  # fmt: skip
 
 
-def _render(source: str, *names: str, math_calls: dict[str, str] | None = None) -> str:
+def _render(source: str, *names: str) -> str:
     module = types.ModuleType("gatetwin.plant.fake_blocks")
     exec(compile(source, "<fake>", "exec"), module.__dict__)  # noqa: S102 - a test module
     import inspect as _inspect
@@ -266,7 +259,7 @@ def _render(source: str, *names: str, math_calls: dict[str, str] | None = None) 
     original = _inspect.getsource
     try:
         _inspect.getsource = lambda m: source  # type: ignore[assignment]
-        return c_module(module, names, "gt_", math_calls)[0]
+        return c_module(module, names, "gt_")[0]
     finally:
         _inspect.getsource = original  # type: ignore[assignment]
 
@@ -289,8 +282,8 @@ def test_renderer_writes_counted_loops_over_arrays():
     assert "a[(i + 1)] = b[(2 * i)];" in c
 
 
-def test_renderer_calls_the_named_replacements_of_inexact_math_and_the_exact_ones_as_they_are():
+def test_renderer_calls_the_c_librarys_math_functions():
     source = ("import math\n\ndef f(x: float, k: float) -> float:\n"
               "    return math.exp(x) + x ** 1.5 + math.sqrt(x) + math.ldexp(x, k)\n")  # fmt: skip
-    c = _render(source, "f", math_calls={"exp": "gt_exp", "pow": "gt_pow"})
-    assert "return (((gt_exp(x) + gt_pow(x, 1.5)) + sqrt(x)) + ldexp(x, (int)(k)));" in c
+    c = _render(source, "f")
+    assert "return (((exp(x) + pow(x, 1.5)) + sqrt(x)) + ldexp(x, (int)(k)));" in c

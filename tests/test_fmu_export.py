@@ -106,7 +106,6 @@ def test_c_fmu_ships_sources_that_rebuild(fmus, tmp_path):
         "support.c",
         "effects.c",
         "blocks.c",
-        "elementary.c",
         "model_arx.c",
     ]
     build_line = (tmp_path / "sources" / "BUILD.txt").read_text().splitlines()[2].split()

@@ -24,7 +24,6 @@ from gatetwin.fmu.c_build import (
     CFLAGS,
     KERNEL_PREFIX,
     find_compiler,
-    generated_blocks,
     generated_kernel,
 )
 from gatetwin.identify.physical import NO_SEICHE, fit_physical, kernel_simulator
@@ -32,7 +31,7 @@ from gatetwin.identify.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import effect_dict
-from gatetwin.plant.kernel_render import casadi_kernel, numba_kernel, portable_kernel
+from gatetwin.plant.kernel_render import casadi_kernel, numba_kernel
 from gatetwin.plant.model import (
     PhysicalPlant,
     Schedule,
@@ -44,9 +43,8 @@ from gatetwin.plant.simulate import SimulationError, simulate, simulator_for
 from gatetwin.records import read_record
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "physical_3F.json"
-#: Round-off: the renderings run the same operations; numba's and CasADi's libm calls, and
-#: the C rendering's gatetwin.plant.elementary functions, may differ from the C library's by
-#: a few ulp.
+#: Round-off: the renderings run the same operations; numba's and CasADi's libm calls may
+#: differ from the C library's by a few ulp.
 ROUNDOFF = 1e-12
 
 
@@ -115,50 +113,43 @@ def test_c_rendering_of_the_kernel_equals_python(plant, tmp_path):
         cc = find_compiler()
     except Exception:
         pytest.skip("no C compiler")
-    """To the bit against the kernel in Python with gatetwin.plant.elementary's exp and log
-    (which the C calls in place of the C library's); within round-off of the plain kernel."""
-    for name, text in {**generated_kernel(), **generated_blocks()}.items():
+    """To the bit against the kernel in Python (both call this platform's exp and log)."""
+    for name, text in generated_kernel().items():
         (tmp_path / name).write_text(text)
     lib = tmp_path / "libkernel.so"
     flags = [f for f in CFLAGS if not f.startswith("-fvisibility")]  # the FMUs' flags
-    subprocess.run([*cc, *flags, "-o", str(lib), "physical_kernel.c", "elementary.c", "-lm"],
+    subprocess.run([*cc, *flags, "-o", str(lib), "physical_kernel.c", "-lm"],
                    cwd=tmp_path, check=True)  # fmt: skip
     c = ctypes.CDLL(str(lib))
-    portable = portable_kernel(kernel)
     p = plant.vector
     pa = (ctypes.c_double * len(p))(*p)
     out = [ctypes.c_double() for _ in range(3)]
-    worst = 0.0
     for h, ht, a, t, q, dt in _random_points(500):
         args = [ctypes.c_double(v) for v in (h, ht, a, t, q, dt)]
         getattr(c, f"{KERNEL_PREFIX}substep")(*args, pa, *map(ctypes.byref, out))
         got = tuple(d.value for d in out)
-        assert got == portable.substep(h, ht, a, t, q, dt, p)
-        ref = kernel.substep(h, ht, a, t, q, dt, p)
-        worst = max(worst, *(abs(x - y) for x, y in zip(got, ref, strict=True)))
+        assert got == kernel.substep(h, ht, a, t, q, dt, p)
         level_args = [ctypes.c_double(v) for v in (h, a, q)]
         getattr(c, f"{KERNEL_PREFIX}level_mm")(*level_args, pa, ctypes.byref(out[0]))
-        assert out[0].value == portable.level_mm(h, a, q, p)
-        worst = max(worst, abs(out[0].value - kernel.level_mm(h, a, q, p)))
+        assert out[0].value == kernel.level_mm(h, a, q, p)
         getattr(c, f"{KERNEL_PREFIX}time_constant_s")(*level_args, pa, ctypes.byref(out[0]))
-        assert out[0].value == portable.time_constant_s(h, a, q, p)
+        assert out[0].value == kernel.time_constant_s(h, a, q, p)
         # the secant from a level up to 0.2 m either side of the steady one at (a, q)
         steady = steady_depth_m(a, q, p)
-        target = portable.level_mm(steady, a, q, p)
-        tangent = portable.time_constant_s(steady, a, q, p)
+        target = kernel.level_mm(steady, a, q, p)
+        tangent = kernel.time_constant_s(steady, a, q, p)
         secant_args = (target + 1000.0 * (h - 0.25), target, steady, tangent, a, q)
         getattr(c, f"{KERNEL_PREFIX}secant_time_constant_s")(
             *(ctypes.c_double(v) for v in secant_args), pa, ctypes.byref(out[0])
         )
-        assert out[0].value == portable.secant_time_constant_s(*secant_args, p)
+        assert out[0].value == kernel.secant_time_constant_s(*secant_args, p)
         # the envelope FOPDT's piece with the tail pool held at ht (and its bisection step)
         held = steady_depth_m(a, q, p, ht)
         piece_args = (target + 1000.0 * (h - 0.25), ht, held, a, q, dt)
         getattr(c, f"{KERNEL_PREFIX}tail_pool_piece")(
             *(ctypes.c_double(v) for v in piece_args), pa, *map(ctypes.byref, out[:2])
         )
-        assert (out[0].value, out[1].value) == portable.tail_pool_piece(*piece_args, p)
-    assert worst <= ROUNDOFF
+        assert (out[0].value, out[1].value) == kernel.tail_pool_piece(*piece_args, p)
 
 
 def test_numba_and_casadi_renderings_equal_python(plant):

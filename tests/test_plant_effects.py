@@ -13,7 +13,7 @@ import pytest
 
 from fmu_support import arx_plant, fopdt_plant
 from gatetwin.errors import ModelFileError
-from gatetwin.plant import blocks, elementary
+from gatetwin.plant import blocks
 from gatetwin.plant.effects import (
     KINDS,
     ActuatorBacklash,
@@ -81,17 +81,13 @@ def test_flow_dependent_gain_is_refused_for_arx():
         with_effects(arx_plant(), "flow_dependent_gain")
 
 
-@pytest.mark.parametrize("module", [blocks, elementary], ids=["blocks", "elementary"])
-def test_blocks_module_uses_the_standard_library_only(module):
-    """The pythonfmu slave embeds gatetwin/plant/blocks.py and elementary.py verbatim (the
-    blocks' one gatetwin import, elementary, is the slave's embedded copy)."""
-    tree = ast.parse(Path(module.__file__).read_text())
+def test_blocks_module_uses_the_standard_library_only():
+    """The pythonfmu slave embeds gatetwin/plant/blocks.py verbatim."""
+    tree = ast.parse(Path(blocks.__file__).read_text())
     imported = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
     for node in (n for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)):
         imported |= {f"{node.module}.{a.name}" for a in node.names}
     allowed = {"math", "__future__.annotations"}
-    if module is blocks:
-        allowed.add("gatetwin.plant.elementary")
     assert imported == allowed
 
 

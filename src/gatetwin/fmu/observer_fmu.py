@@ -11,7 +11,7 @@ is measured at the gate, in either of its renderings of the plant (``linearisati
   rule's second filter (``anomaly_kind`` 3, output ``slow_cusum``); the component is
   ``observer_envelope.c`` with ``observer_envelope_data.h``. The tangent's steady points are
   computed by the plant kernel's own C (``physical_kernel.c``, rendered from
-  :mod:`gatetwin.plant.physical_kernel`, bit for bit the Python observer's portable kernel,
+  :mod:`gatetwin.plant.physical_kernel`, bit for bit the Python observer's kernel,
   and ``kernel_point.c``); the rest of the tangent (the central-difference gain, the ZOH
   split, the matrices) and the two filters are generated.
 
@@ -115,7 +115,7 @@ ENVELOPE_COMPONENT_FILES = ("observer_envelope.c", "observer_envelope_data.h",
                             "observer_support.c", "observer_support.h", "kernel_point.c",
                             "kernel_point.h")  # fmt: skip
 #: The C the envelope observer compiles beside its component and generated code.
-ENVELOPE_C_FILES = ("observer_support.c", "kernel_point.c", "physical_kernel.c", "elementary.c")
+ENVELOPE_C_FILES = ("observer_support.c", "kernel_point.c", "physical_kernel.c")
 #: Most samples one communication step may span (3 h 20 min of 1.2 s samples): a budget of
 #: work per call (~14 µs a sample, so ~0.15 s) that keeps a huge step from stalling the host.
 MAX_SAMPLES_PER_STEP = 10_000
@@ -288,23 +288,22 @@ def _build(cfg: _Config, desc: FmuDescription, work: Path, file: str, fmi_versio
 
 
 def _build_envelope(cfg: _Config, desc: FmuDescription, fmu_dir: Path, fmi_version: str) -> None:
-    from gatetwin.fmu.c_build import generated_blocks, generated_kernel
+    from gatetwin.fmu.c_build import generated_kernel
 
     sources = fmu_dir / "sources"
     fns, layout = build_envelope_functions(cfg.plant, cfg.settings, cfg.slow_settings,
                                            SAMPLE_PERIOD_S, cfg.anomaly,
                                            len(cfg.references))  # fmt: skip
     sizes = generate_envelope_c(fns, sources, "observer_envelope_generated")
-    kernel = {**generated_kernel(), **generated_blocks()}
-    for name in ("physical_kernel.c", "physical_kernel.h", "elementary.c", "elementary.h"):
+    kernel = generated_kernel()
+    for name in ("physical_kernel.c", "physical_kernel.h"):
         (sources / name).write_text(kernel[name], encoding="utf-8")
     build_generated_component(
         fmu_dir, desc, component_files=ENVELOPE_COMPONENT_FILES,
         generated_stem="observer_envelope_generated",
         config_header=envelope_config_header(desc, layout, sizes, cfg.plant, cfg.references),
         generated_by="gatetwin.fmu.observer_fmu, gatetwin.mpc.observer_codegen; "
-        "physical_kernel.c and elementary.c by gatetwin.plant.kernel_render and "
-        "gatetwin.plant.ast_render",
+        "physical_kernel.c by gatetwin.plant.kernel_render",
         tool="gatetwin (C envelope observer, casadi codegen)", fmi_version=fmi_version,
         also_compile=ENVELOPE_C_FILES,
     )  # fmt: skip

@@ -28,7 +28,6 @@ from gatetwin.fmu.description import (
 
 __all__ = [
     "BLOCKS",
-    "ELEMENTARY",
     "FLAGS",
     "GUARD",
     "KERNEL",
@@ -57,13 +56,6 @@ _STATE_END = "# END gatetwin.fmu.slave_state\n"
 KERNEL = Path(__file__).resolve().parents[1] / "plant" / "physical_kernel.py"
 _KERNEL_BEGIN = "# BEGIN gatetwin.plant.physical_kernel\n"
 _KERNEL_END = "# END gatetwin.plant.physical_kernel\n"
-ELEMENTARY = Path(__file__).resolve().parents[1] / "plant" / "elementary.py"
-_ELEMENTARY_BEGIN = "# BEGIN gatetwin.plant.elementary\n"
-_ELEMENTARY_END = "# END gatetwin.plant.elementary\n"
-#: blocks.py's one gatetwin import; the slave defines ``elementary`` before the blocks.
-_BLOCKS_IMPORT = (
-    "from gatetwin.plant import elementary  # the python FMU embeds it beside this module\n"
-)
 #: pythonfmu 0.7.0 serialises FMU states through ``Fmi2Slave._fmu_state_to_bytes`` (JSON);
 #: the FMU needs a Python interpreter, hence needsExecutionTool.
 FLAGS = CoSimulationFlags(
@@ -82,12 +74,8 @@ def _embedded(path: Path, name: str) -> str:
 
 
 def blocks_source() -> str:
-    """gatetwin/plant/blocks.py (standard library and gatetwin.plant.elementary only),
-    embedded; the slave embeds elementary before it."""
-    text = _embedded(BLOCKS, "gatetwin/plant/blocks.py")
-    if text.count(_BLOCKS_IMPORT) != 1:
-        raise ExportError(f"{BLOCKS.name}: its import of gatetwin.plant.elementary is missing")
-    return text.replace(_BLOCKS_IMPORT, "")
+    """gatetwin/plant/blocks.py (standard library only), embedded."""
+    return _embedded(BLOCKS, "gatetwin/plant/blocks.py")
 
 
 def guard_source() -> str:
@@ -109,16 +97,8 @@ def module_source(path: Path) -> str:
 
 
 def kernel_source() -> str:
-    """gatetwin/plant/physical_kernel.py run as a module of its own inside the slave, and as a
-    second one with gatetwin.plant.elementary's exp and log (``physical_kernel_portable`` of
-    gatetwin.plant.model: the envelope's steady point as the C FMU computes it)."""
-    return module_source(KERNEL) + (
-        'physical_kernel_portable = _types.ModuleType("physical_kernel_portable")\n'
-        'exec(compile(_PHYSICAL_KERNEL_SOURCE, "physical_kernel.py", "exec"), '
-        "physical_kernel_portable.__dict__)\n"
-        "physical_kernel_portable.exp = elementary.exp\n"
-        "physical_kernel_portable.log = elementary.log\n"
-    )
+    """gatetwin/plant/physical_kernel.py run as a module of its own inside the slave."""
+    return module_source(KERNEL)
 
 
 def _splice(text: str, begin: str, end: str, body: str) -> str:
@@ -134,7 +114,6 @@ def slave_source(desc: FmuDescription) -> str:
     text = TEMPLATE.read_text(encoding="utf-8")
     if text.count(_CONFIG_LINE) != 1:
         raise ExportError(f"{TEMPLATE.name}: CONFIG_JSON marker line missing")
-    text = _splice(text, _ELEMENTARY_BEGIN, _ELEMENTARY_END, module_source(ELEMENTARY))
     text = _splice(text, _BLOCKS_BEGIN, _BLOCKS_END, blocks_source())
     text = _splice(text, _GUARD_BEGIN, _GUARD_END, guard_source())
     text = _splice(text, _STATE_BEGIN, _STATE_END,

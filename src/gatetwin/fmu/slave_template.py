@@ -30,14 +30,9 @@ from gatetwin.fmu.slave_guard import GuardedSlave, RefusedError  # replaced by i
 from gatetwin.fmu.slave_state import StateError, check_state  # replaced by its source at export
 
 # END gatetwin.fmu.slave_state
-# BEGIN gatetwin.plant.elementary
-from gatetwin.plant import elementary  # noqa: F401 - replaced at export by its source
-
-# END gatetwin.plant.elementary
 # isort: split
 # BEGIN gatetwin.plant.physical_kernel
 from gatetwin.plant import physical_kernel  # replaced at export by the module's source
-from gatetwin.plant.model import physical_kernel_portable  # replaced at export too
 
 # END gatetwin.plant.physical_kernel
 # isort: split
@@ -423,17 +418,12 @@ class GatetwinPlant(GuardedSlave):
             if not self.real[vr] > bound:
                 raise PlantError(f"parameter {self.variables[vr]['name']} = {_g(self.real[vr])} "
                                  f"must be > {_g(bound)}")  # fmt: skip
-        if not physical_kernel_portable.storage_room_m2(self._physical()) > 0.0:
+        if not physical_kernel.storage_room_m2(self._physical()) > 0.0:
             raise PlantError(f"the storage area {CONFIG['physical_storage_rule']}")
         if "level_mm" in CONFIG["validity"] and "flow_m3h" in CONFIG["validity"]:
             for level in CONFIG["validity"]["level_mm"][:2]:
                 for flow in CONFIG["validity"]["flow_m3h"][:2]:
-                    if (
-                        not physical_kernel_portable.operating_room_m2(
-                            level, flow, self._physical()
-                        )
-                        > 0.0
-                    ):
+                    if not physical_kernel.operating_room_m2(level, flow, self._physical()) > 0.0:
                         raise PlantError(
                             f"the storage area at level {_g(level)} mm and {_g(flow)} m3/h: "
                             f"{CONFIG['physical_operating_storage_rule']}"
@@ -456,8 +446,8 @@ class GatetwinPlant(GuardedSlave):
         if self.steady_point[0] != key:
             depth = self._physical_depth(e, q)
             self.steady_point = (key, (
-                physical_kernel_portable.level_mm(depth, e, q, p),
-                physical_kernel_portable.time_constant_s(depth, e, q, p),
+                physical_kernel.level_mm(depth, e, q, p),
+                physical_kernel.time_constant_s(depth, e, q, p),
                 depth,
             ))  # fmt: skip
         return self.steady_point[1]
@@ -467,22 +457,22 @@ class GatetwinPlant(GuardedSlave):
         constant to it (piece_point of model_fopdt.c)."""
         target, tangent, depth = self._envelope_steady(u, q)
         e = u + self.real[self.vr_opening_ref]
-        return target, physical_kernel_portable.secant_time_constant_s(
+        return target, physical_kernel.secant_time_constant_s(
             x, target, depth, tangent, e, q, self._physical()
         )
 
     def _tail_pool(self) -> bool:
         """An envelope FOPDT whose gate discharges into a pool (model_fopdt.c)."""
-        return self._envelope() and bool(physical_kernel_portable.has_tail(self._physical()))
+        return self._envelope() and bool(physical_kernel.has_tail(self._physical()))
 
     def _tail_pool_piece(self, u: float, q: float, duration_s: float) -> None:
         """Sub-steps of the kernel's tail_pool_piece (tail_piece of model_fopdt.c)."""
         p, d = self._physical(), self.dyn
         e = u + self.real[self.vr_opening_ref]
-        n = int(physical_kernel_portable.substep_count(duration_s, p))
+        n = int(physical_kernel.substep_count(duration_s, p))
         for _ in range(n):
             steady = self._physical_depth(e, q, d["tail_m"])
-            d["x"], d["tail_m"] = physical_kernel_portable.tail_pool_piece(
+            d["x"], d["tail_m"] = physical_kernel.tail_pool_piece(
                 d["x"], d["tail_m"], steady, e, q, duration_s / n, p
             )
 
@@ -491,7 +481,7 @@ class GatetwinPlant(GuardedSlave):
 
     def _physical_depth(self, gate_mm: float, q: float, tail_m: float | None = None) -> float:
         """The steady depth (kernel_point.c): the tail pool steady, or held at ``tail_m``."""
-        k, p = physical_kernel_portable, self._physical()
+        k, p = physical_kernel, self._physical()
         if tail_m is None:
             return k.steady_depth_m(gate_mm, q, p)
         return k.held_steady_depth_m(tail_m, gate_mm, q, p)
@@ -551,7 +541,7 @@ class GatetwinPlant(GuardedSlave):
     def _fopdt_initialize(self, u: float, x0: float) -> None:
         tail = 0.0
         if self._envelope():
-            tail = physical_kernel_portable.tail_steady_m(self.real[self.vr_flow],
+            tail = physical_kernel.tail_steady_m(self.real[self.vr_flow],
                                                           self._physical())  # fmt: skip
         self.dyn = {
             "x": x0,

@@ -17,16 +17,15 @@ functions into C for the C FMU, statement by statement:
   the array's range: C does not check it, Python wraps a negative one);
 * every binary operation is written fully parenthesised in the order the syntax tree gives
   it, so C (compiled with ``-ffp-contract=off``) performs the operations Python performs;
-* ``math.f(x)`` for ``f`` one of ``sqrt``, ``floor``, ``ceil``, ``fabs``, ``fmod`` (exact in every
-  C library) becomes the C library's ``f(x)``, ``math.ldexp(x, k)`` ``ldexp(x, (int)(k))``;
-  the other ``math`` functions (``exp``, ``expm1``, ``log``, ``log1p``, ``sin``, ``cos``,
-  ``pow``, and ``x ** y`` as ``pow``) are rendered only through ``math_calls``, which names
-  the C function that replaces each: for the FMU, :mod:`gatetwin.plant.elementary`'s, which
-  give the same bits on every platform where the C library's do not (``elementary.f(x)``,
-  called by name, is rendered through the same map); ``max`` and ``min`` of
-  two values become ``fmax``/``fmin``; ``math.pi``, ``math.nan`` and ``math.inf`` the
-  constants Python holds; a call of another function rendered with it, one of numbers
-  returning one, its C rendering.
+* ``math.f(x)`` for ``f`` one of ``sqrt``, ``floor``, ``ceil``, ``fabs``, ``fmod``, ``exp``,
+  ``expm1``, ``log``, ``log1p``, ``sin``, ``cos``, ``pow`` (and ``x ** y`` as ``pow``) becomes
+  the C library's ``f(x)``, ``math.ldexp(x, k)`` ``ldexp(x, (int)(k))``: on one platform the
+  C library and Python's ``math`` are the same functions, so C and Python agree to the bit;
+  across platforms the inexact ones may differ in the last bit (no computation here magnifies
+  that: the renderings agree to far below 1e-9 mm);
+* ``max`` and ``min`` of two values become ``fmax``/``fmin``; ``math.pi``, ``math.nan`` and
+  ``math.inf`` the constants Python holds; a call of another function rendered with it, one
+  of numbers returning one, its C rendering.
 
 Anything outside that subset (calls to any other function, attributes, containers, any other
 ``for``, a count used as a number, a number used as an index) raises ``ValueError`` naming
@@ -45,10 +44,9 @@ __all__ = ["c_module"]
 _BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
 _COMPARE = {ast.Gt: ">", ast.GtE: ">=", ast.Lt: "<", ast.LtE: "<=", ast.Eq: "==",
             ast.NotEq: "!="}  # fmt: skip
-#: ``math`` functions every C library computes exactly (correctly rounded or exact by nature).
-_EXACT = {"sqrt", "floor", "ceil", "fabs", "fmod"}
-#: ``math`` functions a rendering must map through ``math_calls`` (``pow`` also for ``**``).
-_INEXACT = {"exp", "expm1", "log", "log1p", "sin", "cos", "pow"}
+#: ``math`` functions rendered as the C library's function of the same name.
+_MATH = {"sqrt", "floor", "ceil", "fabs", "fmod", "exp", "expm1", "log", "log1p", "sin", "cos",
+         "pow"}  # fmt: skip
 _CONSTANTS = {"pi": repr(math.pi), "nan": "NAN", "inf": "INFINITY"}
 
 
@@ -87,8 +85,8 @@ def _kind(annotation: ast.expr | None, function: str, name: str) -> str:
 class _Function:
     """Translation of one function definition."""
 
-    def __init__(self, node: ast.FunctionDef, prefix: str, math_calls: dict[str, str]) -> None:
-        self.node, self.prefix, self.math_calls = node, prefix, math_calls
+    def __init__(self, node: ast.FunctionDef, prefix: str) -> None:
+        self.node, self.prefix = node, prefix
         self.args = [a.arg for a in node.args.args]
         kinds = {a.arg: _kind(a.annotation, node.name, a.arg) for a in node.args.args}
         self.counts = {a for a, k in kinds.items() if k == "int"}
@@ -229,7 +227,7 @@ class _Function:
         if isinstance(e, ast.Constant):
             return _literal(e.value)
         if isinstance(e, ast.BinOp) and isinstance(e.op, ast.Pow):
-            return f"{self.inexact('pow')}({self.expr(e.left)}, {self.expr(e.right)})"
+            return f"pow({self.expr(e.left)}, {self.expr(e.right)})"
         if isinstance(e, ast.BinOp) and type(e.op) in _BINARY:
             return f"({self.expr(e.left)} {_BINARY[type(e.op)]} {self.expr(e.right)})"
         if isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.USub):
@@ -255,15 +253,10 @@ class _Function:
         args = ", ".join(self.expr(a) for a in e.args)
         f = e.func
         if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math":
-            if f.attr in _EXACT:
+            if f.attr in _MATH:
                 return f"{f.attr}({args})"
-            if f.attr in _INEXACT:
-                return f"{self.inexact(f.attr)}({args})"
             if f.attr == "ldexp" and len(e.args) == 2:
                 return f"ldexp({self.expr(e.args[0])}, (int)({self.expr(e.args[1])}))"
-        if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and \
-                f.value.id == "elementary" and f.attr in self.math_calls:  # fmt: skip
-            return f"{self.math_calls[f.attr]}({args})"  # called by name: its C rendering
         if isinstance(f, ast.Name) and f.id in ("max", "min") and len(e.args) == 2:
             return f"f{f.id}({args})"
         callee = self.siblings.get(f.id) if isinstance(f, ast.Name) else None
@@ -272,27 +265,15 @@ class _Function:
             return f"{callee.prefix}{callee.node.name}({args})"
         raise ValueError(f"{self.node.name}: call {ast.dump(f)[:60]} has no C rendering")
 
-    def inexact(self, name: str) -> str:
-        """The C function standing in for ``math.<name>`` (its bits differ by C library)."""
-        if name not in self.math_calls:
-            raise ValueError(f"{self.node.name}: math.{name} has no C rendering here (the C "
-                             "library's differs by platform; pass it in math_calls)")  # fmt: skip
-        return self.math_calls[name]
 
-
-def c_module(
-    module: types.ModuleType, names: tuple[str, ...], prefix: str,
-    math_calls: dict[str, str] | None = None, includes: tuple[str, ...] = (),
-) -> tuple[str, str]:  # fmt: skip
-    """C source and header of the functions ``names`` of ``module`` (prefixed ``prefix``);
-    ``math_calls`` maps the inexact ``math`` functions to the C functions that replace them,
-    declared in ``includes``."""
+def c_module(module: types.ModuleType, names: tuple[str, ...], prefix: str) -> tuple[str, str]:
+    """C source and header of the functions ``names`` of ``module`` (prefixed ``prefix``)."""
     tree = ast.parse(inspect.getsource(module))
     defs = {n.name: n for n in tree.body if isinstance(n, ast.FunctionDef)}
     missing = [n for n in names if n not in defs]
     if missing:
         raise ValueError(f"{module.__name__} has no function {missing[0]}")
-    functions = [_Function(defs[n], prefix, math_calls or {}) for n in names]
+    functions = [_Function(defs[n], prefix) for n in names]
     for f in functions:
         f.siblings = {g.node.name: g for g in functions}
     stem = module.__name__.rsplit(".", 1)[-1]
@@ -300,7 +281,7 @@ def c_module(
     guard = f"GATETWIN_{stem.upper()}_H"
     header = (head + f"#ifndef {guard}\n#define {guard}\n\n"
               + "\n".join(f.signature() + ";" for f in functions) + "\n\n#endif\n")  # fmt: skip
-    own = "".join(f'#include "{h}"\n' for h in (*includes, f"{stem}.h"))
+    own = f'#include "{stem}.h"\n'
     source = (head + f"#include <math.h>\n\n{own}\n"
               + "\n".join(f.definition() for f in functions))  # fmt: skip
     return source, header

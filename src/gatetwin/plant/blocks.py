@@ -1,13 +1,12 @@
 """Arithmetic kernels of the effect blocks, shared by the reference simulator and the FMUs.
 
-Standard library only (``math``), and no gatetwin imports but :mod:`gatetwin.plant.elementary`
-(itself standard library only): the pythonfmu slave embeds this module's source, and that
-module, verbatim at export (:mod:`gatetwin.fmu.python_build`), the diagnosis' fast simulator
+Standard library only (``math``), no gatetwin imports: the pythonfmu slave embeds this module's
+source verbatim at export (:mod:`gatetwin.fmu.python_build`), the diagnosis' fast simulator
 compiles these functions with numba (:mod:`gatetwin.diagnose.grid_sim`), and the C FMU's
 ``blocks.c`` is generated from their syntax tree (:mod:`gatetwin.plant.ast_render`), so the
 Python reference (:mod:`gatetwin.plant.simulate`), both FMUs and the fast simulator run the very
-same operations (the C FMU with :mod:`gatetwin.plant.elementary` for ``math``'s ``exp``,
-``log``, ``sin``, ... , whose bits do not depend on the platform). Keep to the subset
+same operations (the C FMU with the C library's ``exp``, ``log``, ``sin``, ...: on one platform
+the very functions Python's ``math`` calls). Keep to the subset
 ``ast_render`` translates (scalar arithmetic, ``math`` functions, ``if``/``while``, early
 returns, ``for i in range(n)`` over arrays passed in: ``list[float]`` arguments, written in
 place, with ``int`` counts; calls of the other rendered functions of numbers).
@@ -21,8 +20,6 @@ What the blocks mean (inputs, outputs, parameters, state) is documented in
 from __future__ import annotations
 
 import math
-
-from gatetwin.plant import elementary  # the python FMU embeds it beside this module
 
 __all__ = [
     "RENDERED_C",
@@ -106,11 +103,9 @@ def arx_pole_scaled(a1: float, time_constant_ref_s: float, time_constant_s: floa
     ``a1`` identified where it was ``time_constant_ref_s``, with time stretched by their
     ratio (``a1 = exp(-Ts/tau)`` keeps its ``tau / T`` across the envelope).
 
-    Raised with :func:`gatetwin.plant.elementary.pow` in every rendering, not the C library's
-    (as the C FMU's other elementary functions): an ARX with poles near 1 carries one ulp of
-    its pole into nanometres of level within a few hundred samples, where one ulp of ``exp``
-    elsewhere stays near round-off."""
-    return elementary.pow(a1, time_constant_ref_s / time_constant_s)
+    The ratio's time constants are the kernel's analytic ones (no difference magnifies an ulp
+    into them), so a pole near 1 carries an ulp of ``pow`` into about 1e-12 mm of level."""
+    return math.pow(a1, time_constant_ref_s / time_constant_s)
 
 
 def arx_gain_rescaled(b: float, a1: float, a1_scaled: float) -> float:

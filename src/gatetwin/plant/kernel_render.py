@@ -8,9 +8,8 @@ kernel's own functions, so the arithmetic is never written again:
 * :func:`casadi_kernel` — the functions evaluated on CasADi symbols (MPC models);
 * :func:`c_source` — the functions traced into straight-line C (the C FMU's
   ``physical_kernel.c``): every operation becomes one ``const double`` in evaluation order, so
-  with ``-ffp-contract=off`` the C result equals, to the bit, the Python one computed with
-  :mod:`gatetwin.plant.elementary`'s ``exp`` and ``log`` (:func:`portable_kernel`), which the
-  C calls in place of the C library's (whose bits differ by platform).
+  with ``-ffp-contract=off`` the C result equals, to the bit, the Python one on the same
+  platform (``exp``, ``log`` and ``sqrt`` are the C library's in both).
 """
 
 from __future__ import annotations
@@ -22,8 +21,6 @@ from collections.abc import Callable
 from functools import cache
 from typing import Any
 
-from gatetwin.plant import elementary
-
 __all__ = [
     "HELPERS",
     "CValue",
@@ -32,8 +29,6 @@ __all__ = [
     "casadi_kernel",
     "numba_functions",
     "numba_kernel",
-    "portable_functions",
-    "portable_kernel",
 ]
 
 HELPERS = ("fmin", "fmax", "less", "select", "sqrt", "exp", "log", "floor")
@@ -94,22 +89,6 @@ def numba_functions(module: types.ModuleType) -> types.SimpleNamespace:
     from numba import njit
 
     return _rebind(module, {}, wrap=lambda f: njit(cache=True)(f))
-
-
-def portable_kernel(module: types.ModuleType) -> types.SimpleNamespace:
-    """The kernel's functions in Python with :mod:`gatetwin.plant.elementary`'s ``exp`` and
-    ``log``: what the C rendering computes, to the bit, on every platform."""
-    return _rebind(module, {"exp": elementary.exp, "log": elementary.log})
-
-
-def portable_functions(module: types.ModuleType) -> types.SimpleNamespace:
-    """A module rendered by :func:`gatetwin.plant.ast_render.c_module` (its functions calling
-    ``math.f``) in Python with :mod:`gatetwin.plant.elementary` standing in for the ``math``
-    functions it replaces: what the C rendering computes, to the bit, on every platform."""
-    shim = types.SimpleNamespace(**{n: getattr(math, n) for n in dir(math) if n[0] != "_"})
-    for name in elementary.REPLACED:
-        setattr(shim, name, getattr(elementary, name))
-    return _rebind(module, {"math": shim})
 
 
 def casadi_kernel(module: types.ModuleType) -> types.SimpleNamespace:
@@ -215,6 +194,8 @@ _C_HELPERS: dict[str, Any] = {
     "fmin": _call("fmin", min),
     "fmax": _call("fmax", max),
     "sqrt": _call("sqrt", math.sqrt),
+    "exp": _call("exp", math.exp),
+    "log": _call("log", math.log),
     "floor": _call("floor", math.floor),
     "less": lambda a, b: _trace_of(a, b).emit(f"({_c(a)} < {_c(b)}) ? 1.0 : 0.0"),
     "select": lambda c, a, b: _trace_of(c, a, b).emit(f"{_c(c)} != 0.0 ? {_c(a)} : {_c(b)}"),
@@ -239,10 +220,7 @@ def c_function(module: types.ModuleType, name: str, args: tuple[str, ...], n_out
                prefix: str) -> tuple[str, str]:  # fmt: skip
     """C definition and prototype of the kernel function ``name``."""
     trace = _Trace()
-    # exp and log: the C library's bits differ by platform, gatetwin.plant.elementary's do not
-    calls = elementary.math_calls(prefix)
-    replaced = {n: _call(calls[n], getattr(elementary, n)) for n in calls if n in HELPERS}
-    fns = _rebind(module, {**_C_HELPERS, **replaced})
+    fns = _rebind(module, _C_HELPERS)
     p = [CValue(f"p[{i}]", trace) for i in range(module.N_PARAMETERS)]
     inputs = [CValue(a, trace) for a in args]
     result = getattr(fns, name)(*inputs, p)
@@ -275,6 +253,6 @@ def c_source(module: types.ModuleType, prefix: str) -> tuple[str, str]:
         f"{_c(module.DEPTH_LOW_M)}\n#define {prefix.upper()}DEPTH_MAX_INDEX "
         f"{module.DEPTH_MAX_INDEX}\n\n" + "\n".join(protos) + "\n\n#endif\n"
     )
-    source = (head + f'#include <math.h>\n\n#include "elementary.h"\n#include "{stem}.h"\n\n'
+    source = (head + f'#include <math.h>\n\n#include "{stem}.h"\n\n'
               + "\n".join(defs))  # fmt: skip
     return source, header

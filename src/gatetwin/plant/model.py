@@ -33,7 +33,6 @@ from gatetwin.errors import ModelFileError
 from gatetwin.plant import blocks
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import EffectSet, parse_effects
-from gatetwin.plant.kernel_render import portable_kernel
 
 __all__ = [
     "ARX_ORDER_LIMIT",
@@ -313,7 +312,7 @@ def check_physical_parameters(values: dict[str, float] | list[float]) -> list[fl
             rule = f"finite and > {bound:g}" if name in LOWER_BOUNDS else "finite"
             raise ModelFileError(f"physical: parameter {name} = {value!r} must be {rule}")
         out.append(v)
-    if not physical_kernel_portable.storage_room_m2(out) > 0.0:
+    if not kernel.storage_room_m2(out) > 0.0:
         raise ModelFileError(f"physical: the storage area {STORAGE_RULE}")
     tail = dict(zip((n for n, _, _ in kernel.PARAMETERS), out, strict=True))
     if tail["tail_area_m2"] < 0.0:
@@ -417,11 +416,9 @@ class PhysicalPlant:
         )
 
 
-#: The kernel with gatetwin.plant.elementary's exp and log, as the C FMU computes it, for the
-#: envelope's steady point: its time constant is a central difference over 2e-6 m of depth,
-#: which turns an ulp of exp into ~1e-10 of T, and an envelope ARX's pole near 1 carries that
-#: into nanometres of level; computed with the same functions, Python and C agree to the bit.
-physical_kernel_portable = portable_kernel(kernel)
+#: Deprecated alias of :mod:`gatetwin.plant.physical_kernel` (every rendering now computes
+#: the kernel with the platform's ``exp`` and ``log``); removed in the next release.
+physical_kernel_portable = kernel
 
 
 def envelope_steady(opening_mm: float, flow_m3h: float, p: list[float]
@@ -430,8 +427,8 @@ def envelope_steady(opening_mm: float, flow_m3h: float, p: list[float]
     (m) at (Q, e) (``kernel_envelope_steady`` of the C FMU)."""
     depth = steady_depth_m(opening_mm, flow_m3h, p)
     return (
-        physical_kernel_portable.level_mm(depth, opening_mm, flow_m3h, p),
-        physical_kernel_portable.time_constant_s(depth, opening_mm, flow_m3h, p),
+        kernel.level_mm(depth, opening_mm, flow_m3h, p),
+        kernel.time_constant_s(depth, opening_mm, flow_m3h, p),
         depth,
     )
 
@@ -484,7 +481,7 @@ def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float],
                    tail_m: float | None = None) -> float:  # fmt: skip
     """The kernel's bisection, run to its fixed number of steps (as the C FMU runs it); the
     tail pool at its steady depth for the discharge, or held at ``tail_m``."""
-    k = physical_kernel_portable
+    k = kernel
     if tail_m is None:
         return k.steady_depth_m(opening_mm, flow_m3h, p)
     return k.held_steady_depth_m(tail_m, opening_mm, flow_m3h, p)

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gatetwin.plant import blocks
+from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import EffectSet
 from gatetwin.plant.inputs import SimulationError, check_inputs
 from gatetwin.plant.model import (
@@ -23,7 +24,6 @@ from gatetwin.plant.model import (
     Plant,
     envelope_steady,
     interp_clamped,
-    physical_kernel_portable,
     steady_depth_m,
 )
 from gatetwin.plant.physical import PhysicalSimulator
@@ -117,7 +117,7 @@ class PlantSimulator:
             self.envelope_memo.clear()
             if self.envelope_p is not None:
                 self.x = self._envelope_point(u, flow_m3h)[0]
-                self.tail_m = physical_kernel_portable.tail_steady_m(flow_m3h, self.envelope_p)
+                self.tail_m = kernel.tail_steady_m(flow_m3h, self.envelope_p)
             else:
                 self.x = self._fopdt_parameters(flow_m3h)[0] * u
             self.history_t = [time_s]
@@ -190,7 +190,7 @@ class PlantSimulator:
         """An envelope FOPDT piece from the state ``x`` with the input ``u`` held: the target
         and the storage's secant time constant to it (``piece_point`` of the C FMU)."""
         target, tangent, depth = self._envelope_steady(u, q)
-        tau = physical_kernel_portable.secant_time_constant_s(
+        tau = kernel.secant_time_constant_s(
             self.x, target, depth, tangent, u + self.plant.opening_ref_mm, q, self.envelope_p
         )
         return target, tau
@@ -198,7 +198,7 @@ class PlantSimulator:
     def _tail_pool(self) -> bool:
         """Whether the plant is an envelope FOPDT whose gate discharges into a pool."""
         p = self.envelope_p
-        return p is not None and bool(physical_kernel_portable.has_tail(p))
+        return p is not None and bool(kernel.has_tail(p))
 
     def _tail_pool_piece(self, u: float, q: float, duration_s: float) -> None:
         """An envelope FOPDT piece with a pool below the gate (``piece`` of the C FMU): the
@@ -206,10 +206,10 @@ class PlantSimulator:
         at the start of each."""
         p = self.envelope_p
         e = u + self.plant.opening_ref_mm
-        n = int(physical_kernel_portable.substep_count(duration_s, p))
+        n = int(kernel.substep_count(duration_s, p))
         for _ in range(n):
             steady = steady_depth_m(e, q, p, self.tail_m)
-            self.x, self.tail_m = physical_kernel_portable.tail_pool_piece(
+            self.x, self.tail_m = kernel.tail_pool_piece(
                 self.x, self.tail_m, steady, e, q, duration_s / n, p
             )
 
