@@ -56,7 +56,6 @@ __all__ = [
     "kernel_parameters",
     "local_fopdt",
     "lowest_operating_room",
-    "physical_kernel_portable",
     "plant_from_dict",
     "plant_to_dict",
     "steady_depth_m",
@@ -416,9 +415,6 @@ class PhysicalPlant:
         )
 
 
-#: Deprecated alias of :mod:`gatetwin.plant.physical_kernel` (every rendering now computes
-#: the kernel with the platform's ``exp`` and ``log``); removed in the next release.
-physical_kernel_portable = kernel
 
 
 def envelope_steady(opening_mm: float, flow_m3h: float, p: list[float]
