@@ -415,8 +415,6 @@ class PhysicalPlant:
         )
 
 
-
-
 def envelope_steady(opening_mm: float, flow_m3h: float, p: list[float]
                     ) -> tuple[float, float, float]:  # fmt: skip
     """Steady level at the gauge (mm), small-signal time constant (s) and depth at the gate
