@@ -295,8 +295,10 @@ def law_gate_flow_slopes(depth_m: float, tail_m: float, opening_mm: float, law: 
     grow = exp(z)
     share = exp(-shape * log(1.0 + grow))
     cd = c_large + (c_small - c_large) * share
-    # dCd/dh: through the logistic in ln r, r = e/h
-    dcd_dz = -(c_small - c_large) * shape * share * grow / (1.0 + grow)
+    # dCd/dh: through the logistic in ln r, r = e/h; grow / (1 + grow) written so that
+    # neither arm overflows (exp(z) is inf for a large z in C, numba and CasADi)
+    lift = select(less(z, 0.0), grow / (1.0 + grow), 1.0 / (1.0 + exp(-fmax(z, 0.0))))
+    dcd_dz = -(c_small - c_large) * shape * share * lift
     dcd_dh = select(less(RATIO_MIN, ratio), dcd_dz / width * (-1.0 / h), 0.0) * above
     tailwater = select(has_tail(p), fmax(tail_m, 0.5 * e), 0.0)
     # d tailwater / d h_t: 1 where the tail pool's depth is the tailwater
