@@ -51,6 +51,7 @@ __all__ = [
     "build_generated_component",
     "c_double",
     "check_fmi_version",
+    "compile_command",
     "compile_shared",
     "find_compiler",
     "fmu_target",
@@ -84,9 +85,9 @@ CFLAGS = (
 )
 #: Added for the host's binary: link-time optimisation inlines across the component's files
 #: (the effect blocks a model does not carry become nothing, the schedule lookup joins the
-#: step). It changes no arithmetic: the cross-compiled binaries are built without it (Zig's
-#: MinGW target cannot link it) and the ARM one gives the host's bits under qemu; FMPy's
-#: CMake rebuild from sources/ too.
+#: step). It changes no arithmetic: FMPy's CMake rebuild from sources/, without it, gives the
+#: shipped binary's bits (the cross-compiled binaries are built without it too: Zig's MinGW
+#: target cannot link it).
 HOST_FLAGS = ("-flto",)
 #: blocks.c/.h are generated from gatetwin.plant.blocks (:func:`generated_blocks`).
 #: component.c (the variable table and the message formatter)
@@ -369,6 +370,18 @@ def build_generated_component(
     (fmu_dir / "modelDescription.xml").write_bytes(render(desc, flags, tool=tool))
 
 
+def compile_command(
+    c_files: tuple[str, ...],
+    out: Path,
+    extra_flags: tuple[str, ...] = (),
+    compiler: list[str] | None = None,
+) -> list[str]:
+    """The command line :func:`compile_shared` runs (in the sources' folder)."""
+    # absolute: the compiler runs in sources_dir, so a relative output path would miss
+    return [*(compiler or find_compiler()), *CFLAGS, *extra_flags, "-o",
+            str(Path(out).resolve()), *c_files, "-lm"]  # fmt: skip
+
+
 def compile_shared(
     sources_dir: Path,
     c_files: tuple[str, ...],
@@ -378,9 +391,7 @@ def compile_shared(
 ) -> None:
     """Compile ``c_files`` in ``sources_dir`` into the shared library ``out`` (with
     ``compiler``, default the system's)."""
-    # absolute: the compiler runs in sources_dir, so a relative output path would miss
-    cmd = [*(compiler or find_compiler()), *CFLAGS, *extra_flags, "-o", str(Path(out).resolve()),
-           *c_files, "-lm"]  # fmt: skip
+    cmd = compile_command(c_files, out, extra_flags, compiler)
     try:
         done = subprocess.run(
             cmd, cwd=sources_dir, capture_output=True, text=True, timeout=300, check=False
