@@ -1,6 +1,6 @@
 /* What every component (component.h) shares: the variable table, generated into
- * model_config.h as GT_VARIABLES, the message formatter and the range check of the
- * parameters. Nothing in it calls back.
+ * model_config.h as GT_VARIABLES, the message formatter, the range check of the
+ * parameters and the first checks of a restored state. Nothing in it calls back.
  */
 #include <math.h>
 #include <stdarg.h>

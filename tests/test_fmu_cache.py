@@ -27,9 +27,9 @@ from gatetwin.fmu import export_fmu
 from gatetwin.modelfile import read_model_file
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
-#: C and Python run the same IEEE operations in the same order; libm's exp and pow may differ
-#: from Python's by an ulp, which the dynamics carry at most to ~1e-12 mm on levels of a few
-#: hundred mm (the bound tests/test_fmu_bundled.py also uses).
+#: C and Python run the same IEEE operations in the same order and call the same libm here;
+#: another C library's exp and pow may differ by an ulp, which the dynamics carry at most to
+#: ~1e-12 mm on levels of a few hundred mm (the bound tests/test_fmu_bundled.py also uses).
 TOLERANCE_MM = 1e-9
 #: name -> (the plant, two parameters set between steps with the factor each is scaled by)
 CASES = {

@@ -1,9 +1,9 @@
 """C FMUs for other platforms, cross-compiled with Zig: the binaries are what they say, and
-the foreign ones compute what the host's computes (Windows under wine, 64-bit ARM Linux under
-qemu-user; macOS checked statically). FMI 3.0 FMUs carry the same binaries in FMI 3.0's
-folders, exporting the fmi3 functions; driven by the same host built for FMI 3.0, they
-compute what the host's FMI 3.0 binary computes and what the FMI 2.0 binary of their platform
-computes."""
+the foreign ones compute what the host's computes within 1e-9 mm (Windows under wine, 64-bit
+ARM Linux under qemu-user; macOS checked statically). FMI 3.0 FMUs carry the same binaries in
+FMI 3.0's folders, exporting the fmi3 functions; driven by the same host built for FMI 3.0,
+they compute what the host's FMI 3.0 binary computes and what the FMI 2.0 binary of their
+platform computes."""
 
 from __future__ import annotations
 

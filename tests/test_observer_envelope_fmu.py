@@ -107,7 +107,6 @@ def test_both_fmus_pass_fmpy_validation_and_carry_the_kernels_c(fmus):
         names = set(zipfile.ZipFile(fmu).namelist())
         assert {"sources/observer_envelope.c", "sources/observer_envelope_generated.c",
                 "sources/physical_kernel.c", "sources/kernel_point.c"} <= names  # fmt: skip
-        assert "sources/elementary.c" not in names
         assert "sources/observer.c" not in names
 
 

@@ -19,10 +19,10 @@ functions into C for the C FMU, statement by statement:
   it, so C (compiled with ``-ffp-contract=off``) performs the operations Python performs;
 * ``math.f(x)`` for ``f`` one of ``sqrt``, ``floor``, ``ceil``, ``fabs``, ``fmod``, ``exp``,
   ``expm1``, ``log``, ``log1p``, ``sin``, ``cos``, ``pow`` (and ``x ** y`` as ``pow``) becomes
-  the C library's ``f(x)``, ``math.ldexp(x, k)`` ``ldexp(x, (int)(k))``: on one platform the
-  C library and Python's ``math`` are the same functions, so C and Python agree to the bit;
-  across platforms the inexact ones may differ in the last bit (no computation here magnifies
-  that: the renderings agree to far below 1e-9 mm);
+  the C library's ``f(x)``, ``math.ldexp(x, k)`` ``ldexp(x, (int)(k))``: built by the host's
+  compiler against the C library Python uses, C and Python agree to the bit; another
+  platform's C library may round the inexact ones otherwise in the last bit (no computation
+  here magnifies that: the binaries agree within 1e-9 mm);
 * ``max`` and ``min`` of two values become ``fmax``/``fmin``; ``math.pi``, ``math.nan`` and
   ``math.inf`` the constants Python holds; a call of another function rendered with it, one
   of numbers returning one, its C rendering.

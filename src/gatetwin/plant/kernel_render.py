@@ -8,8 +8,9 @@ kernel's own functions, so the arithmetic is never written again:
 * :func:`casadi_kernel` — the functions evaluated on CasADi symbols (MPC models);
 * :func:`c_source` — the functions traced into straight-line C (the C FMU's
   ``physical_kernel.c``): every operation becomes one ``const double`` in evaluation order, so
-  with ``-ffp-contract=off`` the C result equals, to the bit, the Python one on the same
-  platform (``exp``, ``log`` and ``sqrt`` are the C library's in both).
+  with ``-ffp-contract=off`` the C result, built by the host's compiler against the C library
+  Python uses, equals the Python one to the bit (``exp``, ``log`` and ``sqrt`` are that
+  library's in both); another platform's C library may round them otherwise by an ulp.
 """
 
 from __future__ import annotations
@@ -203,9 +204,10 @@ _C_HELPERS: dict[str, Any] = {
 
 
 def _live(lines: list[str], uses: list[str]) -> list[str]:
-    """The traced ``lines`` that ``uses`` depend on, in order: a value the function computes
-    but does not return (a derivative of a branch not taken, one of a pair of slopes) is left
-    out, as the C compiler would, so that no unused variable is declared."""
+    """The traced ``lines`` that ``uses`` depend on, in order: a value the traced function
+    computes but no output uses (one of a pair of slopes when a caller takes the other) is
+    left out; the FMUs compile with ``-Wall -Wextra -Werror``, which refuse an unused
+    variable."""
     needed = set(re.findall(r"\bt\d+\b", " ".join(uses)))
     kept = []
     for line in reversed(lines):
