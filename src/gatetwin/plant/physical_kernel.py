@@ -90,9 +90,9 @@ __all__ = [
     "has_tail",
     "held_steady_depth_m",
     "law_bisection_step",
-    "law_discharge_coefficient",
     "law_gate_flow_m3s",
     "law_gate_flow_slopes",
+    "law_gate_terms",
     "less",
     "level_mm",
     "log",
@@ -220,13 +220,6 @@ def cd_law(flow_m3h: float, p: list[float]) -> CdLaw:
     return c_small, c_large, middle, exp(p[6] + p[7] * qq), exp(p[8])
 
 
-def law_discharge_coefficient(ratio: float, law: CdLaw) -> float:
-    """Cd at opening ratio ``e/h`` on the curve ``law`` (:func:`cd_law`)."""
-    c_small, c_large, middle, width, shape = law
-    z = (log(fmax(ratio, RATIO_MIN)) - middle) / width
-    return c_large + (c_small - c_large) * exp(-shape * log(1.0 + exp(z)))
-
-
 def has_tail(p: list[float]) -> bool:
     """Whether the gate discharges into a pool of its own (else free underflow)."""
     return less(0.0, p[21])
@@ -262,16 +255,33 @@ def gate_flow_m3s(depth_m: float, tail_m: float, opening_mm: float, flow_m3h: fl
     return law_gate_flow_m3s(depth_m, tail_m, opening_mm, cd_law(flow_m3h, p), p)
 
 
+def law_gate_terms(depth_m: float, tail_m: float, opening_mm: float, law: CdLaw,
+                   p: list[float]) -> tuple[float, float, float, float, float, float, float,
+                                            float, float, float]:  # fmt: skip
+    """The gate law's terms at a depth, with Cd's curve at the discharge given
+    (:func:`cd_law`): the depth and opening it sees (m), Cd's logistic argument ``z``, its
+    ``exp(z)`` and the logistic's share, Cd, the tailwater (m), ``√(2 g head)``, the free
+    underflow and the critical-flow cap (m³/s). :func:`law_gate_flow_m3s` and
+    :func:`law_gate_flow_slopes` are written on them."""
+    c_small, c_large, middle, width, shape = law
+    h = fmax(depth_m, DEPTH_MIN_M)
+    e = fmax(opening_mm, 0.0) / 1000.0
+    z = (log(fmax(e / h, RATIO_MIN)) - middle) / width
+    grow = exp(z)
+    share = exp(-shape * log(1.0 + grow))
+    cd = c_large + (c_small - c_large) * share
+    tailwater = select(has_tail(p), fmax(tail_m, 0.5 * e), 0.0)
+    root = sqrt(2.0 * G * fmax(h - tailwater, 0.0))
+    free = cd * p[9] * e * root
+    critical = p[9] * sqrt(G) * 0.5443310539518174 * h * sqrt(h)  # (2/3)^1.5 h^1.5
+    return h, e, z, grow, share, cd, tailwater, root, free, critical
+
+
 def law_gate_flow_m3s(depth_m: float, tail_m: float, opening_mm: float,
                       law: CdLaw,
                       p: list[float]) -> float:  # fmt: skip
     """:func:`gate_flow_m3s` with Cd's curve at the discharge given (:func:`cd_law`)."""
-    h = fmax(depth_m, DEPTH_MIN_M)
-    e = fmax(opening_mm, 0.0) / 1000.0
-    cd = law_discharge_coefficient(e / h, law)
-    tailwater = select(has_tail(p), fmax(tail_m, 0.5 * e), 0.0)
-    free = cd * p[9] * e * sqrt(2.0 * G * fmax(h - tailwater, 0.0))
-    critical = p[9] * sqrt(G) * 0.5443310539518174 * h * sqrt(h)  # (2/3)^1.5 h^1.5
+    free, critical = law_gate_terms(depth_m, tail_m, opening_mm, law, p)[8:]
     return fmin(free, critical)
 
 
@@ -285,32 +295,21 @@ def gate_flow_slopes(depth_m: float, tail_m: float, opening_mm: float, flow_m3h:
 def law_gate_flow_slopes(depth_m: float, tail_m: float, opening_mm: float, law: CdLaw,
                          p: list[float]) -> tuple[float, float]:  # fmt: skip
     """:func:`gate_flow_slopes` with Cd's curve at the discharge given (:func:`cd_law`)."""
-    c_small, c_large, middle, width, shape = law
+    c_small, c_large, _, width, shape = law
+    h, e, z, grow, share, cd, tailwater, root, free, critical = law_gate_terms(
+        depth_m, tail_m, opening_mm, law, p)  # fmt: skip
     above = select(less(DEPTH_MIN_M, depth_m), 1.0, 0.0)  # d h / d depth
-    h = fmax(depth_m, DEPTH_MIN_M)
-    e = fmax(opening_mm, 0.0) / 1000.0
-    ratio = e / h
-    clamped = fmax(ratio, RATIO_MIN)
-    z = (log(clamped) - middle) / width
-    grow = exp(z)
-    share = exp(-shape * log(1.0 + grow))
-    cd = c_large + (c_small - c_large) * share
     # dCd/dh: through the logistic in ln r, r = e/h; grow / (1 + grow) written so that
     # neither arm overflows (exp(z) is inf for a large z in C, numba and CasADi)
     lift = select(less(z, 0.0), grow / (1.0 + grow), 1.0 / (1.0 + exp(-fmax(z, 0.0))))
     dcd_dz = -(c_small - c_large) * shape * share * lift
-    dcd_dh = select(less(RATIO_MIN, ratio), dcd_dz / width * (-1.0 / h), 0.0) * above
-    tailwater = select(has_tail(p), fmax(tail_m, 0.5 * e), 0.0)
+    dcd_dh = select(less(RATIO_MIN, e / h), dcd_dz / width * (-1.0 / h), 0.0) * above
     # d tailwater / d h_t: 1 where the tail pool's depth is the tailwater
     drowning = select(has_tail(p), select(less(0.5 * e, tail_m), 1.0, 0.0), 0.0)
-    head = fmax(h - tailwater, 0.0)
-    root = sqrt(2.0 * G * head)
     # d sqrt(2 g head) / d head, 0 where the head is gone
-    droot = select(less(0.0, head), G / fmax(root, 1e-300), 0.0)
-    free = cd * p[9] * e * root
+    droot = select(less(0.0, h - tailwater), G / fmax(root, 1e-300), 0.0)
     free_h = p[9] * e * (dcd_dh * root + cd * droot * above)
     free_t = -p[9] * e * cd * droot * drowning
-    critical = p[9] * sqrt(G) * 0.5443310539518174 * h * sqrt(h)
     critical_h = p[9] * sqrt(G) * 0.5443310539518174 * 1.5 * sqrt(h) * above
     below = less(free, critical)  # fmin(free, critical) is the free underflow
     return select(below, free_h, critical_h), select(below, free_t, 0.0)
