@@ -18,10 +18,12 @@ from gatetwin.modelfile import read_model_file, write_model_files
 MODELS = Path(__file__).resolve().parents[1] / "models"
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def regenerated(tmp_path_factory):
     """The bundled records identified as ``gatetwin run`` does (each gauge on a process of a
-    pool of two) and written as ``gatetwin models`` writes them."""
+    pool of two) and written as ``gatetwin models`` writes them. Session-scoped: a worker
+    of CI's slow run may run other modules' tests between the two that use it, which would
+    end a module-scoped fixture and identify the folder again (a minute)."""
     from gatetwin.fleet.execute import FleetSettings
 
     out = tmp_path_factory.mktemp("models")
