@@ -32,8 +32,9 @@ TESTS = Path(__file__).resolve().parent
 MODEL = TESTS.parent / "models" / "fopdt_3F.json"
 WINE = shutil.which("wine") or shutil.which("wine64")
 needs_zig = pytest.mark.skipif(not zig_available(), reason="ziglang (gatetwin[cross]) absent")
-#: Minutes of cross-compiling and of wine and qemu runs: CI runs the module with the slow subset
-pytestmark = pytest.mark.slow
+#: Minutes of cross-compiling and of wine and qemu runs: CI runs the module with the slow subset,
+#: on one worker (its group), so that each FMU is cross-compiled and each trace run once
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("platforms")]
 #: The FMI 2.0 co-simulation functions every binary must export.
 FMI2_FUNCTIONS = {
     "fmi2GetTypesPlatform", "fmi2GetVersion", "fmi2SetDebugLogging", "fmi2Instantiate",
@@ -75,7 +76,7 @@ PLATFORM_TOL_MM = 1e-9
 MODELS = ("fopdt_3F", "arx_3F", "physical_3F")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def exported(tmp_path_factory):
     """``exported(version, model)``: the FMU of ``models/<model>.json`` for every platform, as
     (path, extracted folder); each exported once."""
@@ -100,12 +101,12 @@ def exported(tmp_path_factory):
     return export
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def fmu_all(exported):
     return exported("2.0")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def fmu3_all(exported):
     return exported("3.0")
 
@@ -211,7 +212,7 @@ needs_qemu = pytest.mark.skipif(
 needs_wine = pytest.mark.skipif(WINE is None, reason="wine absent")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def traces(exported, tmp_path_factory):
     """``trace(version, format, model)``: the levels the FMU binary of that FMI version and
     format computes on the bundled record, driven by tests/fmu_trace.c (each run once)."""
