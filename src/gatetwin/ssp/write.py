@@ -61,6 +61,8 @@ from gatetwin.ssp.documents import (
 from gatetwin.ssp.master import MAX_STEPS
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from gatetwin.fmu.controller import ControllerDescription
     from gatetwin.fmu.signal_source import SignalSourceDescription, TableSignal
     from gatetwin.modelfile import ModelFile
@@ -143,18 +145,40 @@ def _connector(parent: object, name: str, kind: str, unit: str) -> None:
     etree.SubElement(c, f"{{{SSC}}}Real", unit=unit)
 
 
-def _observer_element(elements: object, level: str) -> None:
+def component_element(elements: object, name: str, source: str,
+                      connectors: list[tuple[str, str, str]]) -> object:  # fmt: skip
+    """Add the FMU component ``name`` (its file ``source`` in the package) with its
+    ``(name, kind, unit)`` connectors to an SSD's ``Elements``; the element."""
     from lxml import etree
 
-    observer = etree.SubElement(elements, f"{{{SSD}}}Component", name="observer",
-                                type="application/x-fmu-sharedlibrary",
-                                source=OBSERVER_SOURCE)  # fmt: skip
-    o_conn = etree.SubElement(observer, f"{{{SSD}}}Connectors")
-    for cname in (level, "opening_mm"):
-        _connector(o_conn, cname, "input", "mm")
-    _connector(o_conn, "flow_m3h", "input", "m3/h")
-    for cname, unit in observer_outputs():
-        _connector(o_conn, cname, "output", unit)
+    component = etree.SubElement(elements, f"{{{SSD}}}Component", name=name,
+                                 type="application/x-fmu-sharedlibrary",
+                                 source=source)  # fmt: skip
+    holder = etree.SubElement(component, f"{{{SSD}}}Connectors")
+    for cname, kind, unit in connectors:
+        _connector(holder, cname, kind, unit)
+    return component
+
+
+def scenario_connectors(signals: dict[str, str], parameters: list[tuple[str, float, str]]
+                        ) -> list[tuple[str, str, str]]:  # fmt: skip
+    """The scenario component's connectors: each signal ``{name: unit}`` out, then its
+    parameters (the ``scenario.`` ones of the parameter set)."""
+    out = [(name, "output", unit) for name, unit in signals.items()]
+    return out + [(p.split(".", 1)[1], "parameter", unit) for p, _, unit in parameters
+                  if p.startswith("scenario.")]  # fmt: skip
+
+
+def observer_connectors(level: str) -> list[tuple[str, str, str]]:
+    """The observer component's connectors: the measured level (``level``), opening and
+    discharge in, its outputs out."""
+    inputs = [(level, "input", "mm"), ("opening_mm", "input", "mm"),
+              ("flow_m3h", "input", "m3/h")]  # fmt: skip
+    return inputs + [(cname, "output", unit) for cname, unit in observer_outputs()]
+
+
+def _observer_element(elements: object, level: str) -> None:
+    component_element(elements, "observer", OBSERVER_SOURCE, observer_connectors(level))
 
 
 def _connections(system: object, level: str, observer: bool) -> None:
@@ -170,6 +194,15 @@ def _connections(system: object, level: str, observer: bool) -> None:
         links += [(("plant", level), ("observer", level)),
                   (("controller", "opening_mm"), ("observer", "opening_mm")),
                   (("scenario", "flow_m3h"), ("observer", "flow_m3h"))]  # fmt: skip
+    connection_elements(connections, links)
+
+
+def connection_elements(connections: object,
+                        links: list[tuple[tuple[str, str], tuple[str, str]]]) -> None:  # fmt: skip
+    """Add a ``Connection`` for each ``((start element, connector), (end element,
+    connector))`` to an SSD's ``Connections``."""
+    from lxml import etree
+
     for start, end in links:
         etree.SubElement(connections, f"{{{SSD}}}Connection", startElement=start[0],
                          startConnector=start[1], endElement=end[0],
@@ -197,13 +230,8 @@ def ssd_xml(
     from lxml import etree
 
     level = output_name(gauge)
-    root = etree.Element(f"{{{SSD}}}SystemStructureDescription", nsmap={"ssd": SSD, "ssc": SSC},
-                         version="1.0", name=name, generationTool="gatetwin")  # fmt: skip
-    system = etree.SubElement(root, f"{{{SSD}}}System", name="closed_loop",
-                              description=description)  # fmt: skip
-    bindings = etree.SubElement(system, f"{{{SSD}}}ParameterBindings")
-    etree.SubElement(bindings, f"{{{SSD}}}ParameterBinding", source=PARAMETERS_SOURCE)
-    elements = etree.SubElement(system, f"{{{SSD}}}Elements")
+    root, system, elements = system_document(name, "closed_loop", description,
+                                             PARAMETERS_SOURCE)  # fmt: skip
     controller = etree.SubElement(elements, f"{{{SSD}}}Component", name="controller",
                                   type="application/x-fmu-sharedlibrary",
                                   source=CONTROLLER_SOURCE)  # fmt: skip
@@ -234,18 +262,35 @@ def ssd_xml(
         (level, "output", "mm"),
     ):
         _connector(p_conn, cname, kind, unit)  # fmt: skip
-    scenario = etree.SubElement(elements, f"{{{SSD}}}Component", name="scenario",
-                                type="application/x-fmu-sharedlibrary",
-                                source=SCENARIO_SOURCE)  # fmt: skip
-    s_conn = etree.SubElement(scenario, f"{{{SSD}}}Connectors")
-    for signal, unit in SIGNAL_UNITS.items():
-        _connector(s_conn, signal, "output", unit)
-    for pname, _, unit in parameters:
-        if pname.startswith("scenario."):
-            _connector(s_conn, pname.split(".", 1)[1], "parameter", unit)
+    component_element(elements, "scenario", SCENARIO_SOURCE,
+                      scenario_connectors(SIGNAL_UNITS, parameters))  # fmt: skip
     _connections(system, level, observer)
     used = {u for _, _, u in parameters} | {"mm", "m3/h"}
-    _units(root, used | ({u for _, u in observer_outputs()} if observer else set()))
+    return finished_document(root, used | ({u for _, u in observer_outputs()} if observer
+                                           else set()), stop_time_s)  # fmt: skip
+
+
+def system_document(name: str, system_name: str, description: str,
+                    parameters_source: str) -> tuple[object, object, object]:  # fmt: skip
+    """An SSD's root with one system ``system_name`` bound to the parameter set
+    ``parameters_source``: ``(root, system, its Elements)``."""
+    from lxml import etree
+
+    root = etree.Element(f"{{{SSD}}}SystemStructureDescription", nsmap={"ssd": SSD, "ssc": SSC},
+                         version="1.0", name=name, generationTool="gatetwin")  # fmt: skip
+    system = etree.SubElement(root, f"{{{SSD}}}System", name=system_name,
+                              description=description)  # fmt: skip
+    bindings = etree.SubElement(system, f"{{{SSD}}}ParameterBindings")
+    etree.SubElement(bindings, f"{{{SSD}}}ParameterBinding", source=parameters_source)
+    return root, system, etree.SubElement(system, f"{{{SSD}}}Elements")
+
+
+def finished_document(root: object, units: set[str], stop_time_s: float) -> bytes:
+    """The SSD's bytes once its ``Units`` (each of ``units``) and its default experiment
+    (from 0 to ``stop_time_s``) are added."""
+    from lxml import etree
+
+    _units(root, units)
     etree.SubElement(root, f"{{{SSD}}}DefaultExperiment", startTime="0.0",
                      stopTime=repr(float(stop_time_s)))  # fmt: skip
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
@@ -299,9 +344,7 @@ def write_ssp(
     from gatetwin.mpc.demo import DemoSettings, demo_scenarios
 
     check_controller_kind(controller)
-    target = Path(out_path)
-    if target.suffix.lower() != ".ssp":
-        raise ExportError(f"output {target} must end in .ssp")
+    target = ssp_target(out_path)
     s = settings or DemoSettings()
     scn = scenario or demo_scenarios(30.0, s)[0]
     period = s.mpc.sample_period_s if controller == "mpc" else s.pi.sample_period_s
@@ -330,16 +373,51 @@ def write_ssp(
     ssd = ssd_xml(f"{model.name}_closed_loop", model.plant.gauge, parameters, scn.duration_s,
                   text, observer=observer)  # fmt: skip
     ssv = parameter_set_xml("closed_loop", parameters)
+    parts = _Parts(model, desc, covered, s, observer, signals, scenario_fmu,
+                   float(scn.opening_mm))  # fmt: skip
+    return write_package(target, ssd, ssv, lambda work, package: _pack(work, package, parts))
+
+
+def ssp_target(out_path: str | os.PathLike[str]) -> Path:
+    """``out_path`` as a package's path; :class:`ExportError` unless it ends in ``.ssp``."""
+    target = Path(out_path)
+    if target.suffix.lower() != ".ssp":
+        raise ExportError(f"output {target} must end in .ssp")
+    return target
+
+
+def write_package(target: Path, ssd: bytes, ssv: bytes,
+                  members: Callable[[Path, Path], None]) -> Path:  # fmt: skip
+    """Check ``ssd`` and ``ssv`` against the SSP 1.0 schemas, then write the package
+    ``target`` atomically: the two documents (:data:`SSD_NAME`, :data:`PARAMETERS_SOURCE`)
+    and what ``members(work, package)`` puts in the folder ``package`` (``work``: a scratch
+    folder beside it).
+
+    Raises
+    ------
+    ExportError
+        A document the schemas refuse; what ``members`` raises.
+    OutputError
+        The package cannot be written where asked.
+    """
+    from gatetwin.fmu.c_build import zip_folder
+
     for xml, schema in ((ssd, SSD_SCHEMA), (ssv, SSV_SCHEMA)):
         problems = schema_problems(xml, schema)
         if problems:
             raise ExportError(f"{target}: the written {schema} document is invalid: {problems[0]}")
-    parts = _Parts(model, desc, covered, s, observer, signals, scenario_fmu,
-                   float(scn.opening_mm))  # fmt: skip
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
-            _pack(Path(tmp), target, parts, ssd, ssv)
+            work = Path(tmp)
+            package = work / "package"
+            (package / "resources").mkdir(parents=True)
+            (package / SSD_NAME).write_bytes(ssd)
+            (package / PARAMETERS_SOURCE).write_bytes(ssv)
+            members(work, package)
+            built = work / target.name
+            zip_folder(package, built)
+            os.replace(built, target)
     except OSError as exc:
         raise OutputError(f"{target}: cannot write the package ({exc.strerror or exc})") from None
     return target
@@ -379,17 +457,13 @@ class _Parts:
     start_opening_mm: float
 
 
-def _pack(work: Path, target: Path, parts: _Parts, ssd: bytes, ssv: bytes) -> None:
+def _pack(work: Path, package: Path, parts: _Parts) -> None:
+    """The closed loop's FMUs into ``package``."""
     from gatetwin.fmu import export_fmu
-    from gatetwin.fmu.c_build import zip_folder
     from gatetwin.fmu.provenance import fmu_provenance
     from gatetwin.fmu.signal_source import build_signal_source
 
     model = parts.model
-    package = work / "package"
-    (package / "resources").mkdir(parents=True)
-    (package / SSD_NAME).write_bytes(ssd)
-    (package / PARAMETERS_SOURCE).write_bytes(ssv)
     # at rest where the scenario starts, also for an engine that sets no input before
     # initialising the FMUs
     flow = next(s.values[0] for s in parts.signals if s.name == "flow_m3h")
@@ -415,11 +489,10 @@ def _pack(work: Path, target: Path, parts: _Parts, ssd: bytes, ssv: bytes) -> No
                         model_name=f"{model.name}_observer")  # fmt: skip
     (work / "scenario").mkdir()
     build_signal_source(parts.scenario, work / "scenario", package / SCENARIO_SOURCE)
-    built = work / target.name
-    zip_folder(package, built)
-    os.replace(built, target)
 
 
 __all__ = ["CONTROLLER_SOURCE", "OBSERVER_SOURCE", "PARAMETERS_SOURCE", "PLANT_SOURCE",
-           "SCENARIO_SOURCE", "SSD_NAME", "observer_outputs", "scenario_signals", "ssd_xml",
-           "table_signals", "write_ssp"]  # fmt: skip
+           "SCENARIO_SOURCE", "SSD_NAME", "component_element", "connection_elements",
+           "finished_document", "observer_connectors", "observer_outputs", "scenario_connectors",
+           "scenario_signals", "ssd_xml", "ssp_target", "system_document", "table_signals",
+           "write_package", "write_ssp"]  # fmt: skip
