@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import re
 import shutil
@@ -137,6 +138,7 @@ class _Config:
     envelope: bool = False
     slow_settings: ObserverSettings = SLOW_MONITORING
     references: tuple[str, ...] = ()
+    start_inputs: tuple[float, float, float] | None = None
 
 
 def export_observer(
@@ -151,6 +153,7 @@ def export_observer(
     fmi_version: str = "2.0",
     linearisation: str = "auto",
     reference_gauges: tuple[str, ...] | list[str] = (),
+    start_inputs: tuple[float, float, float] | None = None,
 ) -> Path:
     """Write the observer FMU of a scheduled FOPDT or of an envelope to ``out_path`` (C, host
     platform).
@@ -190,6 +193,10 @@ def export_observer(
     reference_gauges : sequence of str
         Other gauges of the pool: adds the gauge-drift rule (see the module) with an input
         ``level_<G>_mm`` for each. Empty (default): no such rule.
+    start_inputs : (float, float, float), optional
+        Start values of the level (mm), opening (mm) and discharge (m3/h) inputs, where the
+        observer starts at rest for a master that sets no input before initialising it
+        (default: see :func:`_start_inputs`).
 
     Raises
     ------
@@ -220,8 +227,14 @@ def export_observer(
         except ControlError as exc:
             raise ExportError(str(exc)) from None
     references = _references(plant.gauge, reference_gauges)
+    if start_inputs is not None:
+        start_inputs = tuple(float(v) for v in start_inputs)
+        if not (len(start_inputs) == 3 and all(map(math.isfinite, start_inputs))):
+            raise ExportError(f"observer FMU: start inputs {start_inputs} must be three finite "
+                              "numbers (level mm, opening mm, discharge m3/h)")  # fmt: skip
     cfg = _Config(plant, float(horizon_s), settings or MONITORING, anomaly or default,
-                  model_name, envelope, references=references)  # fmt: skip
+                  model_name, envelope, references=references,
+                  start_inputs=start_inputs)  # fmt: skip
     target = fmu_target(out_path)
     desc = describe_observer(cfg)
     return write_atomically(target, lambda work, file: _build(cfg, desc, work, file, fmi_version))
@@ -316,6 +329,8 @@ def _facts(cfg: _Config, desc: FmuDescription | None = None) -> dict[str, Any]:
     if cfg.envelope:
         facts["linearisation"] = "envelope"
         facts["slow_settings"] = dataclasses.asdict(cfg.slow_settings)
+    if cfg.start_inputs is not None:
+        facts["start_inputs"] = list(cfg.start_inputs)
     if cfg.references:
         facts["reference_gauges"] = list(cfg.references)
         facts["gauge_drift_window_samples"] = WINDOW_SAMPLES
@@ -328,7 +343,10 @@ def _start_inputs(cfg: _Config) -> tuple[float, float, float]:
     """Start values of the level, opening and discharge inputs: the schedule's first knot at
     ``opening_ref_mm``; for the envelope observer a steady point of the gate law (the middle
     of the schedule's discharges, ``opening_ref_mm`` or, where that is a closed gate,
-    :data:`ENVELOPE_START_OPENING_MM`), so that a master that sets no input starts it."""
+    :data:`ENVELOPE_START_OPENING_MM`), so that a master that sets no input starts it; those
+    given to :func:`export_observer` where given."""
+    if cfg.start_inputs is not None:
+        return cfg.start_inputs
     plant = cfg.plant
     knots = plant.schedule.flow_m3h
     if not cfg.envelope:

@@ -386,11 +386,11 @@ def ssp_target(out_path: str | os.PathLike[str]) -> Path:
     return target
 
 
-def write_package(target: Path, ssd: bytes, ssv: bytes,
-                  members: Callable[[Path, Path], None]) -> Path:  # fmt: skip
+def write_package(target: Path, ssd: bytes, ssv: bytes, members: Callable[[Path, Path], None],
+                  parameters_source: str = PARAMETERS_SOURCE) -> Path:  # fmt: skip
     """Check ``ssd`` and ``ssv`` against the SSP 1.0 schemas, then write the package
-    ``target`` atomically: the two documents (:data:`SSD_NAME`, :data:`PARAMETERS_SOURCE`)
-    and what ``members(work, package)`` puts in the folder ``package`` (``work``: a scratch
+    ``target`` atomically: the two documents (:data:`SSD_NAME`, ``parameters_source``) and
+    what ``members(work, package)`` puts in the folder ``package`` (``work``: a scratch
     folder beside it).
 
     Raises
@@ -413,7 +413,7 @@ def write_package(target: Path, ssd: bytes, ssv: bytes,
             package = work / "package"
             (package / "resources").mkdir(parents=True)
             (package / SSD_NAME).write_bytes(ssd)
-            (package / PARAMETERS_SOURCE).write_bytes(ssv)
+            (package / parameters_source).write_bytes(ssv)
             members(work, package)
             built = work / target.name
             zip_folder(package, built)
