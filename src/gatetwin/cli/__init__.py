@@ -475,7 +475,8 @@ _COMMANDS: tuple[Command, ...] = (
     ),
     Command(
         "ssp",
-        "pack a model's closed loop (plant FMU, controller FMU, scenario) as an SSP 1.0 package",
+        "pack a model's closed loop (plant FMU, controller FMU, scenario) as an SSP 1.0 package, "
+        "or its observer on a record (--observe)",
         _ssp_cmds.add_ssp_arguments,
         _ssp_cmds.run_ssp,
     ),

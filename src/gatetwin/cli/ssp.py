@@ -15,7 +15,7 @@ def add_ssp_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("model", metavar="MODEL.json", help="FOPDT model file")
     parser.add_argument("--out", metavar="LOOP.ssp", required=True, help="the package to write")
     parser.add_argument(
-        "--controller", choices=("pi", "mpc"), default="pi",
+        "--controller", choices=("pi", "mpc"),
         help="controller FMU in the loop: pi (default) or mpc (the demo's single-point MPC)",
     )  # fmt: skip
     parser.add_argument(
@@ -34,9 +34,23 @@ def add_ssp_arguments(parser: argparse.ArgumentParser) -> None:
         "dropped (the plant FMU keeps them; such a model is refused otherwise)",
     )  # fmt: skip
     parser.add_argument(
-        "--minutes", type=float, default=30.0,
+        "--minutes", type=float,
         help="length of the demo's setpoint_steps scenario, simulated minutes (default 30)",
     )  # fmt: skip
+    parser.add_argument(
+        "--observe", metavar="RECORD.csv",
+        help="instead of the loop, pack the observer FMU on this record: a scenario component "
+        "plays its level, opening and discharge sample by sample (as gatetwin observe feeds "
+        "them); simulate-ssp logs the observer's outputs",
+    )  # fmt: skip
+    parser.add_argument(
+        "--gauge", metavar="G",
+        help="with --observe: the gauge whose level is observed (default: the model's)",
+    )  # fmt: skip
+
+
+#: The options of the closed loop, which ``--observe`` (a system without a loop) refuses.
+LOOP_OPTIONS = ("controller", "horizon", "observer", "minutes")
 
 
 def run_ssp(args: argparse.Namespace) -> int:
@@ -45,22 +59,44 @@ def run_ssp(args: argparse.Namespace) -> int:
     from gatetwin.mpc.demo import DemoSettings, demo_scenarios
     from gatetwin.ssp import write_ssp
 
-    check_controller_kind(args.controller)
+    if args.observe is not None:
+        return _run_observe_ssp(args)
+    if args.gauge is not None:
+        raise GatetwinError("--gauge applies to --observe")
+    controller = args.controller or "pi"
+    check_controller_kind(controller)
     settings = DemoSettings()
     if args.horizon is not None:
-        if args.controller != "mpc":
+        if controller != "mpc":
             raise GatetwinError("--horizon applies to --controller mpc")
         settings = replace(settings, mpc=replace(settings.mpc, horizon=args.horizon))
     model = read_model_file(args.model)
     check_writable(args.out)
     try:
-        scenario = demo_scenarios(args.minutes, settings)[0]
+        scenario = demo_scenarios(30.0 if args.minutes is None else args.minutes, settings)[0]
     except GatetwinError as exc:
         raise GatetwinError(f"--minutes: {exc}") from None
-    path = write_ssp(model, args.out, controller=args.controller, scenario=scenario,
+    path = write_ssp(model, args.out, controller=controller, scenario=scenario,
                      settings=settings, observer=args.observer,
                      without_effects=args.without_effects)  # fmt: skip
     print(f"wrote {path}")
+    return 0
+
+
+def _run_observe_ssp(args: argparse.Namespace) -> int:
+    from gatetwin.modelfile import read_model_file
+    from gatetwin.records import read_record
+    from gatetwin.ssp import write_observer_ssp
+
+    given = [f"--{n}" for n in LOOP_OPTIONS if getattr(args, n) not in (None, False)]
+    if given:
+        raise GatetwinError(f"{given[0]} applies to the closed loop, not to --observe")
+    model = read_model_file(args.model)
+    record = read_record(args.observe)
+    check_writable(args.out)
+    path = write_observer_ssp(model, record, args.out, gauge=args.gauge,
+                              without_effects=args.without_effects)  # fmt: skip
+    print(f"wrote {path}: the observer on {len(record.time_s)} samples of {args.observe}")
     return 0
 
 
@@ -88,6 +124,8 @@ def add_simulate_ssp_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_simulate_ssp(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from gatetwin.ssp import simulate_ssp
 
     if args.step_size is not None and not args.step_size > 0:
@@ -105,5 +143,10 @@ def run_simulate_ssp(args: argparse.Namespace) -> int:
     if levels and "controller.setpoint_mm" in run.columns:
         iae = run.iae(levels[0], "controller.setpoint_mm")
         print(f"closed-loop IAE {iae:.6g} mm·s over {run.time_s.size} steps of {run.step_s:g} s")
+    elif "observer.anomaly" in run.columns:
+        flag = run.columns["observer.anomaly"]
+        rises = int(np.count_nonzero(np.diff(flag, prepend=0.0) > 0.0))
+        print(f"observer over {run.time_s.size} steps of {run.step_s:g} s: anomaly flag rose "
+              f"{rises} times")  # fmt: skip
     print(f"wrote {args.out}")
     return 0
