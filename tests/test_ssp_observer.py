@@ -1,0 +1,272 @@
+"""The observer on a measured record as an SSP (``gatetwin ssp --observe``): the package
+follows the SSP 1.0 schemas, gatetwin's master, fmpy's SSP runner and ecos run it to the same
+bits, and what they give is ``gatetwin observe`` on the same record; records and models the
+observer cannot take are refused in one line without output."""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fmu_support import compiler
+from gatetwin.bundled import bundled_records_dir
+from gatetwin.cli import main
+from gatetwin.errors import RecordError
+from gatetwin.modelfile import read_model_file
+from gatetwin.mpc.online import OUTPUTS, OnlineObserver, measured_inputs
+from gatetwin.records import read_record
+from gatetwin.ssp import simulate_ssp, write_observer_ssp
+from gatetwin.ssp.documents import SSD_SCHEMA, SSV_SCHEMA, read_parameter_set, schema_problems
+from gatetwin.ssp.master import read_ssd
+from gatetwin.ssp.observed_record import PARAMETERS
+from gatetwin.ssp.write import OBSERVER_SOURCE, SCENARIO_SOURCE, SSD_NAME
+from test_observer_fmu import TOL as OBSERVER_TOL
+
+pytestmark = pytest.mark.skipif(compiler() is None, reason="no C compiler (cc/gcc) on PATH")
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL = ROOT / "models" / "fopdt_3F.json"
+#: A short record whose gate moves (217 of its 865 samples logged while moving: the opening
+#: the observer takes there is the next logged one) and whose discharge changes.
+RECORD = bundled_records_dir() / "D.csv"
+GAUGE = "3F"
+STEP_S = 1.2
+#: ``gatetwin observe`` prints each value with 10 significant digits (``{v:.10g}``): rounding
+#: moves a value by at most half a unit in its tenth digit, 5e-10 of its size.
+PRINTED_RTOL = 5e-10
+
+
+@pytest.fixture(scope="module")
+def package(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("ssp_observer") / "observed.ssp"
+    assert main(["ssp", str(MODEL), "--observe", str(RECORD), "--gauge", GAUGE,
+                 "--without-effects", "--out", str(out)]) == 0  # fmt: skip
+    return out
+
+
+@pytest.fixture(scope="module")
+def run(package):
+    return simulate_ssp(package)
+
+
+def _read(package: Path, name: str) -> bytes:
+    with zipfile.ZipFile(package) as zf:
+        return zf.read(name)
+
+
+def _python_observer() -> tuple[tuple[np.ndarray, ...], dict[str, np.ndarray]]:
+    """``OnlineObserver`` on the record as ``gatetwin observe`` feeds it: (inputs, outputs)."""
+    inputs = measured_inputs(read_record(RECORD), GAUGE)
+    plant = dataclasses.replace(read_model_file(MODEL).plant, effects=())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # as observe: Q beyond the knots clamped
+        return inputs, OnlineObserver(plant).run(*inputs)
+
+
+def test_the_package_follows_the_ssp_1_0_schemas_and_holds_the_record(package):
+    """SSD and SSV pass the SSP 1.0 schemas; the system is the observer and the scenario, run
+    for one step of 1.2 s per sample; every value of the parameter set is the scenario FMU's
+    own start value (an engine that applies no parameter set runs the same system)."""
+    from fmpy import read_model_description
+
+    ssd = _read(package, SSD_NAME)
+    assert schema_problems(ssd, SSD_SCHEMA) == []
+    assert schema_problems(_read(package, PARAMETERS), SSV_SCHEMA) == []
+    system = read_ssd(ssd, "test")
+    assert [c.name for c in system.components] == ["observer", "scenario"]
+    signals = (f"level_{GAUGE}_mm", "opening_mm", "flow_m3h")
+    assert set(system.connections) == {("scenario", s, "observer", s) for s in signals}
+    n = len(read_record(RECORD).time_s)
+    assert (system.start_time_s, system.stop_time_s) == (0.0, n * STEP_S)
+    parameters = read_parameter_set(_read(package, PARAMETERS), "ssv")
+    folder = package.parent / "unpacked"
+    with zipfile.ZipFile(package) as zf:
+        zf.extractall(folder)
+    scenario = read_model_description(str(folder / SCENARIO_SOURCE))
+    starts = {f"scenario.{v.name}": float(v.start) for v in scenario.modelVariables
+              if v.start is not None}  # fmt: skip
+    assert parameters and all(starts[k] == v for k, v in parameters.items())
+    observer = read_model_description(str(folder / OBSERVER_SOURCE))
+    first = {v.name: float(v.start) for v in observer.modelVariables if v.causality == "input"}
+    (level, opening, flow), _ = _python_observer()
+    assert first == {signals[0]: level[0], "opening_mm": opening[0], "flow_m3h": flow[0]}
+
+
+def test_simulate_ssp_gives_what_observe_gives_on_the_record(package, run, tmp_path, capsys):
+    """``gatetwin simulate-ssp`` on the package against ``gatetwin observe`` on the record.
+
+    The observer receives at ``k·1.2 s`` the record's sample ``k`` as ``observe`` feeds it
+    (the same doubles: equal). Its outputs are the observer FMU's, which agree with
+    ``OnlineObserver`` to ``test_observer_fmu.TOL`` = 1e-9 in each output's unit (the same
+    arithmetic generated by casadi, without FMA; round-off ~1e-13 mm): against the Python
+    observer's doubles that bound, against ``observe``'s CSV that bound plus its printing to
+    10 significant digits (:data:`PRINTED_RTOL` of each value)."""
+    csv, est = tmp_path / "result.csv", tmp_path / "est.csv"
+    assert main(["simulate-ssp", str(package), "--out", str(csv)]) == 0
+    assert "anomaly flag rose" in capsys.readouterr().out
+    assert main(["observe", str(MODEL), str(RECORD), "--gauge", GAUGE, "--without-effects",
+                 "--out", str(est)]) == 0  # fmt: skip
+    ours = np.genfromtxt(csv, delimiter=",", names=True, deletechars="")
+    observed = np.genfromtxt(est, delimiter=",", names=True)
+    (level, opening, flow), python = _python_observer()
+    n = level.size
+    assert ours.size == n and observed.size == n
+    assert np.array_equal(ours["time_s"], np.arange(n) * STEP_S)
+    for name, fed in ((f"level_{GAUGE}_mm", level), ("opening_mm", opening), ("flow_m3h", flow)):
+        assert np.array_equal(ours[f"observer.{name}"], fed), name
+    assert np.ptp(opening) > 5.0 and np.ptp(flow) > 0.0  # the gate moved, the discharge changed
+    for name in OUTPUTS:
+        got = ours[f"observer.{name}"]
+        assert np.array_equal(got, run.columns[f"observer.{name}"]), name  # the CSV's repr
+        assert np.max(np.abs(got - python[name])) <= OBSERVER_TOL, name
+        bound = OBSERVER_TOL + PRINTED_RTOL * np.abs(observed[name])
+        assert np.all(np.abs(got - observed[name]) <= bound), name
+    assert np.ptp(ours["observer.innovation_mm"]) > 1.0  # the estimates move over the record
+
+
+def test_the_jacobi_scheme_gives_the_same_run(package, run):
+    """Nothing reads the observer: stepped in document order or all together, it receives
+    the scenario's value at the point it steps from, so the runs are equal to the bit."""
+    jacobi = simulate_ssp(package, scheme="jacobi")
+    assert list(jacobi.columns) == list(run.columns)
+    for name, values in run.columns.items():
+        assert np.array_equal(jacobi.columns[name], values), name
+
+
+def test_fmpys_ssp_runner_gives_the_same_estimates(package, run, monkeypatch):
+    """fmpy's runner reads the package with its path, the stop time and the step. It sets
+    every connector to 0.0 before the first step (``fmpy/ssp/simulation.py``, "initialize
+    the connectors") and exchanges nothing in initialisation, so its first step gives the
+    observer a level, opening and discharge of 0; given there the start values the package
+    sets (the observer's inputs start at the record's first sample), its run is gatetwin's
+    to the bit: the same FMU binaries given the same doubles (equal, not within a tolerance:
+    a system without a feedback loop has no other source of difference; the scenario's
+    knots are in force on fmpy's running-sum time as on k·h)."""
+    import fmpy.ssp.simulation as runner
+
+    n = run.time_s.size
+    plain = runner.simulate_ssp(str(package), stop_time=n * STEP_S, step_size=STEP_S)
+    assert plain["observer.filtered_level_mm"][0] != run.columns["observer.filtered_level_mm"][0]
+
+    def first_step_at_start_values(component, time, step_size, _do_step=runner.do_step):
+        if time == 0.0:
+            for c in component.connectors:
+                if c.kind == "input":
+                    c.value = runner.get_value(component, c.name)
+        _do_step(component, time, step_size)
+
+    monkeypatch.setattr(runner, "do_step", first_step_at_start_values)
+    out = runner.simulate_ssp(str(package), stop_time=n * STEP_S, step_size=STEP_S)
+    assert len(out) == n
+    for name in OUTPUTS:
+        assert np.array_equal(out[f"observer.{name}"], run.columns[f"observer.{name}"]), name
+    # fmpy's row k holds an input as it goes into the step from t_(k+1)
+    level = f"observer.level_{GAUGE}_mm"
+    assert np.array_equal(out[level][:-1], run.columns[level][1:])
+
+
+def test_ecos_gives_the_same_estimates(package, run):
+    """ecos runs the package as it is (it gives the observer its inputs before it
+    initialises): every input and every observer output equal to gatetwin's run."""
+    from test_ssp import _compare_ecos
+
+    _compare_ecos(package, run)
+
+
+def _record_copy(tmp_path: Path, name: str, change, sidecar: dict | None = None) -> Path:
+    """The record's CSV with each data line passed through ``change(index, cells)``, and its
+    sidecar (``sidecar`` replacing fields)."""
+    import json
+
+    lines = RECORD.read_text(encoding="utf-8").splitlines()
+    header = lines[0].split(",")
+    rows = [change(i, dict(zip(header, line.split(","), strict=True)))
+            for i, line in enumerate(lines[1:])]  # fmt: skip
+    out = tmp_path / f"{name}.csv"
+    kept = [h for h in header if h in rows[0]]
+    out.write_text("\n".join([",".join(kept)] + [",".join(r[h] for h in kept) for r in rows])
+                   + "\n", encoding="utf-8")  # fmt: skip
+    meta = json.loads(RECORD.with_suffix(".json").read_text(encoding="utf-8"))
+    out.with_suffix(".json").write_text(json.dumps({**meta, **(sidecar or {})}), "utf-8")
+    return out
+
+
+def _set(column: str, at: int, value: str):
+    def change(i: int, row: dict) -> dict:
+        return {**row, column: value} if i == at else row
+
+    return change
+
+
+def _without(column: str):
+    def change(_i: int, row: dict) -> dict:
+        return {k: v for k, v in row.items() if k != column}
+
+    return change
+
+
+def _refused(argv: list[str], tmp_path: Path, capsys) -> str:
+    out = tmp_path / "m.ssp"
+    assert main(["ssp", *argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("gatetwin: error:"), (argv, err)
+    assert not out.exists() and not list(tmp_path.glob(".m.ssp*")), argv
+    return err[0]
+
+
+def test_what_the_observer_cannot_take_is_refused_in_one_line_without_output(
+    tmp_path, capsys, monkeypatch
+):
+    """A record without the gauge, with an empty level or discharge (``observe`` refuses
+    both), too long for simulate-ssp or for the scenario FMU, at another sample period; a
+    model the observer does not cover, another gauge, the loop's options: one line, exit 2,
+    no package."""
+    import gatetwin.fmu.signal_source as signal_source
+    import gatetwin.ssp.observed_record as observed_record
+
+    model, effects = str(MODEL), "--without-effects"
+    no_gauge = _record_copy(tmp_path, "no3F", _without("level_3F_mm"))
+    gap = _record_copy(tmp_path, "gap", _set("level_3F_mm", 40, ""))
+    cases = [
+        ([model, "--observe", str(no_gauge), effects],
+         "no level column for gauge 3F"),
+        ([model, "--observe", str(gap), effects],
+         "level_3F_mm is empty at t = 48"),
+        ([model, "--observe", str(_record_copy(tmp_path, "slow", lambda i, r: r,
+                                               {"sample_period_s": 2.4})), effects],
+         "sample period 2.4 s; the observer samples every 1.2 s"),
+        ([model, "--observe", str(RECORD)], "effect blocks are not covered"),
+        ([str(ROOT / "models" / "arx_3F.json"), "--observe", str(RECORD)],
+         "needs a scheduled FOPDT plant"),
+        ([model, "--observe", str(RECORD), "--gauge", "2E", effects],
+         "gauge 2E: the model fopdt_3F observes gauge 3F"),
+        ([model, "--observe", str(RECORD), effects, "--controller", "pi"],
+         "--controller applies to the closed loop"),
+        ([model, "--observe", str(RECORD), effects, "--observer"], "--observer applies"),
+        ([model, "--gauge", GAUGE], "--gauge applies to --observe"),
+    ]  # fmt: skip
+    for argv, reason in cases:
+        assert reason in _refused(argv, tmp_path, capsys), argv
+    n = len(read_record(RECORD).time_s)
+    monkeypatch.setattr(observed_record, "MAX_STEPS", n - 1)
+    line = _refused([model, "--observe", str(RECORD), effects], tmp_path, capsys)
+    assert f"{n} samples; simulate-ssp runs at most {n - 1} steps" in line
+    monkeypatch.undo()
+    monkeypatch.setattr(signal_source, "MAX_KNOTS", 100)
+    line = _refused([model, "--observe", str(RECORD), effects], tmp_path, capsys)
+    assert "level_3F_mm changes at" in line and "at most 100 knots a signal" in line
+    # the reader refuses an empty or negative discharge in a CSV; a record made in memory
+    # meets the same check as the level
+    record = read_record(RECORD)
+    flow = np.array(record.flow_m3h)
+    flow[7] = np.nan
+    with pytest.raises(RecordError, match=r"flow_m3h is empty or outside \[0, 3.6e\+07\] m3/h "
+                       r"at t = 8\.\d+ s \(1 sample"):  # fmt: skip
+        write_observer_ssp(read_model_file(MODEL), dataclasses.replace(record, flow_m3h=flow),
+                           tmp_path / "m.ssp", without_effects=True)  # fmt: skip
+    assert not (tmp_path / "m.ssp").exists()
