@@ -36,6 +36,7 @@ RUN_BY = {
     ("docs/validation.md", "toml", 0): "test_the_validation_page_recipe_runs_as_written",
     ("docs/validation.md", "bash", 0): "test_the_validation_page_recipe_runs_as_written",
     ("docs/closed-loop.md", "bash", 0): "test_the_closed_loop_page_commands_run",
+    ("docs/closed-loop.md", "bash", 1): "test_the_closed_loop_page_observer_on_a_record_runs",
 }  # fmt: skip
 
 
@@ -130,3 +131,19 @@ def test_the_closed_loop_page_commands_run(tmp_path, monkeypatch):
         assert main(argv) == 0, argv
     for name in ("fopdt_3F_pi.fmu", "fopdt_3F_mpc.fmu", "loop.ssp", "mpc_loop.ssp", "result.csv"):
         assert (tmp_path / name).is_file(), name
+
+
+def test_the_closed_loop_page_observer_on_a_record_runs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name in ("models", "src"):
+        (tmp_path / name).symlink_to(ROOT / name)
+    argvs = commands(blocks("docs/closed-loop.md", "bash")[1])
+    assert len(argvs) == 3
+    for argv in argvs:
+        assert main(argv) == 0, argv
+    ours = np.genfromtxt(tmp_path / "observed.csv", delimiter=",", names=True, deletechars="")
+    observed = np.genfromtxt(tmp_path / "estimates.csv", delimiter=",", names=True)
+    # the page's claim: observe's estimates, within 1e-9 and observe's 10 printed digits
+    bound = 1e-9 + 5e-10 * np.abs(observed["filtered_level_mm"])
+    assert np.all(np.abs(ours["observer.filtered_level_mm"] - observed["filtered_level_mm"])
+                  <= bound)  # fmt: skip
