@@ -270,3 +270,20 @@ def test_what_the_observer_cannot_take_is_refused_in_one_line_without_output(
         write_observer_ssp(read_model_file(MODEL), dataclasses.replace(record, flow_m3h=flow),
                            tmp_path / "m.ssp", without_effects=True)  # fmt: skip
     assert not (tmp_path / "m.ssp").exists()
+
+
+def test_a_physical_model_gets_the_envelope_observer(tmp_path):
+    """As ``observe`` by default, a physical model is observed by the envelope observer (its
+    slow rule's ``slow_cusum`` logged too), to the observer FMU's bound of ``OnlineObserver``
+    (``test_observer_fmu.TOL``)."""
+    model = read_model_file(ROOT / "models" / "physical_3F.json")
+    out = write_observer_ssp(model, RECORD, tmp_path / "physical.ssp", without_effects=True)
+    run = simulate_ssp(out)
+    inputs = measured_inputs(read_record(RECORD), GAUGE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        python = OnlineObserver(dataclasses.replace(model.plant, effects=())).run(*inputs)
+    assert python.keys() == {*OUTPUTS, "slow_cusum"}
+    for name, values in python.items():
+        assert np.max(np.abs(run.columns[f"observer.{name}"] - values)) <= OBSERVER_TOL, name
+    assert np.ptp(run.columns["observer.slow_cusum"]) > 0.0

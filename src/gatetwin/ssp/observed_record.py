@@ -178,12 +178,7 @@ def observed_record_ssd(name: str, gauge: str, parameters: list[tuple[str, float
     signals = {level: "mm", "opening_mm": "mm", "flow_m3h": "m3/h"}
     component_element(elements, "scenario", SCENARIO_SOURCE,
                       scenario_connectors(signals, parameters))  # fmt: skip
-    from lxml import etree
-
-    from gatetwin.ssp.documents import SSD
-
-    connections = etree.SubElement(system, f"{{{SSD}}}Connections")
-    connection_elements(connections, [(("scenario", s), ("observer", s)) for s in signals])
+    connection_elements(system, [(("scenario", s), ("observer", s)) for s in signals])
     units = {unit for _, _, unit in (*observer, *parameters)} | set(signals.values())
     return finished_document(root, units, stop_time_s)
 

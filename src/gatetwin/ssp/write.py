@@ -182,9 +182,6 @@ def _observer_element(elements: object, level: str) -> None:
 
 
 def _connections(system: object, level: str, observer: bool) -> None:
-    from lxml import etree
-
-    connections = etree.SubElement(system, f"{{{SSD}}}Connections")
     links = [(("plant", level), ("controller", level)),
              (("controller", "opening_mm"), ("plant", "opening_mm")),
              (("scenario", "setpoint_mm"), ("controller", "setpoint_mm")),
@@ -194,15 +191,16 @@ def _connections(system: object, level: str, observer: bool) -> None:
         links += [(("plant", level), ("observer", level)),
                   (("controller", "opening_mm"), ("observer", "opening_mm")),
                   (("scenario", "flow_m3h"), ("observer", "flow_m3h"))]  # fmt: skip
-    connection_elements(connections, links)
+    connection_elements(system, links)
 
 
-def connection_elements(connections: object,
+def connection_elements(system: object,
                         links: list[tuple[tuple[str, str], tuple[str, str]]]) -> None:  # fmt: skip
-    """Add a ``Connection`` for each ``((start element, connector), (end element,
-    connector))`` to an SSD's ``Connections``."""
+    """Add the system's ``Connections``: one for each ``((start element, connector), (end
+    element, connector))``."""
     from lxml import etree
 
+    connections = etree.SubElement(system, f"{{{SSD}}}Connections")
     for start, end in links:
         etree.SubElement(connections, f"{{{SSD}}}Connection", startElement=start[0],
                          startConnector=start[1], endElement=end[0],
