@@ -37,7 +37,11 @@ The MPC and the observer cover a scheduled FOPDT without effect blocks: for a mo
 effect blocks they are built on its FOPDT with the blocks dropped when asked
 (``without_effects``), while the plant FMU keeps them.
 
-SSD and SSV are checked against the SSP 1.0 schemas before anything is written.
+SSD and SSV are checked against the SSP 1.0 schemas before anything is written
+(:func:`write_package`, which also writes the package atomically). The document's parts
+(:func:`system_document`, :func:`component_element`, :func:`connection_elements`,
+:func:`finished_document`) and :func:`write_package` also pack the observer on a measured
+record (:mod:`gatetwin.ssp.observed_record`).
 """
 
 from __future__ import annotations
