@@ -19,12 +19,15 @@ Two measurements, printed with their ratios (never asserted):
 ``--families`` instead times the C FMU of every family in one run (the test plant's FOPDT,
 the twin of the bare step, and the bundled ``models/`` fopdt_3F and arx_3F, whose envelopes
 derive a steady point from the opening, and physical_3F) beside the bare FOPDT: per
-setReal + doStep + getReal with the opening held, changed every 7 steps, changed at every
-step, and moving by 0.1 mm at every step (a controller's output; the discharge held), each
-with its ratio to the bare step.
+setReal + doStep + getReal with the opening changed every 7 steps, changed at every step,
+and moving by 0.1 mm at every step (a controller's output; the discharge held), each with
+its ratio to the bare step.
 
-usage: python benchmarks/bench_fmu.py [--model MODEL.json | --families] [--n-c 5000000]
-       [--n-python 20000] [--n-fmpy 20000] [--repeat 5]
+``--save`` keeps those numbers in ``docs/results/fmu_steps.json`` (the benchmarks page's
+table is rendered from it).
+
+usage: python benchmarks/bench_fmu.py [--model MODEL.json | --families [--save]]
+       [--n-c 5000000] [--n-python 20000] [--n-fmpy 20000] [--repeat 5]
 """
 
 from __future__ import annotations
@@ -197,12 +200,13 @@ def build_host(cc: str, sources: Path, out: Path) -> Path:
 
 
 #: The cases of --families: bench_host's keys and what they are.
-CASES = (("set_doStep_get_ns", "held 7 steps"), ("set_every_step_ns", "new at every step"),
+CASES = (("set_doStep_get_ns", "new every 7 steps"), ("set_every_step_ns", "new at every step"),
          ("moving_ns", "moving 0.1 mm/step"))  # fmt: skip
 
 
-def families(cc: str, n: int, repeat: int) -> None:
-    """The C FMU of every family beside the bare FOPDT, in one run (printed as Markdown)."""
+def families(cc: str, n: int, repeat: int) -> dict[str, Any]:
+    """The C FMU of every family beside the bare FOPDT, in one run: ns per step of each case
+    (the fastest of ``repeat`` runs) and of the bare step (:func:`report` prints them)."""
     models = Path(__file__).resolve().parents[1] / "models"
     plants = {"fopdt (test plant)": test_plant(),
               **{name: read_model_file(models / f"{name}.json").plant
@@ -221,20 +225,29 @@ def families(cc: str, n: int, repeat: int) -> None:
                 step_s = getattr(plant, "sample_period_s", 1.0)
                 runs[name].append(run_host(host, host_args(fmus[name], plant.gauge), n,
                                            step_s=step_s))  # fmt: skip
-    bare = min(bare_runs)
-    print(
-        f"C FMUs, setReal + doStep + getReal, ns per step (fastest of {repeat} runs of "
-        f"N = {n:,}; Q = {FLOW_M3H:g} m3/h held); the bare FOPDT (bench_bare.c) {bare:.1f} ns\n"
-    )
-    print("| FMU | " + " | ".join(f"{what} (ns) | x bare" for _, what in CASES) + " |")
-    print("|---|" + "---|---|" * len(CASES))
-    for name in plants:
-        best = {key: min(r[key] for r in runs[name]) for key, _ in CASES}
+    return {"n": n, "repeat": repeat, "flow_m3h": FLOW_M3H, "bare_ns": min(bare_runs),
+            "fmus": {name: {key: min(r[key] for r in runs[name]) for key, _ in CASES}
+                     for name in plants}}  # fmt: skip
+
+
+def report(data: dict[str, Any]) -> str:
+    """:func:`families`' numbers as Markdown (printed, and the docs' generated block)."""
+    bare = data["bare_ns"]
+    lines = [
+        f"C FMUs, setReal + doStep + getReal, ns per step (fastest of {data['repeat']} runs of "
+        f"N = {data['n']:,}; Q = {data['flow_m3h']:g} m³/h held); the bare FOPDT "
+        f"(`bench_bare.c`) {bare:.1f} ns",
+        "",
+        "| FMU | " + " | ".join(f"{what} (ns) | × bare" for _, what in CASES) + " |",
+        "|---|" + "---|---|" * len(CASES),
+    ]
+    for name, best in data["fmus"].items():
         cells = " | ".join(f"{best[key]:.1f} | {best[key] / bare:.1f}" for key, _ in CASES)
-        print(f"| {name} | {cells} |")
+        lines.append(f"| {name} | {cells} |")
+    return "\n".join(lines) + "\n"
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n-c", type=int, default=5_000_000, help="doSteps timed, C FMU")
     parser.add_argument("--n-python", type=int, default=20_000, help="doSteps, python FMU")
@@ -253,10 +266,21 @@ def main() -> None:
         action="store_true",
         help="time the C FMU of every family (and models/) beside the bare FOPDT",
     )
-    args = parser.parse_args()
+    parser.add_argument("--save", action="store_true",
+                        help="--families: keep the numbers in docs/results/fmu_steps.json")
+    args = parser.parse_args(argv)
     cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    if args.save and not args.families:
+        parser.error("--save keeps the numbers of --families")
     if args.families:
-        families(cc, args.n_c, args.repeat)
+        data = families(cc, args.n_c, args.repeat)
+        print(report(data))
+        if args.save:
+            sys.path.insert(0, str(HERE))
+            from results import save
+
+            print(save("fmu_steps", data, "python benchmarks/bench_fmu.py "
+                       + " ".join(argv if argv is not None else sys.argv[1:])))  # fmt: skip
         return
     plant = read_model_file(args.model).plant if args.model else test_plant()
     global STEP_S

@@ -134,6 +134,13 @@ def _controller_fmu_cost(doc: dict[str, Any]) -> str:
     return report(doc["data"]) + "\n" + _provenance(doc) + "\n"
 
 
+def _fmu_steps(doc: dict[str, Any]) -> str:
+    sys.path.insert(0, str(Path(__file__).parent))
+    from bench_fmu import report
+
+    return report(doc["data"]) + "\n" + _provenance(doc) + "\n"
+
+
 #: Renderers by ``file.block``: the file's JSON in, the block's Markdown out.
 RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "run.mpc": _run_mpc,
@@ -142,6 +149,7 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "run.families": _run_families,
     "run.ssp": _run_ssp,
     "controller_fmu.cost": _controller_fmu_cost,
+    "fmu_steps.table": _fmu_steps,
 }
 
 
