@@ -8,14 +8,18 @@
 2. The full 75-model order search at 1e5 samples.
 3. The least-squares FOPDT fit (and the paper's method) on one step record.
 
-Run: ``python benchmarks/bench_identify.py``. Times are the best of a few repeats
-(``time.perf_counter``).
+Run: ``python benchmarks/bench_identify.py [--samples N] [--order-samples N] [--save]``
+(``--save`` keeps the numbers in ``docs/results/identify.json`` for the identification
+page). Times are the best of a few repeats (``time.perf_counter``).
 """
 
 from __future__ import annotations
 
+import argparse
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -102,36 +106,34 @@ def explicit_regressor(
     return np.column_stack(cols), yy[rows]
 
 
-def compare_arx(label: str, u: np.ndarray, y: np.ndarray, segs: np.ndarray, orders: tuple) -> None:
+def compare_arx(u: np.ndarray, y: np.ndarray, segs: np.ndarray, orders: tuple) -> dict:
     t_dot, fit = best_of(lambda: fit_arx(u, y, segs, *orders), 5)
     t_build, (x, rhs) = best_of(lambda: explicit_regressor(u, y, segs, *orders), 3)
     t_solve, theta = best_of(lambda: np.linalg.lstsq(x, rhs, rcond=None)[0], 3)
     diff = np.linalg.norm(fit.theta - theta) / np.linalg.norm(theta)
-    print(f"ARX{orders} {label}: {fit.n_rows} rows, {len(segs)} segments")
-    print(f"  dot-product normal equations : {1e3 * t_dot:8.1f} ms")
-    print(f"  lstsq, regressor build       : {1e3 * t_build:8.1f} ms")
-    print(f"  lstsq, solve                 : {1e3 * t_solve:8.1f} ms")
-    print(f"  ratio lstsq (build + solve) / dot : {(t_build + t_solve) / t_dot:6.1f} x")
-    print(f"  ratio lstsq (solve only) / dot    : {t_solve / t_dot:6.1f} x")
-    print(f"  |theta_dot - theta_lstsq| / |theta| = {diff:.1e}")
+    return {"orders": list(orders), "rows": int(fit.n_rows), "segments": len(segs),
+            "dot_s": t_dot, "lstsq_build_s": t_build, "lstsq_solve_s": t_solve,
+            "relative_theta_difference": float(diff)}  # fmt: skip
 
 
-def bench_arx() -> None:
-    d = prbs_data(1_000_000)
+def bench_arx(samples: int) -> dict:
+    d = prbs_data(samples)
     u = reconstructed_opening(d["t"], d["e"], d["hold"])
-    compare_arx("all samples", u, d["y"], continuous_segments(d["t"], TS), (2, 2, 1))
-    compare_arx("hold rows", d["e"], d["y"], hold_segments(d["hold"]), (2, 1, 1))
+    every = continuous_segments(d["t"], TS)
+    holds = hold_segments(d["hold"])
+    return {"all samples": compare_arx(u, d["y"], every, (2, 2, 1)),
+            "hold rows": compare_arx(d["e"], d["y"], holds, (2, 1, 1))}  # fmt: skip
 
 
-def bench_orders() -> None:
-    d = prbs_data(100_000, seed=1)
+def bench_orders(samples: int) -> dict:
+    d = prbs_data(samples, seed=1)
     u = reconstructed_opening(d["t"], d["e"], d["hold"])
     segs = continuous_segments(d["t"], TS)
     elapsed, table = best_of(lambda: search_orders(u, d["y"], segs, time_s=d["t"]), 3)
-    print(f"order search, {len(table)} models, 1e5 samples: {1e3 * elapsed:8.1f} ms")
+    return {"samples": samples, "models": len(table), "seconds": elapsed}
 
 
-def bench_fopdt() -> None:
+def bench_fopdt() -> dict:
     rng = np.random.default_rng(2)
     n = 100 + 2 + 500
     t = TS * np.arange(n)
@@ -143,18 +145,49 @@ def bench_fopdt() -> None:
     t_paper, paper = best_of(lambda: paper_step_method(t, h, hold, t[100], n, 5.0), 5)
     mask = hold & (np.arange(n) >= paper.pre_start_index)
     t_fit, fit = best_of(lambda: fit_fopdt(t, h, mask, t[100], 5.0, paper.pre_mean_mm), 5)
-    print(f"FOPDT on one step record ({fit.n} samples):")
-    print(
-        f"  least-squares fit : {1e3 * t_fit:8.1f} ms  (K {fit.gain_mm_per_mm:.2f}, "
-        f"L {fit.dead_time_s:.2f} s, T {fit.time_constant_s:.1f} s)"
+    return {"samples": int(fit.n), "least_squares_s": t_fit, "paper_method_s": t_paper,
+            "gain_mm_per_mm": fit.gain_mm_per_mm, "dead_time_s": fit.dead_time_s,
+            "time_constant_s": fit.time_constant_s}  # fmt: skip
+
+
+def report(data: dict) -> str:
+    """The benchmark's numbers as Markdown (printed, and the identification page's block)."""
+    lines = ["| ARX, rows | dot products (ms) | `lstsq` regressor build + solve (ms) | ratio | "
+             "ratio to the solve alone | θ difference (relative) |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    for label, r in data["arx"].items():
+        build, solve, dot = r["lstsq_build_s"], r["lstsq_solve_s"], r["dot_s"]
+        orders = ",".join(str(o) for o in r["orders"])
+        lines.append(f"| ARX({orders}), {label} ({r['rows']:,} rows, {r['segments']:,} segments) "
+                     f"| {1e3 * dot:.1f} | {1e3 * build:.1f} + {1e3 * solve:.1f} | "
+                     f"{(build + solve) / dot:.1f}× | {solve / dot:.1f}× | "
+                     f"{r['relative_theta_difference']:.1e} |")  # fmt: skip
+    o, f = data["orders"], data["fopdt"]
+    return "\n".join(lines) + (
+        f"\n\nARX data: {data['arx_samples']:,} samples. Order search, {o['models']} models, "
+        f"{o['samples']:,} samples: {1e3 * o['seconds']:.0f} ms. FOPDT on one step record "
+        f"({f['samples']} samples): least-squares fit {1e3 * f['least_squares_s']:.1f} ms, "
+        f"the paper's method {1e3 * f['paper_method_s']:.1f} ms. Best of 3–5 repeats.\n"
     )
-    print(f"  paper's method    : {1e3 * t_paper:8.1f} ms")
 
 
-def main() -> None:
-    bench_arx()
-    bench_orders()
-    bench_fopdt()
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--samples", type=int, default=1_000_000, help="ARX data length")
+    parser.add_argument("--order-samples", type=int, default=100_000)
+    parser.add_argument(
+        "--save", action="store_true", help="keep the numbers in docs/results/identify.json"
+    )
+    args = parser.parse_args(argv)
+    data = {"arx_samples": args.samples, "arx": bench_arx(args.samples),
+            "orders": bench_orders(args.order_samples), "fopdt": bench_fopdt()}  # fmt: skip
+    print(report(data))
+    if args.save:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from results import save
+
+        print(save("identify", data, "python benchmarks/bench_identify.py "
+                   + " ".join(argv if argv is not None else sys.argv[1:])))  # fmt: skip
 
 
 if __name__ == "__main__":

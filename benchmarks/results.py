@@ -134,11 +134,15 @@ def _controller_fmu_cost(doc: dict[str, Any]) -> str:
     return report(doc["data"]) + "\n" + _provenance(doc) + "\n"
 
 
-def _fmu_steps(doc: dict[str, Any]) -> str:
-    sys.path.insert(0, str(Path(__file__).parent))
-    from bench_fmu import report
+def _bench_report(module: str) -> Callable[[dict[str, Any]], str]:
+    """A renderer that calls ``report(data)`` of ``benchmarks/<module>.py``, what it prints."""
 
-    return report(doc["data"]) + "\n" + _provenance(doc) + "\n"
+    def render(doc: dict[str, Any]) -> str:
+        sys.path.insert(0, str(Path(__file__).parent))
+        report = __import__(module).report
+        return report(doc["data"]) + "\n" + _provenance(doc) + "\n"
+
+    return render
 
 
 #: Renderers by ``file.block``: the file's JSON in, the block's Markdown out.
@@ -149,7 +153,8 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "run.families": _run_families,
     "run.ssp": _run_ssp,
     "controller_fmu.cost": _controller_fmu_cost,
-    "fmu_steps.table": _fmu_steps,
+    "fmu_steps.table": _bench_report("bench_fmu"),
+    "identify.arx": _bench_report("bench_identify"),
 }
 
 
