@@ -24,12 +24,15 @@ the MPC's whole step (observer, condensing) is reported for the QP path too. Not
 asserted: the script prints and says which targets were met.
 
 usage: python benchmarks/bench_mpc.py [--minutes 10] [--horizons 50 100 200] [--osqp-every 10]
-       [--wide-minutes 30]
+       [--wide-minutes 30] [--only-envelope] [--save]
+
+``--save`` keeps parts 1 and 3 in ``docs/results/mpc_solve.json`` for the MPC page.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -127,7 +130,7 @@ def ms(values) -> tuple[float, float]:
     return float(np.median(arr)), float(np.percentile(arr, 99))
 
 
-def qp_against_ipopt(horizons: list[int], minutes: float) -> None:
+def qp_against_ipopt(horizons: list[int], minutes: float) -> list[dict]:
     print("1. condensed QP (qpOASES, hot start) vs Opti + IPOPT, same problems, one run")
     print(f"   inflow step, {minutes:g} min at 1.2 s, Python FOPDT plant, noise 0.7 mm")
     head = (
@@ -136,7 +139,7 @@ def qp_against_ipopt(horizons: list[int], minutes: float) -> None:
         f"{'IPOPT p99':>10} {'ratio med':>10} {'ratio p99':>10} {'max|Δu0| mm':>12}"
     )
     print(head)
-    verdicts = []
+    verdicts, rows = [], []
     for n in horizons:
         settings = MpcSettings(horizon=n)
         ipopt = Shadow("ipopt", OptiBackend(settings))
@@ -151,6 +154,9 @@ def qp_against_ipopt(horizons: list[int], minutes: float) -> None:
             f"{ip_p99:>10.1f} {ip_med / qp_med:>9.0f}x {ip_p99 / qp_p99:>9.0f}x {diff:>12.1e}"
         )
         verdicts.append((n, ip_med / qp_med, qp_p99, diff, ipopt.failures))
+        rows.append({"horizon": n, "qp_ms": [qp_med, qp_p99], "ipopt_ms": [ip_med, ip_p99],
+                     "max_first_move_difference_mm": float(diff),
+                     "ipopt_failures": ipopt.failures})  # fmt: skip
     print(
         f"   (ms; 'step' = the MPC's whole step: observer, condensing and solve; the inflow\n"
         f"   steps at t = {minutes * 10:g} s: the Hessian changes and qpOASES starts over)"
@@ -163,6 +169,7 @@ def qp_against_ipopt(horizons: list[int], minutes: float) -> None:
             f"first moves agree < {TARGET_DIFF_MM:g} mm: {diff < TARGET_DIFF_MM}; "
             f"IPOPT failures: {fails}"
         )
+    return rows
 
 
 def qp_solvers(horizon: int, minutes: float, osqp_every: int) -> None:
@@ -187,7 +194,7 @@ def qp_solvers(horizon: int, minutes: float, osqp_every: int) -> None:
     print(f"   ({time.perf_counter() - start:.0f} s)")
 
 
-def envelope_against_single_point(minutes: float) -> None:
+def envelope_against_single_point(minutes: float) -> dict:
     print(f"\n3. envelope MPC vs single-point MPC, wide_range, {minutes:g} min, N = "
           f"{MpcSettings().horizon}, Python envelope FOPDT plant, noise 0.7 mm")  # fmt: skip
     plant_model = read_model_file(MODEL_3F).plant
@@ -218,6 +225,9 @@ def envelope_against_single_point(minutes: float) -> None:
         f"   envelope / single-point: solve median {s1 / s0:.2f}x, step median "
         f"{t1 / t0:.2f}x, step p99 {t1_99 / t0_99:.2f}x, IAE {m1['iae'] / m0['iae']:.3f}"
     )
+    return {name: {"solve_ms": list(solve), "step_ms": list(step), "iae": float(m["iae"]),
+                   "violations": int(m["violations"])}
+            for name, (solve, step, m) in rows.items()}  # fmt: skip
 
 
 def warm_up(horizons: list[int]) -> None:
@@ -228,7 +238,33 @@ def warm_up(horizons: list[int]) -> None:
         closed_loop(MpcSettings(horizon=n), [], 2.0)
 
 
-def main() -> None:
+def report(data: dict) -> str:
+    """Parts 1 and 3 as Markdown (printed last, and the MPC page's generated block)."""
+    lines = []
+    if data.get("qp_against_ipopt"):
+        lines += ["| horizon N | QP median / p99 (ms) | IPOPT median / p99 (ms) | ratio (median) "
+                  "| max first-move difference |", "|---|---|---|---|---|"]  # fmt: skip
+        for r in data["qp_against_ipopt"]:
+            (qm, q99), (im, i99) = r["qp_ms"], r["ipopt_ms"]
+            diff = r["max_first_move_difference_mm"]
+            lines.append(f"| {r['horizon']} | {qm:.2f} / {q99:.2f} | {im:.1f} / {i99:.1f} | "
+                         f"{im / qm:.0f}× | {diff:.1e} mm |")  # fmt: skip
+        lines += ["", f"Inflow step, {data['minutes']:g} min at 1.2 s, the same problems for "
+                  "both solvers.", ""]  # fmt: skip
+    env = data["envelope"]
+    lines += ["| MPC | solve median / p99 (ms) | whole step median / p99 (ms) | IAE (mm·s) |",
+              "|---|---|---|---|"]  # fmt: skip
+    for key, label in (("schedule", "single-point"), ("envelope", "envelope")):
+        (sm, s99), (tm, t99) = env[key]["solve_ms"], env[key]["step_ms"]
+        lines.append(f"| {label} | {sm:.2f} / {s99:.1f} | {tm:.2f} / {t99:.1f} | "
+                     f"{env[key]['iae']:.0f} |")  # fmt: skip
+    ratio = env["envelope"]["step_ms"][0] / env["schedule"]["step_ms"][0]
+    lines += ["", f"`wide_range`, {data['wide_minutes']:g} min, N = {data['envelope_horizon']}; "
+              f"the envelope's median step is {ratio:.2f}× the single-point's."]  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=float, default=10.0)
     parser.add_argument("--horizons", type=int, nargs="+", default=[50, 100, 200])
@@ -236,12 +272,23 @@ def main() -> None:
     parser.add_argument("--wide-minutes", type=float, default=30.0)
     parser.add_argument("--only-envelope", action="store_true",
                         help="run part 3 only")  # fmt: skip
-    args = parser.parse_args()
+    parser.add_argument("--save", action="store_true",
+                        help="keep parts 1 and 3 in docs/results/mpc_solve.json")  # fmt: skip
+    args = parser.parse_args(argv)
     warm_up([*args.horizons, MpcSettings().horizon])
+    data = {"minutes": args.minutes, "wide_minutes": args.wide_minutes,
+            "envelope_horizon": MpcSettings().horizon, "qp_against_ipopt": []}  # fmt: skip
     if not args.only_envelope:
-        qp_against_ipopt(args.horizons, args.minutes)
+        data["qp_against_ipopt"] = qp_against_ipopt(args.horizons, args.minutes)
         qp_solvers(MpcSettings().horizon, args.minutes, args.osqp_every)
-    envelope_against_single_point(args.wide_minutes)
+    data["envelope"] = envelope_against_single_point(args.wide_minutes)
+    print("\n" + report(data))
+    if args.save:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from results import save
+
+        print(save("mpc_solve", data, "python benchmarks/bench_mpc.py "
+                   + " ".join(argv if argv is not None else sys.argv[1:])))  # fmt: skip
 
 
 if __name__ == "__main__":

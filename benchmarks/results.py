@@ -155,6 +155,7 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "controller_fmu.cost": _controller_fmu_cost,
     "fmu_steps.table": _bench_report("bench_fmu"),
     "identify.arx": _bench_report("bench_identify"),
+    "mpc_solve.solvers": _bench_report("bench_mpc"),
 }
 
 
