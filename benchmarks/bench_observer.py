@@ -34,13 +34,16 @@ flag, the rule that raised it: f fast, p persistent, s slow, d gauge drift; "-" 
 the record) per effect
 and base, the false alarms, and the time the FMU and the Python observer take per record
 (ratio measured in this run). ``--band``, ``--run-samples``, ``--cusum-slack`` and
-``--cusum-threshold`` override the defaults.
+``--cusum-threshold`` override the defaults. ``--timing-only`` runs only the times over
+record C (each observer ``--repeats`` times, the median kept); ``--save`` keeps them in
+``docs/results/observer.json`` for the observer page.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 import tempfile
 import time
 import warnings
@@ -146,7 +149,7 @@ def _print_table(title: str, table: dict[str, list[str]]) -> None:
         print(f"| {effect} | {' | '.join(cells)} |")
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--band", type=float, default=AnomalySettings().band_sigma)
     parser.add_argument("--run-samples", type=int, default=AnomalySettings().run_samples)
@@ -154,13 +157,79 @@ def main() -> None:
                         default=AnomalySettings().cusum_slack_sigma)  # fmt: skip
     parser.add_argument("--cusum-threshold", type=float,
                         default=AnomalySettings().cusum_threshold)  # fmt: skip
-    args = parser.parse_args()
+    parser.add_argument("--repeats", type=int, default=3,
+                        help="runs over record C per observer for the times (median)")  # fmt: skip
+    parser.add_argument("--timing-only", action="store_true",
+                        help="only the times over record C, no delays or false alarms")  # fmt: skip
+    parser.add_argument("--save", action="store_true",
+                        help="keep the times in docs/results/observer.json")  # fmt: skip
+    args = parser.parse_args(argv)
     settings = AnomalySettings(args.band, args.run_samples, args.cusum_slack,
                                args.cusum_threshold)  # fmt: skip
     warnings.simplefilter("ignore")  # the flume records pass the schedule's discharge range
     plant = dataclasses.replace(read_model_file(ROOT / "models/fopdt_3F.json").plant, effects=())
-    params = {f"anomaly_{n}": v for n, v in zip(LIMITS, settings.limits(), strict=True)}
     records = _records()
+    if not args.timing_only:
+        _delays_and_false_alarms(records, plant, settings, args)
+    data = _times_on_record_c(records["C"], plant, settings, args.repeats)
+    print("\n" + report(data))
+    if args.save:
+        sys.path.insert(0, str(ROOT / "benchmarks"))
+        from results import save
+
+        print(save("observer", data, "python benchmarks/bench_observer.py "
+                   + " ".join(argv if argv is not None else sys.argv[1:])))  # fmt: skip
+
+
+def _median_time(func, repeats: int) -> tuple[float, Any]:
+    """Median wall time of ``repeats`` calls, s, and the last result."""
+    times, out = [], None
+    for _ in range(repeats):
+        start = time.perf_counter()
+        out = func()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times)), out
+
+
+def _times_on_record_c(record: tuple, plant, settings: AnomalySettings, repeats: int) -> dict:
+    """The schedule's and the envelope's observer over record C: FMU via fmpy and Python."""
+    t, y, e, q, _ = record
+    params = {f"anomaly_{n}": v for n, v in zip(LIMITS, settings.limits(), strict=True)}
+    with tempfile.TemporaryDirectory() as tmp:
+        fmu = export_observer(plant, Path(tmp) / "observer.fmu")
+        env_fmu = export_observer(_physical(), Path(tmp) / "envelope.fmu")
+        fmu_s, _ = _median_time(lambda: run_observer_fmu(fmu, y, e, q, params), repeats)
+        env_fmu_s, got = _median_time(lambda: run_observer_fmu(env_fmu, y, e, q), repeats)
+    py_s, _ = _median_time(lambda: OnlineObserver(plant, anomaly=settings).run(y, e, q), repeats)
+    env_s, ref = _median_time(lambda: OnlineObserver(_physical()).run(y, e, q), repeats)
+    worst = max(float(np.max(np.abs(got[k] - ref[k]))) for k in got)
+    return {"samples": int(t.size), "repeats": repeats, "schedule_fmu_s": fmu_s,
+            "schedule_python_s": py_s, "envelope_fmu_s": env_fmu_s, "envelope_python_s": env_s,
+            "envelope_largest_output_difference": worst}  # fmt: skip
+
+
+def report(data: dict) -> str:
+    """The times over record C as Markdown (printed, and the observer page's block)."""
+    sched, env = data["schedule_python_s"], data["envelope_python_s"]
+    rows = [("schedule observer FMU, through fmpy", data["schedule_fmu_s"], ""),
+            ("schedule observer, Python (`OnlineObserver`)", sched,
+             f"{sched / data['schedule_fmu_s']:.1f}× its FMU"),
+            ("envelope observer FMU, through fmpy", data["envelope_fmu_s"], ""),
+            ("envelope observer, Python (two filters and a tangent a sample)", env,
+             f"{env / data['envelope_fmu_s']:.1f}× its FMU, {env / sched:.1f}× the schedule's"
+             " Python observer")]  # fmt: skip
+    lines = [f"| over record C ({data['samples']} samples) | s | |", "|---|---|---|"]
+    lines += [f"| {label} | {seconds:.3f} | {note} |" for label, seconds, note in rows]
+    return "\n".join(lines) + (
+        f"\n\nMedian of {data['repeats']} runs each, in one process; the envelope FMU's "
+        f"outputs differ from the Python envelope observer's by at most "
+        f"{data['envelope_largest_output_difference']:.1e}.\n"
+    )
+
+
+def _delays_and_false_alarms(records: dict, plant, settings: AnomalySettings, args) -> None:
+    """The observers' false alarms on the clean records and detection delays on the bases."""
+    params = {f"anomaly_{n}": v for n, v in zip(LIMITS, settings.limits(), strict=True)}
     with tempfile.TemporaryDirectory() as tmp:
         fmu = export_observer(plant, Path(tmp) / "observer.fmu")
         print(f"observer FMU of fopdt_3F (effects dropped), {settings}, noise {MONITORING}")
@@ -191,31 +260,9 @@ def main() -> None:
             model[n] = (t, simulate(truth, t, e, q) + noise, e, q)
         _print_table("model (the observer's model + white noise)",
                      _delays(fmu_run, truth, model))  # fmt: skip
-        t, y, e, q, _ = records["C"]
-        start = time.perf_counter()
-        run_observer_fmu(fmu, y, e, q, params)
-        fmu_s = time.perf_counter() - start
-        start = time.perf_counter()
-        OnlineObserver(plant, anomaly=settings).run(y, e, q)
-        py_s = time.perf_counter() - start
-        print(f"\nrecord C ({t.size} samples): FMU via fmpy {fmu_s:.3f} s, Python {py_s:.3f} s, "
-              f"ratio Python/FMU {py_s / fmu_s:.1f}")  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         env_fmu = export_observer(_physical(), Path(tmp) / "envelope.fmu")
         _envelope(records, plant, physical, env_fmu)
-        start = time.perf_counter()
-        got = run_observer_fmu(env_fmu, y, e, q)
-        env_fmu_s = time.perf_counter() - start
-    start = time.perf_counter()
-    ref = OnlineObserver(_physical()).run(y, e, q)
-    env_s = time.perf_counter() - start
-    worst = max(float(np.max(np.abs(got[k] - ref[k]))) for k in got)
-    print(
-        f"\nrecord C: envelope observer FMU via fmpy {env_fmu_s:.3f} s, Python {env_s:.3f} s, "
-        f"ratio Python/FMU {env_s / env_fmu_s:.1f}; largest output difference {worst:.1e}"
-    )
-    print(f"record C: envelope observer (Python, two filters) {env_s:.3f} s, schedule observer "
-          f"(Python) {py_s:.3f} s, ratio {env_s / py_s:.1f}")  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         ref_fmu = export_observer(_physical(), Path(tmp) / "references.fmu",
                                   reference_gauges=REFERENCES)  # fmt: skip

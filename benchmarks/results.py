@@ -156,6 +156,7 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "fmu_steps.table": _bench_report("bench_fmu"),
     "identify.arx": _bench_report("bench_identify"),
     "mpc_solve.solvers": _bench_report("bench_mpc"),
+    "observer.times": _bench_report("bench_observer"),
 }
 
 
