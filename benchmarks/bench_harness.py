@@ -14,13 +14,16 @@ side by side with their ratio (never asserted). Two levels:
 The FMU host's start (a ``python -c`` importing numpy, fmpy and the harness, once per
 process) is measured apart: the first isolated run minus a later one.
 
-usage: python benchmarks/bench_harness.py [--repeat 5]
+usage: python benchmarks/bench_harness.py [--repeat 5] [--save]
+
+``--save`` keeps the numbers in ``docs/results/harness.json`` for the validation page.
 """
 
 from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import tempfile
 import time
 from collections.abc import Callable
@@ -86,27 +89,22 @@ def paired(a: Callable[[], object], b: Callable[[], object], repeat: int) -> tup
     return statistics.median(ta), statistics.median(tb)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5)
-    args = parser.parse_args()
+    parser.add_argument(
+        "--save", action="store_true", help="keep the numbers in docs/results/harness.json"
+    )
+    args = parser.parse_args(argv)
     records = bundled_records()
     requests = requests_of(records)
     n_steps = sum(r.grid.n_steps for r in requests)
+    rows = []
     with tempfile.TemporaryDirectory() as tmp:
         fmus = export_all(Path(tmp))
         infos = [inspect_fmu(f) for f in fmus]
         first = seconds(lambda: run_isolated(infos[0], requests[:1]))
         later = seconds(lambda: run_isolated(infos[0], requests[:1]))
-        print(
-            f"{len(records)} bundled records with gauge {GAUGE}, {n_steps} FMU steps per FMU;"
-            f" median of {args.repeat}"
-        )
-        print(f"FMU host start (once per process): {first - later:.2f} s\n")
-        header = f"{'FMU':<24}{'level':<14}{'in process s':>14}{'isolated s':>12}{'ratio':>8}"
-        print(header)
-        print("-" * len(header))
-        totals = {"FMU runs": [0.0, 0.0], "validate_fmu": [0.0, 0.0]}
         for fmu, info in zip(fmus, infos, strict=True):
             levels = {
                 "FMU runs": (lambda i=info: run_in_process(i, requests),
@@ -116,24 +114,45 @@ def main() -> None:
             }  # fmt: skip
             for level, (local, isolated) in levels.items():
                 t_local, t_isolated = paired(local, isolated, args.repeat)
-                totals[level][0] += t_local
-                totals[level][1] += t_isolated
-                print(
-                    f"{fmu.name:<24}{level:<14}{t_local:>14.3f}{t_isolated:>12.3f}"
-                    f"{t_isolated / t_local:>8.2f}"
-                )
-        print("-" * len(header))
-        for level, (t_local, t_isolated) in totals.items():
-            print(
-                f"{'all ' + str(len(fmus)) + ' FMUs':<24}{level:<14}{t_local:>14.3f}"
-                f"{t_isolated:>12.3f}{t_isolated / t_local:>8.2f}"
-            )
-        t_local, t_isolated = totals["validate_fmu"]
-        with_start = t_isolated + first - later
-        print(
-            f"{'… with the host start':<38}{t_local:>14.3f}{with_start:>12.3f}"
-            f"{with_start / t_local:>8.2f}"
-        )
+                rows.append({"fmu": fmu.stem, "level": level, "in_process_s": t_local,
+                             "isolated_s": t_isolated})  # fmt: skip
+    data = {"records": len(records), "gauge": GAUGE, "steps_per_fmu": n_steps,
+            "repeat": args.repeat, "host_start_s": first - later, "rows": rows}  # fmt: skip
+    print(report(data))
+    if args.save:
+        sys.path.insert(0, str(ROOT / "benchmarks"))
+        from results import save
+
+        print(save("harness", data, "python benchmarks/bench_harness.py "
+                   + " ".join(argv if argv is not None else sys.argv[1:])))  # fmt: skip
+
+
+def report(data: dict) -> str:
+    """The overhead of isolation as Markdown (printed, and the validation page's block)."""
+    steps = data["steps_per_fmu"]
+    lines = ["| FMU | level | in process (s) | µs a step in process | isolated (s) | ratio |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    totals: dict[str, list[float]] = {}
+    for r in data["rows"]:
+        local, isolated = r["in_process_s"], r["isolated_s"]
+        total = totals.setdefault(r["level"], [0.0, 0.0])
+        total[0] += local
+        total[1] += isolated
+        per_step = f"{1e6 * local / steps:.1f}" if r["level"] == "FMU runs" else ""
+        lines.append(f"| `{r['fmu']}` | {r['level']} | {local:.3f} | {per_step} | "
+                     f"{isolated:.3f} | {isolated / local:.2f}× |")  # fmt: skip
+    n = len(data["rows"]) // max(len(totals), 1)
+    for level, (local, isolated) in totals.items():
+        lines.append(f"| all {n} FMUs | {level} | {local:.3f} | | {isolated:.3f} | "
+                     f"{isolated / local:.2f}× |")  # fmt: skip
+    local, isolated = totals.get("validate_fmu", [1.0, 1.0])
+    with_start = isolated + data["host_start_s"]
+    return "\n".join(lines) + (
+        f"\n\n{data['records']} bundled records with gauge {data['gauge']}, {steps} FMU steps "
+        f"per FMU; medians of {data['repeat']}, each pair timed alternately. The FMU host's "
+        f"start, once per process: {data['host_start_s']:.2f} s; with it the whole "
+        f"`validate_fmu` takes {with_start / local:.2f}× its in-process time.\n"
+    )
 
 
 if __name__ == "__main__":

@@ -157,6 +157,7 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "identify.arx": _bench_report("bench_identify"),
     "mpc_solve.solvers": _bench_report("bench_mpc"),
     "observer.times": _bench_report("bench_observer"),
+    "harness.overhead": _bench_report("bench_harness"),
 }
 
 
