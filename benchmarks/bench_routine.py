@@ -9,12 +9,15 @@ identification.
 
     python benchmarks/bench_routine.py --gates 20 --days 7
     python benchmarks/bench_routine.py --records DIR     # a folder written by gatetwin flume
+
+``--save`` keeps the numbers in ``docs/results/routine.json`` for the many-gates page.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -71,13 +74,16 @@ def evaluate(folder: Path) -> list[dict]:
     return rows
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--gates", type=int, default=20)
     parser.add_argument("--days", type=float, default=7.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--records", type=Path, help="an existing routine district folder")
-    args = parser.parse_args()
+    parser.add_argument(
+        "--save", action="store_true", help="keep the numbers in docs/results/routine.json"
+    )
+    args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.records
         gen_s = None
@@ -88,26 +94,46 @@ def main() -> None:
                                    days=args.days)  # fmt: skip
             gen_s = time.perf_counter() - t0
         rows = evaluate(folder)
-    print("| gate | control | moves | windows (used) | K / truth | T / truth | windows in 10 % |")
-    print("|---|---|---|---|---|---|---|")
+    data = {"gates": len(rows), "days": args.days, "seed": args.seed, "generation_s": gen_s,
+            "rows": rows}  # fmt: skip
+    print(report(data))
+    if args.save:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from results import save
+
+        print(save("routine", data, "python benchmarks/bench_routine.py "
+                   + " ".join(argv if argv is not None else sys.argv[1:])))  # fmt: skip
+
+
+def report(data: dict) -> str:
+    """Accuracy per gate and cost as Markdown (printed, and the many-gates page's block)."""
+    rows = data["rows"]
+    lines = ["| gate | control | moves | windows (used) | K / truth | T / truth | "
+             "windows in 10 % |", "|---|---|---|---|---|---|---|"]  # fmt: skip
     ok = []
     for r in rows:
         if "error" in r:
-            print(f"| {r['gate']} | {r['control']} | | | | | {r['error']} |")
+            lines.append(f"| {r['gate']} | {r['control']} | | | | | {r['error']} |")
             ok.append(False)
             continue
         ek, et = r["K"] / r["K_true"] - 1.0, r["T"] / r["T_true"] - 1.0
         ok.append(max(abs(ek), abs(et)) <= BAND)
-        print(f"| {r['gate']} | {r['control']} | {r['moves']} | {r['windows']} ({r['used']}) | "
-              f"{r['K']:.2f} / {r['K_true']:.2f} ({ek:+.1%}) | {r['T']:.1f} / {r['T_true']:.1f} "
-              f"({et:+.1%}) | {r['windows_in_band']:.0%} |")  # fmt: skip
-    print(f"\ngates with K and T both within 10 %: {sum(ok)} / {len(ok)} ({np.mean(ok):.0%})")
+        lines.append(
+            f"| {r['gate']} | {r['control']} | {r['moves']} | {r['windows']} ({r['used']}) | "
+            f"{r['K']:.2f} / {r['K_true']:.2f} ({ek:+.1%}) | {r['T']:.1f} / {r['T_true']:.1f} "
+            f"({et:+.1%}) | {r['windows_in_band']:.0%} |"
+        )
     done = [r for r in rows if "error" not in r]
     history = sum(r["history_s"] for r in done)
-    print(f"identification: {history / sum(r['identify_s'] for r in done):,.0f}x real time "
-          f"(read + windows + fits)")  # fmt: skip
-    if gen_s is not None:
-        print(f"generation: {history / gen_s:,.0f}x real time (flume, logger, truth, CSV)")
+    identify_s = sum(r["identify_s"] for r in done)
+    text = (f"\n\nGates with K and T both within 10 %: {sum(ok)} / {len(ok)}. "
+            f"Identification (read, windows, fits): {identify_s / len(done):.2f} s a gate, "
+            f"{history / identify_s:,.0f}× real time")  # fmt: skip
+    if data.get("generation_s") is not None:
+        gen_s = data["generation_s"]
+        text += (f"; generation (flume, logger, truth, CSV): {gen_s / len(rows):.1f} s a gate, "
+                 f"{history / gen_s:,.0f}× real time")  # fmt: skip
+    return "\n".join(lines) + text + ".\n"
 
 
 if __name__ == "__main__":

@@ -158,6 +158,7 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "mpc_solve.solvers": _bench_report("bench_mpc"),
     "observer.times": _bench_report("bench_observer"),
     "harness.overhead": _bench_report("bench_harness"),
+    "routine.gates": _bench_report("bench_routine"),
 }
 
 
