@@ -159,6 +159,7 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "observer.times": _bench_report("bench_observer"),
     "harness.overhead": _bench_report("bench_harness"),
     "routine.gates": _bench_report("bench_routine"),
+    "diagnose.cases": _bench_report("bench_diagnose"),
 }
 
 
