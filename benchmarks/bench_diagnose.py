@@ -14,11 +14,6 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-
-from diagnose_cases import case_plan  # noqa: E402
-from test_diagnose_generated import rates, run_case  # noqa: E402
-
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__)
@@ -28,6 +23,11 @@ def main(argv: list[str] | None = None) -> None:
         "--save", action="store_true", help="keep the numbers in docs/results/diagnose.json"
     )
     args = parser.parse_args(argv)
+    # the cases of the test (imported here, so that rendering the page's block needs none)
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from diagnose_cases import case_plan
+    from test_diagnose_generated import rates, run_case
+
     outcomes, start = [], time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for seed, effect in case_plan(args.cases, args.first_seed):

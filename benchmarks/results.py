@@ -138,7 +138,8 @@ def _bench_report(module: str) -> Callable[[dict[str, Any]], str]:
     """A renderer that calls ``report(data)`` of ``benchmarks/<module>.py``, what it prints."""
 
     def render(doc: dict[str, Any]) -> str:
-        sys.path.insert(0, str(Path(__file__).parent))
+        if str(Path(__file__).parent) not in sys.path:
+            sys.path.insert(0, str(Path(__file__).parent))
         report = __import__(module).report
         return report(doc["data"]) + "\n" + _provenance(doc) + "\n"
 
