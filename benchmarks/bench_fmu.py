@@ -266,8 +266,11 @@ def main(argv: list[str] | None = None) -> None:
         action="store_true",
         help="time the C FMU of every family (and models/) beside the bare FOPDT",
     )
-    parser.add_argument("--save", action="store_true",
-                        help="--families: keep the numbers in docs/results/fmu_steps.json")
+    parser.add_argument(
+        "--save",
+        action="store_true",
+        help="--families: keep the numbers in docs/results/fmu_steps.json",
+    )
     args = parser.parse_args(argv)
     cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
     if args.save and not args.families:

@@ -127,13 +127,6 @@ def _run_ssp(doc: dict[str, Any]) -> str:
             + _provenance(doc) + "\n")  # fmt: skip
 
 
-def _controller_fmu_cost(doc: dict[str, Any]) -> str:
-    sys.path.insert(0, str(Path(__file__).parent))
-    from bench_controller_fmu import report
-
-    return report(doc["data"]) + "\n" + _provenance(doc) + "\n"
-
-
 def _bench_report(module: str) -> Callable[[dict[str, Any]], str]:
     """A renderer that calls ``report(data)`` of ``benchmarks/<module>.py``, what it prints."""
 
@@ -153,7 +146,7 @@ RENDERERS: dict[str, Callable[[dict[str, Any]], str]] = {
     "run.envelope": _run_envelope,
     "run.families": _run_families,
     "run.ssp": _run_ssp,
-    "controller_fmu.cost": _controller_fmu_cost,
+    "controller_fmu.cost": _bench_report("bench_controller_fmu"),
     "fmu_steps.table": _bench_report("bench_fmu"),
     "identify.arx": _bench_report("bench_identify"),
     "mpc_solve.solvers": _bench_report("bench_mpc"),
