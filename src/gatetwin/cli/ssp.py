@@ -106,7 +106,8 @@ def add_simulate_ssp_arguments(parser: argparse.ArgumentParser) -> None:
                         help="one row per communication point")  # fmt: skip
     parser.add_argument(
         "--step-size", metavar="SECONDS", type=float,
-        help="communication step (default: the controller's sample period)",
+        help="communication step (default: a component's sample_period_s, else the FMUs' "
+        "default experiment step, e.g. the controller's or the observer's sample period)",
     )  # fmt: skip
     parser.add_argument(
         "--timeout", metavar="SECONDS", type=float,
