@@ -401,3 +401,22 @@ def with_zip_bomb(src: Path, dst: Path) -> Path:
             for _ in range(DEFAULT_MAX_BYTES // len(chunk) + 1):
                 member.write(chunk)
     return dst
+
+
+def fmpy_ssp_runner_from_start_values(monkeypatch):
+    """FMPy's SSP runner (``fmpy.ssp.simulation``) with its first step given each input's
+    start value: the runner sets every connector to 0.0 and exchanges nothing before the
+    first step, so without this an FMU's first step sees zero inputs (a closed gate, no
+    inflow); a package's start values are what each input's source gives at the start.
+    Patched for the test through ``monkeypatch``; returns the module."""
+    import fmpy.ssp.simulation as runner
+
+    def first_step_at_start_values(component, time, step_size, _do_step=runner.do_step):
+        if time == 0.0:
+            for c in component.connectors:
+                if c.kind == "input":
+                    c.value = runner.get_value(component, c.name)
+        _do_step(component, time, step_size)
+
+    monkeypatch.setattr(runner, "do_step", first_step_at_start_values)
+    return runner

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmu_support import compiler, with_zip_bomb
+from fmu_support import compiler, fmpy_ssp_runner_from_start_values, with_zip_bomb
 from gatetwin.cli import main
 from gatetwin.errors import ExportError, SspError
 from gatetwin.modelfile import read_model_file
@@ -129,14 +129,7 @@ def test_fmpys_ssp_runner_gives_the_jacobi_run(package, jacobi_run, monkeypatch)
     own time; the engines' communication points only have to pass its check)."""
     import fmpy.ssp.simulation as runner
 
-    def first_step_at_start_values(component, time, step_size, _do_step=runner.do_step):
-        if time == 0.0:
-            for c in component.connectors:
-                if c.kind == "input":
-                    c.value = runner.get_value(component, c.name)
-        _do_step(component, time, step_size)
-
-    monkeypatch.setattr(runner, "do_step", first_step_at_start_values)
+    fmpy_ssp_runner_from_start_values(monkeypatch)
     out = runner.simulate_ssp(str(package), stop_time=MINUTES * 60, step_size=1.2)
     n = jacobi_run.time_s.size
     assert len(out) == n

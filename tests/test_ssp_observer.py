@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fmu_support import compiler
+from fmu_support import compiler, fmpy_ssp_runner_from_start_values
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.cli import main
 from gatetwin.errors import RecordError
@@ -153,14 +153,7 @@ def test_fmpys_ssp_runner_gives_the_same_estimates(package, run, monkeypatch):
     plain = runner.simulate_ssp(str(package), stop_time=n * STEP_S, step_size=STEP_S)
     assert plain["observer.filtered_level_mm"][0] != run.columns["observer.filtered_level_mm"][0]
 
-    def first_step_at_start_values(component, time, step_size, _do_step=runner.do_step):
-        if time == 0.0:
-            for c in component.connectors:
-                if c.kind == "input":
-                    c.value = runner.get_value(component, c.name)
-        _do_step(component, time, step_size)
-
-    monkeypatch.setattr(runner, "do_step", first_step_at_start_values)
+    fmpy_ssp_runner_from_start_values(monkeypatch)
     out = runner.simulate_ssp(str(package), stop_time=n * STEP_S, step_size=STEP_S)
     assert len(out) == n
     for name in OUTPUTS:
