@@ -189,6 +189,16 @@ def _record_copy(tmp_path: Path, name: str, change, sidecar: dict | None = None)
     return out
 
 
+def _without_rows(tmp_path: Path, dropped: range) -> Path:
+    """The record with the data lines ``dropped`` (0-based) left out: a logging gap."""
+    lines = RECORD.read_text(encoding="utf-8").splitlines()
+    kept = [line for i, line in enumerate(lines[1:]) if i not in dropped]
+    out = tmp_path / "gapped.csv"
+    out.write_text("\n".join([lines[0], *kept]) + "\n", encoding="utf-8")
+    out.with_suffix(".json").write_bytes(RECORD.with_suffix(".json").read_bytes())
+    return out
+
+
 def _set(column: str, at: int, value: str):
     def change(i: int, row: dict) -> dict:
         return {**row, column: value} if i == at else row
@@ -241,6 +251,10 @@ def test_what_the_observer_cannot_take_is_refused_in_one_line_without_output(
         ([model, "--observe", str(RECORD), effects, "--controller", "pi"],
          "--controller applies to the closed loop"),
         ([model, "--observe", str(RECORD), effects, "--observer"], "--observer applies"),
+        ([model, "--observe", str(RECORD), effects, "--minutes", "0"], "--minutes applies"),
+        ([model, "--observe", str(RECORD), effects, "--horizon", "0"], "--horizon applies"),
+        ([model, "--observe", str(_without_rows(tmp_path, range(100, 200))), effects],
+         "a logging gap of 121.198 s after t = 118.801 s"),
         ([model, "--gauge", GAUGE], "--gauge applies to --observe"),
     ]  # fmt: skip
     for argv, reason in cases:

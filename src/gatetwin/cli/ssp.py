@@ -88,7 +88,8 @@ def _run_observe_ssp(args: argparse.Namespace) -> int:
     from gatetwin.records import read_record
     from gatetwin.ssp import write_observer_ssp
 
-    given = [f"--{n}" for n in LOOP_OPTIONS if getattr(args, n) not in (None, False)]
+    given = [f"--{n}" for n in LOOP_OPTIONS if getattr(args, n) is not None
+             and getattr(args, n) is not False]  # fmt: skip
     if given:
         raise GatetwinError(f"{given[0]} applies to the closed loop, not to --observe")
     model = read_model_file(args.model)

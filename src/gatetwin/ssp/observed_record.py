@@ -26,8 +26,9 @@ scenario's outputs read at the end of its previous step) or together (Jacobi): s
 engine gives the observer's estimates of ``observe`` over the record, one per sample.
 
 Like ``observe``, the observer takes the record's rows as consecutive samples of ``T``: the
-time stamps' jitter and logging gaps are not replayed (the run's time is ``i·T``). A record
-whose nominal sample period is not ``T`` (beyond :data:`PERIOD_RTOL`), an empty level or
+time stamps' jitter is not replayed (the run's time is ``i·T``). A record whose nominal
+sample period is not ``T`` (beyond :data:`PERIOD_RTOL`) or which holds a logging gap (after
+which the run's time would no longer be the record's), an empty level or
 discharge (``observe`` refuses both, the observer has no rule for a missing sample), or more
 samples than :data:`~gatetwin.ssp.master.MAX_STEPS` or than the scenario FMU holds
 (:data:`~gatetwin.fmu.signal_source.MAX_KNOTS` knots a signal) is refused before anything is
@@ -49,6 +50,7 @@ import numpy as np
 
 from gatetwin.errors import ControlError, ExportError, RecordError
 from gatetwin.fmu.description import output_name
+from gatetwin.records.segments import GAP_FACTOR
 from gatetwin.ssp.master import MAX_STEPS
 
 if TYPE_CHECKING:
@@ -129,11 +131,22 @@ def _check_samples(record: Record, level: np.ndarray, flow: np.ndarray, gauge: s
 
 def check_sample_period(record: Record, sample_period_s: float) -> None:
     """:class:`RecordError` unless the record's nominal sample period is the observer's
-    (within :data:`PERIOD_RTOL`)."""
+    (within :data:`PERIOD_RTOL`) and no logging gap (more than
+    :data:`~gatetwin.records.segments.GAP_FACTOR` nominal periods between two samples) lies
+    in it."""
     period = float(record.sample_period_s)
     if not abs(period - sample_period_s) <= PERIOD_RTOL * sample_period_s:
         raise RecordError(f"{record.path or 'record'}: sample period {period:.6g} s; the "
                           f"observer samples every {sample_period_s:g} s")  # fmt: skip
+    time_s = np.asarray(record.time_s, dtype=float)
+    gaps = np.flatnonzero(np.diff(time_s) > GAP_FACTOR * period)
+    if gaps.size:
+        k = gaps[0]
+        raise RecordError(f"{record.path or 'record'}: a logging gap of "
+                          f"{time_s[k + 1] - time_s[k]:.6g} s after t = {time_s[k]:.6g} s "
+                          f"({gaps.size} gap(s)); the package plays one sample per period, so "
+                          "its time would no longer be the record's (split the record at its "
+                          "gaps)")  # fmt: skip
 
 
 def observed_plant(model: ModelFile, without_effects: bool) -> tuple[Plant, bool]:
