@@ -12,7 +12,10 @@ __all__ = ["add_simulate_ssp_arguments", "add_ssp_arguments", "run_simulate_ssp"
 
 
 def add_ssp_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("model", metavar="MODEL.json", help="FOPDT model file")
+    parser.add_argument(
+        "model", metavar="MODEL.json",
+        help="FOPDT model file (with --observe, also a physical model)",
+    )  # fmt: skip
     parser.add_argument("--out", metavar="LOOP.ssp", required=True, help="the package to write")
     parser.add_argument(
         "--controller", choices=("pi", "mpc"),
@@ -126,8 +129,7 @@ def add_simulate_ssp_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_simulate_ssp(args: argparse.Namespace) -> int:
-    import numpy as np
-
+    from gatetwin.diagnose.onset import detection
     from gatetwin.ssp import simulate_ssp
 
     if args.step_size is not None and not args.step_size > 0:
@@ -146,8 +148,7 @@ def run_simulate_ssp(args: argparse.Namespace) -> int:
         iae = run.iae(levels[0], "controller.setpoint_mm")
         print(f"closed-loop IAE {iae:.6g} mm·s over {run.time_s.size} steps of {run.step_s:g} s")
     elif "observer.anomaly" in run.columns:
-        flag = run.columns["observer.anomaly"]
-        rises = int(np.count_nonzero(np.diff(flag, prepend=0.0) > 0.0))
+        rises = detection(run.time_s, run.columns["observer.anomaly"], None).false_alarms
         print(f"observer over {run.time_s.size} steps of {run.step_s:g} s: anomaly flag rose "
               f"{rises} times")  # fmt: skip
     print(f"wrote {args.out}")

@@ -228,10 +228,7 @@ def export_observer(
             raise ExportError(str(exc)) from None
     references = _references(plant.gauge, reference_gauges)
     if start_inputs is not None:
-        start_inputs = tuple(float(v) for v in start_inputs)
-        if not (len(start_inputs) == 3 and all(map(math.isfinite, start_inputs))):
-            raise ExportError(f"observer FMU: start inputs {start_inputs} must be three finite "
-                              "numbers (level mm, opening mm, discharge m3/h)")  # fmt: skip
+        start_inputs = _finite_triple(start_inputs)
     cfg = _Config(plant, float(horizon_s), settings or MONITORING, anomaly or default,
                   model_name, envelope, references=references,
                   start_inputs=start_inputs)  # fmt: skip
@@ -337,6 +334,18 @@ def _facts(cfg: _Config, desc: FmuDescription | None = None) -> dict[str, Any]:
     if desc is not None:
         facts["guid"] = desc.guid
     return facts
+
+
+def _finite_triple(values: Any) -> tuple[float, float, float]:
+    """``start_inputs`` as three floats; :class:`ExportError` unless three finite numbers."""
+    try:
+        triple = tuple(float(v) for v in values)
+    except (TypeError, ValueError):
+        triple = ()
+    if not (len(triple) == 3 and all(map(math.isfinite, triple))):
+        raise ExportError(f"observer FMU: start inputs {values!r:.80} must be three finite "
+                          "numbers (level mm, opening mm, discharge m3/h)")  # fmt: skip
+    return triple  # type: ignore[return-value]
 
 
 def _start_inputs(cfg: _Config) -> tuple[float, float, float]:

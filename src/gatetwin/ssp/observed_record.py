@@ -10,9 +10,9 @@ The package holds ``SystemStructure.ssd``, the observer FMU (``resources/observe
   ``level_<gauge>_mm``, ``opening_mm`` and ``flow_m3h`` → the observer's inputs of the same
   names; nothing reads the observer's outputs (a master logs them: :func:`gatetwin.ssp.
   simulate_ssp` does);
-* the record's samples as the scenario's tables, held: sample ``i`` (from 0) is
-  ``value[i + 1]`` from ``time_s[i + 1] = i·T`` on, ``T`` the observer's sample period, a
-  knot written only where the value changes. The values are what ``gatetwin observe`` feeds
+* the record's samples as the scenario's tables, held: sample ``i``'s value (``i`` from 0)
+  holds from ``i·T`` on, ``T`` the observer's sample period; a knot is written at ``i·T``
+  only where the value changes. The values are what ``gatetwin observe`` feeds
   :class:`~gatetwin.mpc.online.OnlineObserver` (:func:`gatetwin.mpc.online.measured_inputs`):
   the level at the gauge and the discharge as logged, the opening as logged on ``hold``
   samples and, on a sample logged while the gate moves (its opening empty), the next logged
@@ -164,7 +164,8 @@ def observed_plant(model: ModelFile, without_effects: bool) -> tuple[Plant, bool
     try:
         return checked_plant(plant, "the observer", envelope=envelope), envelope
     except ControlError as exc:
-        hint = "; --without-effects drops them" if getattr(plant, "effects", ()) else ""
+        effects = getattr(plant, "effects", ())
+        hint = "; --without-effects drops them" if effects and "without" not in str(exc) else ""
         raise ExportError(f"{exc}{hint}") from None
 
 
