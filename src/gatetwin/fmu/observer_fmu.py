@@ -92,7 +92,6 @@ from gatetwin.mpc.observer_codegen import (
 from gatetwin.mpc.online import (
     DEFAULT_HORIZON_S,
     ENVELOPE_ANOMALY,
-    LINEARISATIONS,
     MAX_HORIZON_S,
     MONITOR,
     MONITORING,
@@ -100,6 +99,7 @@ from gatetwin.mpc.online import (
     AnomalySettings,
     checked_plant,
     forecast_samples,
+    observer_linearisation,
 )
 from gatetwin.mpc.settings import ObserverSettings
 from gatetwin.plant.model import FopdtPlant, PhysicalPlant, Plant, plant_to_dict
@@ -208,12 +208,8 @@ def export_observer(
     """
     plant = _load(model_or_path, without_effects)
     check_fmi_version(fmi_version)
-    if linearisation not in LINEARISATIONS:
-        raise ExportError(f"observer FMU: linearisation {linearisation!r} is not one of "
-                          f"{', '.join(LINEARISATIONS)}")  # fmt: skip
-    envelope = linearisation == "envelope" or (linearisation == "auto"
-                                               and isinstance(plant, PhysicalPlant))  # fmt: skip
     try:
+        envelope = observer_linearisation(plant, linearisation, "observer FMU") == "envelope"
         plant = checked_plant(plant, "observer FMU", envelope=envelope)
         forecast_samples(horizon_s, SAMPLE_PERIOD_S)
         if envelope:

@@ -420,6 +420,20 @@ def checked_plant(
     return plant
 
 
+def observer_linearisation(plant: Any, linearisation: str = "auto", who: str = "online observer"
+                           ) -> str:  # fmt: skip
+    """The rendering ``linearisation`` names for ``plant``: ``auto`` is ``envelope`` for a
+    physical plant and ``schedule`` otherwise (the one rule :class:`OnlineObserver`, the
+    observer FMU and the observer-on-a-record SSP follow); :class:`ControlError` for a name
+    not in :data:`LINEARISATIONS`."""
+    if linearisation not in LINEARISATIONS:
+        raise ControlError(f"{who}: linearisation {linearisation!r} is not one of "
+                           f"{', '.join(LINEARISATIONS)}")  # fmt: skip
+    if linearisation == "auto":
+        return "envelope" if isinstance(plant, PhysicalPlant) else "schedule"
+    return linearisation
+
+
 @dataclass
 class OnlineObserver:
     """The observer on measured data, one sample at a time (the observer FMU in Python).
@@ -466,12 +480,7 @@ class OnlineObserver:
     slow_settings: ObserverSettings = SLOW_MONITORING
 
     def __post_init__(self) -> None:
-        if self.linearisation not in LINEARISATIONS:
-            raise ControlError(f"online observer: linearisation {self.linearisation!r} is not "
-                               f"one of {', '.join(LINEARISATIONS)}")  # fmt: skip
-        if self.linearisation == "auto":
-            physical = isinstance(self.plant, PhysicalPlant)
-            self.linearisation = "envelope" if physical else "schedule"
+        self.linearisation = observer_linearisation(self.plant, self.linearisation)
         self.envelope = self.linearisation == "envelope"
         if self.anomaly is None:
             self.anomaly = ENVELOPE_ANOMALY if self.envelope else AnomalySettings()
@@ -624,6 +633,7 @@ __all__ = [
     "forecast_samples",
     "innovation_variance",
     "measured_inputs",
+    "observer_linearisation",
     "monitor_sample",
     "slow_sample",
     "start_monitor",

@@ -154,13 +154,12 @@ def observed_plant(model: ModelFile, without_effects: bool) -> tuple[Plant, bool
     ``observe`` picks it); :class:`ExportError` for a model it does not cover."""
     from dataclasses import replace
 
-    from gatetwin.mpc.online import checked_plant
-    from gatetwin.plant.model import PhysicalPlant
+    from gatetwin.mpc.online import checked_plant, observer_linearisation
 
     plant = model.plant
     if without_effects and getattr(plant, "effects", ()):
         plant = replace(plant, effects=())
-    envelope = isinstance(plant, PhysicalPlant)
+    envelope = observer_linearisation(plant) == "envelope"
     try:
         return checked_plant(plant, "the observer", envelope=envelope), envelope
     except ControlError as exc:
