@@ -294,3 +294,28 @@ def test_a_physical_model_gets_the_envelope_observer(tmp_path):
     for name, values in python.items():
         assert np.max(np.abs(run.columns[f"observer.{name}"] - values)) <= OBSERVER_TOL, name
     assert np.ptp(run.columns["observer.slow_cusum"]) > 0.0
+
+
+def test_simulate_ssp_counts_the_anomaly_flag_rises_that_observe_counts(tmp_path, capsys):
+    """The count ``simulate-ssp`` prints for an observer package is ``observe``'s on the same
+    record, on one where the flag does rise: the level shifted by +30 mm from sample 400 on
+    (a gauge that jumped; ~40 innovation standard deviations of this record)."""
+    import re
+
+    def shifted(i, row):
+        if i >= 400 and row[f"level_{GAUGE}_mm"]:
+            row[f"level_{GAUGE}_mm"] = repr(float(row[f"level_{GAUGE}_mm"]) + 30.0)
+        return row
+
+    record = _record_copy(tmp_path, "jumped", shifted)
+    package, csv = tmp_path / "jumped.ssp", tmp_path / "result.csv"
+    assert main(["ssp", str(MODEL), "--observe", str(record), "--without-effects",
+                 "--out", str(package)]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert main(["simulate-ssp", str(package), "--out", str(csv)]) == 0
+    ours = re.search(r"anomaly flag rose (\d+) times", capsys.readouterr().out)
+    assert main(["observe", str(MODEL), str(record), "--gauge", GAUGE, "--without-effects",
+                 "--out", str(tmp_path / "est.csv")]) == 0  # fmt: skip
+    theirs = re.search(r"anomaly flag rose (\d+) times", capsys.readouterr().out)
+    assert ours and theirs and int(theirs[1]) >= 1
+    assert int(ours[1]) == int(theirs[1])
