@@ -294,6 +294,21 @@ def test_a_physical_model_gets_the_envelope_observer(tmp_path):
     for name, values in python.items():
         assert np.max(np.abs(run.columns[f"observer.{name}"] - values)) <= OBSERVER_TOL, name
     assert np.ptp(run.columns["observer.slow_cusum"]) > 0.0
+    # the system declares the observer's outputs as its FMU describes them
+    from xml.etree import ElementTree as ET
+
+    from fmpy import read_model_description
+
+    fmu = tmp_path / "observer.fmu"
+    fmu.write_bytes(_read(out, OBSERVER_SOURCE))
+    described = [v.name for v in read_model_description(str(fmu)).modelVariables
+                 if v.causality == "output"]  # fmt: skip
+    ssd = ET.fromstring(_read(out, SSD_NAME))
+    observer = next(e for e in ssd.iter() if e.tag.endswith("}Component")
+                    and e.get("name") == "observer")  # fmt: skip
+    declared = [c.get("name") for c in observer.iter() if c.tag.endswith("}Connector")
+                and c.get("kind") == "output"]  # fmt: skip
+    assert declared == described and "slow_cusum" in declared
 
 
 def test_simulate_ssp_counts_the_anomaly_flag_rises_that_observe_counts(tmp_path, capsys):

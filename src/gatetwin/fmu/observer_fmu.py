@@ -459,6 +459,18 @@ def _variables(cfg: _Config) -> tuple[VariableSpec, ...]:
     return variables_of(_rows(cfg) + schedule_rows(cfg.plant) + _drift_rows(cfg))
 
 
+def observer_outputs(
+    plant: FopdtPlant | PhysicalPlant, envelope: bool, reference_gauges: tuple[str, ...] = ()
+) -> tuple[tuple[str, str], ...]:
+    """The outputs (name, unit) of the observer FMU of ``plant`` (the envelope observer if
+    ``envelope``, with the gauge-drift rule's for ``reference_gauges``), in the order of its
+    model description: what a system that carries the FMU declares as its connectors."""
+    anomaly = ENVELOPE_ANOMALY if envelope else AnomalySettings()
+    cfg = _Config(plant, DEFAULT_HORIZON_S, MONITORING, anomaly, DEFAULT_NAME, envelope,
+                  references=_references(plant.gauge, reference_gauges))  # fmt: skip
+    return tuple((v.name, v.unit) for v in _variables(cfg) if v.causality == "output")
+
+
 def describe_observer(cfg: _Config) -> FmuDescription:
     """The observer FMU's description (variables, value references, GUID)."""
     from gatetwin.fmu.description import _IDENTIFIER
@@ -649,4 +661,4 @@ def envelope_config_header(
 
 
 __all__ = ["DEFAULT_NAME", "describe_observer", "envelope_config_header", "export_observer",
-           "observer_config_header", "run_observer_fmu"]  # fmt: skip
+           "observer_config_header", "observer_outputs", "run_observer_fmu"]  # fmt: skip

@@ -169,8 +169,10 @@ def observed_plant(model: ModelFile, without_effects: bool) -> tuple[Plant, bool
 
 
 def observed_record_ssd(name: str, gauge: str, parameters: list[tuple[str, float, str]],
-                        stop_time_s: float, description: str, envelope: bool) -> bytes:  # fmt: skip
-    """``SystemStructure.ssd`` of the observer on a record (see the module)."""
+                        stop_time_s: float, description: str,
+                        outputs: tuple[tuple[str, str], ...]) -> bytes:  # fmt: skip
+    """``SystemStructure.ssd`` of the observer on a record (see the module); ``outputs``:
+    the observer FMU's (name, unit), :func:`gatetwin.fmu.observer_fmu.observer_outputs`."""
     from gatetwin.ssp.write import (
         OBSERVER_SOURCE,
         SCENARIO_SOURCE,
@@ -184,9 +186,7 @@ def observed_record_ssd(name: str, gauge: str, parameters: list[tuple[str, float
 
     level = output_name(gauge)
     root, system, elements = system_document(name, SYSTEM_NAME, description, PARAMETERS)
-    observer = observer_connectors(level)
-    if envelope:
-        observer.append(("slow_cusum", "output", "1"))
+    observer = observer_connectors(level, outputs)
     component_element(elements, "observer", OBSERVER_SOURCE, observer)
     signals = {level: "mm", "opening_mm": "mm", "flow_m3h": "m3/h"}
     component_element(elements, "scenario", SCENARIO_SOURCE,
@@ -253,8 +253,11 @@ def write_observer_ssp(
             f"record {name} ({n} samples of {SAMPLE_PERIOD_S:g} s from 0 s, the record's "
             "first; the scenario component: X held at X_table.value[k] from X_table.time_s[k] "
             "on)")  # fmt: skip
+    from gatetwin.fmu.observer_fmu import observer_outputs
+
     ssd = observed_record_ssd(f"{model.name}_observed_{name}", gauge, parameters,
-                              n * SAMPLE_PERIOD_S, text, envelope)  # fmt: skip
+                              n * SAMPLE_PERIOD_S, text,
+                              observer_outputs(plant, envelope))  # fmt: skip
     ssv = parameter_set_xml(SYSTEM_NAME, parameters)
     start = tuple(s.values[0] for s in signals)
 

@@ -173,12 +173,16 @@ def scenario_connectors(signals: dict[str, str], parameters: list[tuple[str, flo
                   if p.startswith("scenario.")]  # fmt: skip
 
 
-def observer_connectors(level: str) -> list[tuple[str, str, str]]:
+def observer_connectors(
+    level: str, outputs: tuple[tuple[str, str], ...] | None = None
+) -> list[tuple[str, str, str]]:
     """The observer component's connectors: the measured level (``level``), opening and
-    discharge in, its outputs out."""
+    discharge in, its ``outputs`` (name, unit) out (default: the schedule observer's,
+    :func:`observer_outputs`)."""
     inputs = [(level, "input", "mm"), ("opening_mm", "input", "mm"),
               ("flow_m3h", "input", "m3/h")]  # fmt: skip
-    return inputs + [(cname, "output", unit) for cname, unit in observer_outputs()]
+    outs = observer_outputs() if outputs is None else outputs
+    return inputs + [(cname, "output", unit) for cname, unit in outs]
 
 
 def _observer_element(elements: object, level: str) -> None:
