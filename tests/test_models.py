@@ -15,20 +15,33 @@ from gatetwin.errors import ModelFileError
 from gatetwin.identify.suite import identify_folder
 from gatetwin.modelfile import read_model_file, write_model_files
 
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - Windows: each worker identifies the folder itself
+    fcntl = None
+
 MODELS = Path(__file__).resolve().parents[1] / "models"
 
 
 @pytest.fixture(scope="session")
-def regenerated(tmp_path_factory):
+def regenerated(tmp_path_factory, worker_id):
     """The bundled records identified as ``gatetwin run`` does (each gauge on a process of a
-    pool of two) and written as ``gatetwin models`` writes them. Session-scoped: a worker
-    of CI's slow run may run other modules' tests between the two that use it, which would
-    end a module-scoped fixture and identify the folder again (a minute)."""
+    pool of two) and written as ``gatetwin models`` writes them: once per test session, also
+    when the two tests that use it run on two xdist workers (the first one to need it
+    identifies the folder under a lock in the workers' shared temporary folder, the other
+    reads what it wrote; a minute of identification saved)."""
     from gatetwin.fleet.execute import FleetSettings
 
-    out = tmp_path_factory.mktemp("models")
-    models = identify_folder(bundled_records_dir(), fleet=FleetSettings(workers=2)).models
-    write_model_files(models, out)
+    root = tmp_path_factory.getbasetemp()
+    root = root if worker_id == "master" or fcntl is None else root.parent
+    out = root / "regenerated_models"
+    with open(root / "regenerated_models.lock", "w") as lock:
+        if root != tmp_path_factory.getbasetemp():
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (root / "regenerated_models.done").exists():
+            models = identify_folder(bundled_records_dir(), fleet=FleetSettings(workers=2)).models
+            write_model_files(models, out)
+            (root / "regenerated_models.done").touch()
     return out
 
 
@@ -48,13 +61,7 @@ def assert_close_json(a, b, path="$"):
         assert a == b, path
 
 
-#: The two slow tests share the regenerated models (a minute): one worker runs both (CI's slow
-#: run distributes by group).
-REGENERATED = pytest.mark.xdist_group("regenerated_models")
-
-
 @pytest.mark.slow
-@REGENERATED
 def test_repository_models_are_not_stale(regenerated):
     fresh = sorted(p.name for p in regenerated.glob("*.json"))
     stored = sorted(p.name for p in MODELS.glob("*.json"))
@@ -65,7 +72,6 @@ def test_repository_models_are_not_stale(regenerated):
 
 
 @pytest.mark.slow
-@REGENERATED
 def test_identification_here_is_the_identification_on_a_pool(regenerated, tmp_path):
     """The API's ``identify_folder`` of the folder's name (one gauge after another in this
     process) saves the pool's model files to the bit (the numerical libraries on one thread
