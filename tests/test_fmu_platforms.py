@@ -32,9 +32,9 @@ TESTS = Path(__file__).resolve().parent
 MODEL = TESTS.parent / "models" / "fopdt_3F.json"
 WINE = shutil.which("wine") or shutil.which("wine64")
 needs_zig = pytest.mark.skipif(not zig_available(), reason="ziglang (gatetwin[cross]) absent")
-#: Minutes of cross-compiling and of wine and qemu runs: CI runs the module with the slow subset,
-#: on one worker (its group), so that each FMU is cross-compiled and each trace run once
-pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("platforms")]
+#: Minutes of cross-compiling and of wine and qemu runs: CI runs the module with the slow subset
+#: (over both workers: its first two wine runs in CI take minutes each, side by side there)
+pytestmark = pytest.mark.slow
 #: The FMI 2.0 co-simulation functions every binary must export.
 FMI2_FUNCTIONS = {
     "fmi2GetTypesPlatform", "fmi2GetVersion", "fmi2SetDebugLogging", "fmi2Instantiate",
