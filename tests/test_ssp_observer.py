@@ -226,9 +226,8 @@ def test_what_the_observer_cannot_take_is_refused_in_one_line_without_output(
     tmp_path, capsys, monkeypatch
 ):
     """A record without the gauge, with an empty level or discharge (``observe`` refuses
-    both), too long for simulate-ssp or for the scenario FMU, at another sample period; a
-    model the observer does not cover, another gauge, the loop's options: one line, exit 2,
-    no package."""
+    both), too long for simulate-ssp or for the scenario FMU; a model the observer does not
+    cover, another gauge, the loop's options: one line, exit 2, no package."""
     import gatetwin.fmu.signal_source as signal_source
     import gatetwin.ssp.observed_record as observed_record
 
@@ -240,9 +239,6 @@ def test_what_the_observer_cannot_take_is_refused_in_one_line_without_output(
          "no level column for gauge 3F"),
         ([model, "--observe", str(gap), effects],
          "level_3F_mm is empty at t = 48"),
-        ([model, "--observe", str(_record_copy(tmp_path, "slow", lambda i, r: r,
-                                               {"sample_period_s": 2.4})), effects],
-         "sample period 2.4 s; the observer samples every 1.2 s"),
         ([model, "--observe", str(RECORD)], "effect blocks are not covered"),
         ([str(ROOT / "models" / "arx_3F.json"), "--observe", str(RECORD)],
          "needs a scheduled FOPDT plant"),
@@ -277,6 +273,80 @@ def test_what_the_observer_cannot_take_is_refused_in_one_line_without_output(
         write_observer_ssp(read_model_file(MODEL), dataclasses.replace(record, flow_m3h=flow),
                            tmp_path / "m.ssp", without_effects=True)  # fmt: skip
     assert not (tmp_path / "m.ssp").exists()
+
+
+def _every(tmp_path: Path, k: int) -> Path:
+    """The record with one data line in ``k`` kept, its sidecar's sample period ``k`` times
+    the record's (a free test): a slower logger."""
+    import json
+
+    lines = RECORD.read_text(encoding="utf-8").splitlines()
+    out = tmp_path / f"every{k}.csv"
+    out.write_text("\n".join([lines[0], *lines[1::k]]) + "\n", encoding="utf-8")
+    meta = json.loads(RECORD.with_suffix(".json").read_text(encoding="utf-8"))
+    meta["sample_period_s"] = k * meta["sample_period_s"]
+    meta["test"] = "free"  # too few samples left for a PRBS test's checks
+    out.with_suffix(".json").write_text(json.dumps(meta), encoding="utf-8")
+    return out
+
+
+def test_the_observer_samples_at_the_records_period(tmp_path, capsys):
+    """A record logged every 9.6 s (one sample in 8 of the 1.2 s record) is observed at
+    9.6 s by ``observe`` and by the package: the observer FMU steps 9.6 s, its forecast
+    horizon is the default's nearest whole number of samples (6, 57.6 s), and the run equals
+    ``OnlineObserver`` at that period within the observer FMU's bound
+    (``test_observer_fmu.TOL``) and ``observe``'s CSV within that bound plus its printing."""
+    from fmpy import read_model_description
+
+    slow = _every(tmp_path, 8)
+    out, est = tmp_path / "slow.ssp", tmp_path / "slow.csv"
+    assert main(["ssp", str(MODEL), "--observe", str(slow), "--without-effects",
+                 "--out", str(out)]) == 0  # fmt: skip
+    assert main(["observe", str(MODEL), str(slow), "--gauge", GAUGE, "--without-effects",
+                 "--out", str(est)]) == 0  # fmt: skip
+    capsys.readouterr()
+    with zipfile.ZipFile(out) as zf:
+        zf.extractall(tmp_path / "unpacked")
+    md = read_model_description(str(tmp_path / "unpacked" / OBSERVER_SOURCE))
+    assert md.defaultExperiment.stepSize == "9.6"
+    horizon = next(v for v in md.modelVariables if v.name == "horizon_s")
+    assert float(horizon.start) == 6 * 9.6
+    run = simulate_ssp(out)
+    inputs = measured_inputs(read_record(slow), GAUGE)
+    plant = dataclasses.replace(read_model_file(MODEL).plant, effects=())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        python = OnlineObserver(plant, sample_period_s=9.6).run(*inputs)
+    observed = np.genfromtxt(est, delimiter=",", names=True)
+    assert np.array_equal(run.time_s, np.arange(inputs[0].size) * 9.6)
+    for name in OUTPUTS:
+        got = run.columns[f"observer.{name}"]
+        assert np.max(np.abs(got - python[name])) <= OBSERVER_TOL, name
+        bound = OBSERVER_TOL + PRINTED_RTOL * np.abs(observed[name])
+        assert np.all(np.abs(got - observed[name]) <= bound), name
+    # not the 1.2 s observer on the same samples: its prediction spans another time
+    fast = OnlineObserver(plant).run(*inputs)
+    assert np.max(np.abs(fast["predicted_level_mm"] - python["predicted_level_mm"])) > 1.0
+
+
+def test_export_observer_samples_at_the_model_files_period(tmp_path, capsys):
+    """``export-observer`` takes the sample period the model file states (the records'
+    ``validity.sample_period_s``, as ``export-controller`` does): a model identified on 10 s
+    records gets an observer that steps 10 s."""
+    import json
+
+    from fmpy import read_model_description
+
+    doc = json.loads(MODEL.read_text(encoding="utf-8"))
+    doc["validity"]["sample_period_s"] = 10.0
+    model = tmp_path / "fopdt_3F.json"
+    model.write_text(json.dumps(doc), encoding="utf-8")
+    fmu = tmp_path / "observer.fmu"
+    assert main(["export-observer", str(model), "--without-effects", "--out", str(fmu)]) == 0
+    capsys.readouterr()
+    md = read_model_description(str(fmu))
+    assert md.defaultExperiment.stepSize == "10.0"
+    assert float(next(v for v in md.modelVariables if v.name == "horizon_s").start) == 60.0
 
 
 def test_a_physical_model_gets_the_envelope_observer(tmp_path):

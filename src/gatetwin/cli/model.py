@@ -398,9 +398,11 @@ def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
 
     parser.add_argument("model", metavar="MODEL.json")
     parser.add_argument("--out", metavar="NAME.fmu", required=True)
-    parser.add_argument("--horizon", metavar="S", type=float, default=DEFAULT_HORIZON_S,
+    parser.add_argument("--horizon", metavar="S", type=float, default=None,
                         help="how far ahead predicted_level_mm looks, s: a whole multiple of "
-                        f"the 1.2 s sample period (default {DEFAULT_HORIZON_S:g})")  # fmt: skip
+                        "the sample period, the records' the model file states (default "
+                        f"{DEFAULT_HORIZON_S:g}, or the nearest whole number of "
+                        "samples)")  # fmt: skip
     parser.add_argument("--linearisation", choices=LINEARISATIONS, default="auto",
                         help="schedule: the FOPDT's schedule; envelope: the model's envelope "
                         "re-linearised at every sample, with the slow rule; auto (default): "
@@ -430,6 +432,7 @@ def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_export_observer(args: argparse.Namespace) -> int:
+    from gatetwin.fmu.controller_settings import sample_period_s
     from gatetwin.fmu.observer_fmu import export_observer
     from gatetwin.modelfile import read_model_file
 
@@ -442,6 +445,7 @@ def run_export_observer(args: argparse.Namespace) -> int:
     model = read_model_file(args.model)
     check_writable(args.out)
     path = export_observer(model.plant, args.out, horizon_s=args.horizon,
+                           sample_period_s=sample_period_s(model),
                            anomaly={k: v for k, v in given.items() if v is not None},
                            without_effects=args.without_effects, fmi_version=f"{args.fmi}.0",
                            linearisation=args.linearisation,
@@ -461,9 +465,11 @@ def add_observe_arguments(parser: argparse.ArgumentParser) -> None:
                         help="schedule: the FOPDT's schedule (the observer FMU's model); "
                         "envelope: re-linearised at every sample, with the slow rule; "
                         "auto (default): envelope for a physical model, else schedule")  # fmt: skip
-    parser.add_argument("--horizon", metavar="S", type=float, default=DEFAULT_HORIZON_S,
-                        help="how far ahead predicted_level_mm looks, s (default "
-                        f"{DEFAULT_HORIZON_S:g})")  # fmt: skip
+    parser.add_argument("--horizon", metavar="S", type=float, default=None,
+                        help="how far ahead predicted_level_mm looks, s: a whole multiple of "
+                        "the record's sample period, the observer's (default "
+                        f"{DEFAULT_HORIZON_S:g}, or the nearest whole number of "
+                        "samples)")  # fmt: skip
     parser.add_argument("--without-effects", action="store_true",
                         help="observe with the model's effect blocks dropped (a model with "
                         "effect blocks is refused otherwise)")  # fmt: skip
@@ -501,7 +507,8 @@ def run_observe(args: argparse.Namespace) -> int:
         plant = replace(plant, effects=())
     record = read_record(args.record)
     check_writable(args.out)
-    observer = OnlineObserver(plant, horizon_s=args.horizon, linearisation=args.linearisation)
+    observer = OnlineObserver(plant, horizon_s=args.horizon, linearisation=args.linearisation,
+                              sample_period_s=float(record.sample_period_s))  # fmt: skip
     level, opening, flow = measured_inputs(record, args.gauge)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # Q beyond the knots: clamped

@@ -98,6 +98,7 @@ from gatetwin.mpc.online import (
     SLOW_MONITORING,
     AnomalySettings,
     checked_plant,
+    default_horizon_s,
     forecast_samples,
     observer_linearisation,
 )
@@ -139,13 +140,14 @@ class _Config:
     slow_settings: ObserverSettings = SLOW_MONITORING
     references: tuple[str, ...] = ()
     start_inputs: tuple[float, float, float] | None = None
+    period_s: float = SAMPLE_PERIOD_S
 
 
 def export_observer(
     model_or_path: Plant | str | os.PathLike[str],
     out_path: str | os.PathLike[str],
     *,
-    horizon_s: float = DEFAULT_HORIZON_S,
+    horizon_s: float | None = None,
     settings: ObserverSettings | None = None,
     anomaly: AnomalySettings | dict[str, Any] | None = None,
     without_effects: bool = False,
@@ -154,6 +156,7 @@ def export_observer(
     linearisation: str = "auto",
     reference_gauges: tuple[str, ...] | list[str] = (),
     start_inputs: tuple[float, float, float] | None = None,
+    sample_period_s: float | None = None,
 ) -> Path:
     """Write the observer FMU of a scheduled FOPDT or of an envelope to ``out_path`` (C, host
     platform).
@@ -165,9 +168,10 @@ def export_observer(
         unless ``linearisation`` is ``envelope``; a physical plant, on its envelope).
     out_path : path
         Target ``.fmu``; written atomically.
-    horizon_s : float
+    horizon_s : float, optional
         Start value of the fixed parameter ``horizon_s``: how far ahead
-        ``predicted_level_mm`` looks, s (a whole multiple of the 1.2 s sample period).
+        ``predicted_level_mm`` looks, s (a whole multiple of the sample period; default
+        :func:`~gatetwin.mpc.online.default_horizon_s`).
     settings : ObserverSettings, optional
         Noise levels of the Kalman filter (:data:`gatetwin.mpc.online.MONITORING` by
         default; the envelope observer's slow filter has
@@ -197,6 +201,10 @@ def export_observer(
         Start values of the level (mm), opening (mm) and discharge (m3/h) inputs, where the
         observer starts at rest for a master that sets no input before initialising it
         (default: see :func:`_start_inputs`).
+    sample_period_s : float, optional
+        The observer's sample period, s: the step of every ``doStep`` sample. Default: the
+        records' period a model file states (``validity.sample_period_s``, as the controller
+        FMU takes it), else 1.2 s (a plant object, a model file without one).
 
     Raises
     ------
@@ -206,12 +214,13 @@ def export_observer(
     OutputError
         The FMU cannot be written where asked.
     """
-    plant = _load(model_or_path, without_effects)
+    plant, period = _load(model_or_path, without_effects, sample_period_s)
     check_fmi_version(fmi_version)
     try:
         envelope = observer_linearisation(plant, linearisation, "observer FMU") == "envelope"
         plant = checked_plant(plant, "observer FMU", envelope=envelope)
-        forecast_samples(horizon_s, SAMPLE_PERIOD_S)
+        horizon_s = default_horizon_s(period) if horizon_s is None else horizon_s
+        forecast_samples(horizon_s, period)
         if envelope:
             envelope_dead_time_s(plant)
     except ControlError as exc:
@@ -227,7 +236,7 @@ def export_observer(
         start_inputs = _finite_triple(start_inputs)
     cfg = _Config(plant, float(horizon_s), settings or MONITORING, anomaly or default,
                   model_name, envelope, references=references,
-                  start_inputs=start_inputs)  # fmt: skip
+                  start_inputs=start_inputs, period_s=period)  # fmt: skip
     target = fmu_target(out_path)
     desc = describe_observer(cfg)
     return write_atomically(target, lambda work, file: _build(cfg, desc, work, file, fmi_version))
@@ -254,15 +263,23 @@ def _references(gauge: str, names: Any) -> tuple[str, ...]:
     return refs
 
 
-def _load(model_or_path: Any, without_effects: bool) -> Any:
-    plant = model_or_path
+def _load(model_or_path: Any, without_effects: bool,
+          sample_period_s: float | None) -> tuple[Any, float]:  # fmt: skip
+    """The plant and the observer's sample period (see :func:`export_observer`)."""
+    plant, period = model_or_path, SAMPLE_PERIOD_S
     if isinstance(model_or_path, (str, os.PathLike)):
+        from gatetwin.fmu.controller_settings import sample_period_s as records_period_s
         from gatetwin.modelfile import read_model_file
 
-        plant = read_model_file(model_or_path).plant
+        model = read_model_file(model_or_path)
+        plant, period = model.plant, records_period_s(model)
+    if sample_period_s is not None:
+        period = sample_period_s
+    if not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0.0):
+        raise ExportError(f"observer FMU: sample period {period!r} s must be finite and > 0")
     if without_effects and isinstance(plant, (FopdtPlant, PhysicalPlant)):
         plant = dataclasses.replace(plant, effects=())
-    return plant
+    return plant, float(period)
 
 
 def _build(cfg: _Config, desc: FmuDescription, work: Path, file: str, fmi_version: str) -> Path:
@@ -272,9 +289,9 @@ def _build(cfg: _Config, desc: FmuDescription, work: Path, file: str, fmi_versio
     if cfg.envelope:
         _build_envelope(cfg, desc, fmu_dir, fmi_version)
     else:
-        register = register_length(cfg.plant, SAMPLE_PERIOD_S)
+        register = register_length(cfg.plant, cfg.period_s)
         fns, layout = build_observer_functions(len(cfg.plant.schedule.flow_m3h), register,
-                                               cfg.settings, SAMPLE_PERIOD_S, cfg.anomaly,
+                                               cfg.settings, cfg.period_s, cfg.anomaly,
                                                len(cfg.references))  # fmt: skip
         sizes = generate_observer_c(fns, sources, "observer_generated")
         build_generated_component(
@@ -298,7 +315,7 @@ def _build_envelope(cfg: _Config, desc: FmuDescription, fmu_dir: Path, fmi_versi
 
     sources = fmu_dir / "sources"
     fns, layout = build_envelope_functions(cfg.plant, cfg.settings, cfg.slow_settings,
-                                           SAMPLE_PERIOD_S, cfg.anomaly,
+                                           cfg.period_s, cfg.anomaly,
                                            len(cfg.references))  # fmt: skip
     sizes = generate_envelope_c(fns, sources, "observer_envelope_generated")
     kernel = generated_kernel()
@@ -318,7 +335,8 @@ def _build_envelope(cfg: _Config, desc: FmuDescription, fmu_dir: Path, fmi_versi
 def _facts(cfg: _Config, desc: FmuDescription | None = None) -> dict[str, Any]:
     facts = {"plant": plant_to_dict(cfg.plant), "horizon_s": cfg.horizon_s,
              "settings": dataclasses.asdict(cfg.settings),
-             "anomaly": dataclasses.asdict(cfg.anomaly)}  # fmt: skip
+             "anomaly": dataclasses.asdict(cfg.anomaly),
+             "sample_period_s": cfg.period_s}  # fmt: skip
     if cfg.envelope:
         facts["linearisation"] = "envelope"
         facts["slow_settings"] = dataclasses.asdict(cfg.slow_settings)
@@ -437,7 +455,7 @@ def _drift_rows(cfg: _Config) -> list[Row]:
     if not cfg.references:
         return []
     level0 = _start_inputs(cfg)[0]
-    window_s = WINDOW_SAMPLES * SAMPLE_PERIOD_S
+    window_s = WINDOW_SAMPLES * cfg.period_s
     return [
         *((output_name(g), "input", "continuous", None, "mm",
            f"Level measured at gauge {g} now (a reference of the gauge-drift rule)", level0)
@@ -493,12 +511,12 @@ def describe_observer(cfg: _Config) -> FmuDescription:
         variables=_variables(cfg),
         columns={},
         arx_orders=None,
-        step_size_s=SAMPLE_PERIOD_S,
+        step_size_s=cfg.period_s,
         summary=(f"gatetwin observer of gauge {cfg.plant.gauge}: {model}, forecast "
                  f"{cfg.horizon_s:g} s, anomaly beyond "
                  f"{cfg.anomaly.band_sigma:g} sigma for {cfg.anomaly.run_samples} samples or "
                  f"a CUSUM beyond {cfg.anomaly.cusum_threshold:g}, sample period "
-                 f"{SAMPLE_PERIOD_S:g} s"),
+                 f"{cfg.period_s:g} s"),
     )  # fmt: skip
 
 
@@ -615,7 +633,7 @@ def observer_config_header(
     drift, drift_vrs = _drift_config(desc, references, PREFIX)
     named = ("opening_mm", "flow_m3h", *ESTIMATE, "predicted_level_mm", "horizon_s", *limits)
     refs = {"LEVEL": output_name(desc.gauge), **{n.upper(): n for n in named}, **drift_vrs}
-    return config_header(desc, "observer_data.h", layout, sizes, SAMPLE_PERIOD_S,
+    return config_header(desc, "observer_data.h", layout, sizes, desc.step_size_s,
                          own + drift, refs)  # fmt: skip
 
 
@@ -656,7 +674,7 @@ def envelope_config_header(
              "slow_cusum")  # fmt: skip
     drift, drift_vrs = _drift_config(desc, references, ENVELOPE_PREFIX)
     refs = {"LEVEL": output_name(desc.gauge), **{n.upper(): n for n in named}, **drift_vrs}
-    return config_header(desc, "observer_envelope_data.h", layout, sizes, SAMPLE_PERIOD_S,
+    return config_header(desc, "observer_envelope_data.h", layout, sizes, desc.step_size_s,
                          own + drift, refs, schedule=False)  # fmt: skip
 
 

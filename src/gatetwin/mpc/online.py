@@ -386,6 +386,16 @@ def advance(model: DiscreteModel, state: np.ndarray, disturbance_mm: Any, openin
     return model.step(state, opening_mm, disturbance_mm)
 
 
+def default_horizon_s(sample_period_s: float) -> float:
+    """The default forecast horizon at ``sample_period_s``, s: :data:`DEFAULT_HORIZON_S` where
+    it is a whole number of samples, else the nearest whole number of them (at least one)."""
+    try:
+        forecast_samples(DEFAULT_HORIZON_S, sample_period_s)
+        return DEFAULT_HORIZON_S
+    except ControlError:
+        return max(1, round(DEFAULT_HORIZON_S / sample_period_s)) * float(sample_period_s)
+
+
 def forecast_samples(horizon_s: float, sample_period_s: float) -> int:
     """``horizon_s`` in samples; refused unless a whole multiple in ``[0, MAX_HORIZON_S]``."""
     if not (isinstance(horizon_s, (int, float)) and 0.0 <= horizon_s <= MAX_HORIZON_S):
@@ -442,8 +452,9 @@ class OnlineObserver:
     ----------
     plant : FopdtPlant or PhysicalPlant
         Without effect blocks (see :func:`checked_plant`).
-    horizon_s : float
-        Forecast horizon of ``predicted_level_mm``, s: a whole multiple of the sample period.
+    horizon_s : float, optional
+        Forecast horizon of ``predicted_level_mm``, s: a whole multiple of the sample period
+        (default :func:`default_horizon_s`).
     settings : ObserverSettings
         Noise levels of the Kalman filter (:data:`MONITORING` by default).
     anomaly : AnomalySettings or None
@@ -472,7 +483,7 @@ class OnlineObserver:
     """
 
     plant: FopdtPlant
-    horizon_s: float = DEFAULT_HORIZON_S
+    horizon_s: float | None = None
     settings: ObserverSettings = MONITORING
     anomaly: AnomalySettings | None = None
     sample_period_s: float = SAMPLE_PERIOD_S
@@ -488,6 +499,8 @@ class OnlineObserver:
         if not (isinstance(self.sample_period_s, (int, float)) and self.sample_period_s > 0
                 and math.isfinite(self.sample_period_s)):  # fmt: skip
             raise ControlError(f"sample period {self.sample_period_s!r} s must be finite, > 0")
+        if self.horizon_s is None:
+            self.horizon_s = default_horizon_s(self.sample_period_s)
         self.samples_ahead = forecast_samples(self.horizon_s, self.sample_period_s)
         self.observer = DisturbanceObserver(self.settings)
         #: The slow rule's filter (envelope observer only).
@@ -609,6 +622,7 @@ __all__ = [
     "CUSUM_SLACK_SIGMA",
     "CUSUM_THRESHOLD",
     "DEFAULT_HORIZON_S",
+    "default_horizon_s",
     "ENVELOPE_ANOMALY",
     "ENVELOPE_MOVE_UNCERTAINTY",
     "ENVELOPE_RUN_SAMPLES",

@@ -11,7 +11,8 @@ The package holds ``SystemStructure.ssd``, the observer FMU (``resources/observe
   names; nothing reads the observer's outputs (a master logs them: :func:`gatetwin.ssp.
   simulate_ssp` does);
 * the record's samples as the scenario's tables, held: sample ``i``'s value (``i`` from 0)
-  holds from ``i·T`` on, ``T`` the observer's sample period; a knot is written at ``i·T``
+  holds from ``i·T`` on, ``T`` the record's nominal sample period, at which the observer
+  samples (as ``observe`` runs it); a knot is written at ``i·T``
   only where the value changes. The values are what ``gatetwin observe`` feeds
   :class:`~gatetwin.mpc.online.OnlineObserver` (:func:`gatetwin.mpc.online.measured_inputs`):
   the level at the gauge and the discharge as logged, the opening as logged on ``hold``
@@ -26,9 +27,8 @@ scenario's outputs read at the end of its previous step) or together (Jacobi): s
 engine gives the observer's estimates of ``observe`` over the record, one per sample.
 
 Like ``observe``, the observer takes the record's rows as consecutive samples of ``T``: the
-time stamps' jitter is not replayed (the run's time is ``i·T``). A record whose nominal
-sample period is not ``T`` (beyond :data:`PERIOD_RTOL`) or which holds a logging gap (after
-which the run's time would no longer be the record's), an empty level or
+time stamps' jitter is not replayed (the run's time is ``i·T``). A record which holds a
+logging gap (after which the run's time would no longer be the record's), an empty level or
 discharge (``observe`` refuses both, the observer has no rule for a missing sample), or more
 samples than :data:`~gatetwin.ssp.master.MAX_STEPS` or than the scenario FMU holds
 (:data:`~gatetwin.fmu.signal_source.MAX_KNOTS` knots a signal) is refused before anything is
@@ -231,7 +231,6 @@ def write_observer_ssp(
         The package cannot be written where asked.
     """
     from gatetwin.fmu.signal_source import describe_signal_source, parameter_values
-    from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
     from gatetwin.records import read_record
     from gatetwin.ssp.documents import parameter_set_xml
     from gatetwin.ssp.write import ssp_target, write_package
@@ -242,21 +241,22 @@ def write_observer_ssp(
     if gauge != plant.gauge:
         raise ExportError(f"gauge {gauge}: the model {model.name} observes gauge {plant.gauge}")
     rec = record if hasattr(record, "levels_mm") else read_record(record)
-    check_sample_period(rec, SAMPLE_PERIOD_S)
-    signals = record_tables(rec, gauge, SAMPLE_PERIOD_S)
+    period = float(rec.sample_period_s)
+    check_sample_period(rec, period)
+    signals = record_tables(rec, gauge, period)
     name = Path(rec.path).stem if rec.path else "record"
     facts = {"model": model.name, "record_sha256": rec.sha256}
-    scenario = describe_signal_source(signals, f"{model.name}_record", SAMPLE_PERIOD_S, facts)
+    scenario = describe_signal_source(signals, f"{model.name}_record", period, facts)
     parameters = [(f"scenario.{n}", v, u) for n, v, u in parameter_values(scenario)]
     n = len(rec.time_s)
     text = (f"The {'envelope' if envelope else 'schedule'} observer of {model.name} on the "
-            f"record {name} ({n} samples of {SAMPLE_PERIOD_S:g} s from 0 s, the record's "
+            f"record {name} ({n} samples of {period:g} s from 0 s, the record's "
             "first; the scenario component: X held at X_table.value[k] from X_table.time_s[k] "
             "on)")  # fmt: skip
     from gatetwin.fmu.observer_fmu import observer_outputs
 
     ssd = observed_record_ssd(f"{model.name}_observed_{name}", gauge, parameters,
-                              n * SAMPLE_PERIOD_S, text,
+                              n * period, text,
                               observer_outputs(plant, envelope))  # fmt: skip
     ssv = parameter_set_xml(SYSTEM_NAME, parameters)
     start = tuple(s.values[0] for s in signals)
@@ -267,7 +267,7 @@ def write_observer_ssp(
         from gatetwin.ssp.write import OBSERVER_SOURCE, SCENARIO_SOURCE
 
         export_observer(plant, package / OBSERVER_SOURCE, model_name=f"{model.name}_observer",
-                        start_inputs=start)  # fmt: skip
+                        start_inputs=start, sample_period_s=period)  # fmt: skip
         (work / "scenario").mkdir()
         build_signal_source(scenario, work / "scenario", package / SCENARIO_SOURCE)
 
