@@ -269,3 +269,41 @@ def test_controller_schedule_reaches_the_validity_range_by_the_gate_law(
         truth = local_fopdt(field.truth_plant(), q, e_ref)["level_mm"]
         carried, held = (s.at("level_ref_mm", q) for s in (extended, fitted))
         assert abs(carried - truth) < abs(held - truth)
+
+
+@pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None,
+                    reason="no C compiler (cc/gcc) on PATH")  # fmt: skip
+def test_the_observer_fmu_of_a_field_model_starts_at_its_operating_point(tmp_path) -> None:
+    """A physical model file of the field gate (the truth's parameters, its validity ranges
+    and 10 s records) gets an observer FMU that steps 10 s and starts at rest at the model's
+    operating point (the middle discharge, the opening holding the middle level), inside the
+    validity ranges, not at the flume's 30 mm (which holds the field pool at tens of metres):
+    one step on its start inputs leaves the level where it is (innovation within round-off of
+    the steady level, 1e-6 mm)."""
+    from fmpy import read_model_description
+
+    from gatetwin.cli import main
+    from gatetwin.fmu.controller_settings import operating_point
+    from gatetwin.fmu.observer_fmu import run_observer_fmu
+    from gatetwin.modelfile import physical_document, write_model_file
+
+    plant = field.truth_plant()
+    q, e = (3600.0, 10800.0), (250.0, 700.0)
+    levels = [plant.steady_level_mm(o, f) for o in e for f in q]
+    doc = physical_document("physical_P1", plant, {"flow_m3h": list(q), "opening_mm": list(e),
+                            "level_mm": [min(levels), max(levels)]}, description="field gate",
+                            provenance={"method": "the truth", "records": []})  # fmt: skip
+    doc["validity"]["sample_period_s"] = field.SAMPLE_PERIOD_S
+    model = write_model_file(tmp_path / "physical_P1.json", doc)
+    fmu = tmp_path / "observer.fmu"
+    assert main(["export-observer", str(model), "--out", str(fmu)]) == 0
+    md = read_model_description(str(fmu))
+    assert float(md.defaultExperiment.stepSize) == field.SAMPLE_PERIOD_S
+    start = {v.name: float(v.start) for v in md.modelVariables if v.causality == "input"}
+    level, opening, flow = start["level_P1_mm"], start["opening_mm"], start["flow_m3h"]
+    assert (flow, opening) == operating_point(read_model_file(model))
+    assert flow == 0.5 * sum(q) and e[0] <= opening <= e[1]
+    assert min(levels) <= level <= max(levels)
+    assert abs(level - plant.steady_level_mm(opening, flow)) <= 1e-6
+    out = run_observer_fmu(fmu, [level] * 3, [opening] * 3, [flow] * 3)
+    assert np.all(np.abs(out["innovation_mm"]) <= 1e-6), out["innovation_mm"]

@@ -432,7 +432,6 @@ def add_export_observer_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_export_observer(args: argparse.Namespace) -> int:
-    from gatetwin.fmu.controller_settings import sample_period_s
     from gatetwin.fmu.observer_fmu import export_observer
     from gatetwin.modelfile import read_model_file
 
@@ -444,8 +443,7 @@ def run_export_observer(args: argparse.Namespace) -> int:
     }
     model = read_model_file(args.model)
     check_writable(args.out)
-    path = export_observer(model.plant, args.out, horizon_s=args.horizon,
-                           sample_period_s=sample_period_s(model),
+    path = export_observer(model, args.out, horizon_s=args.horizon,
                            anomaly={k: v for k, v in given.items() if v is not None},
                            without_effects=args.without_effects, fmi_version=f"{args.fmi}.0",
                            linearisation=args.linearisation,

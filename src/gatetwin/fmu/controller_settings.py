@@ -79,6 +79,7 @@ __all__ = [
     "level_band_mm",
     "observer_settings",
     "opening_rate_mm_s",
+    "operating_point",
     "sample_period_s",
 ]
 
@@ -107,11 +108,8 @@ def controller_plant(model: ModelFile) -> FopdtPlant:
     if not isinstance(plant, PhysicalPlant):
         raise ExportError(f"controllers are tuned on an FOPDT or a physical model; got a "
                           f"{plant.kind} model")  # fmt: skip
-    box = validity_envelope(model.content)
-    q_lo, q_hi = box.get("flow_m3h", plant.schedule.flow_range_m3h)
-    e_lo, e_hi = box.get("opening_mm") or _no_range(model, "opening_range_mm")
-    h_lo, h_hi = box.get("level_mm") or _no_range(model, "level_range_mm")
-    opening = _opening_for(plant, 0.5 * (q_lo + q_hi), 0.5 * (h_lo + h_hi), (e_lo, e_hi))
+    q_lo, q_hi = validity_envelope(model.content).get("flow_m3h", plant.schedule.flow_range_m3h)
+    opening = operating_point(model)[1]
     flows = np.linspace(q_lo, q_hi, LINEARISATION_KNOTS) if q_hi > q_lo else np.array([q_lo])
     rows = [local_fopdt(plant, float(q), opening) for q in flows]
     # where the gate passes the flow at the critical-flow cap (lifted clear of the water) the
@@ -129,6 +127,19 @@ def controller_plant(model: ModelFile) -> FopdtPlant:
         "level_ref_mm": tuple(r["level_mm"] for r in rows),
     }
     return FopdtPlant(plant.gauge, opening, Schedule(tuple(float(q) for q in flows), values))
+
+
+def operating_point(model: ModelFile) -> tuple[float, float]:
+    """A physical model's operating point, ``(flow_m3h, opening_mm)``: the middle of its
+    validity's discharge range and the opening that holds the middle of its level range
+    there (within its opening range), where its controller is linearised."""
+    plant = model.plant
+    box = validity_envelope(model.content)
+    q_lo, q_hi = box.get("flow_m3h", plant.schedule.flow_range_m3h)
+    e_lo, e_hi = box.get("opening_mm") or _no_range(model, "opening_range_mm")
+    h_lo, h_hi = box.get("level_mm") or _no_range(model, "level_range_mm")
+    flow = 0.5 * (q_lo + q_hi)
+    return flow, _opening_for(plant, flow, 0.5 * (h_lo + h_hi), (e_lo, e_hi))
 
 
 def _extended(plant: FopdtPlant, model: ModelFile) -> FopdtPlant:

@@ -123,9 +123,10 @@ ENVELOPE_C_FILES = ("observer_support.c", "kernel_point.c", "physical_kernel.c")
 MAX_SAMPLES_PER_STEP = 10_000
 DEFAULT_NAME = "gatetwin_observer"
 #: Start value of the envelope observer's opening input where ``opening_ref_mm`` is a closed
-#: gate (a physical plant's is 0): 30 mm, mid-range of the flume's openings (the bundled
-#: records hold 10-50 mm). A closed gate passes nothing: its tangent has no finite time
-#: constant and the filter's covariance no fixed point.
+#: gate (a physical plant's is 0) and no model file gives the operating point: 30 mm,
+#: mid-range of the flume's openings (the bundled records hold 10-50 mm). A closed gate
+#: passes nothing: its tangent has no finite time constant and the filter's covariance no
+#: fixed point.
 ENVELOPE_START_OPENING_MM = 30.0
 
 
@@ -141,6 +142,7 @@ class _Config:
     references: tuple[str, ...] = ()
     start_inputs: tuple[float, float, float] | None = None
     period_s: float = SAMPLE_PERIOD_S
+    operating_point: tuple[float, float] | None = None
 
 
 def export_observer(
@@ -163,9 +165,10 @@ def export_observer(
 
     Parameters
     ----------
-    model_or_path : FopdtPlant, PhysicalPlant, str or path
-        The plant model, or a model file holding one (an FOPDT, observed on its schedule
-        unless ``linearisation`` is ``envelope``; a physical plant, on its envelope).
+    model_or_path : FopdtPlant, PhysicalPlant, ModelFile, str or path
+        The plant model, or a model file (read, or its path) holding one (an FOPDT, observed
+        on its schedule unless ``linearisation`` is ``envelope``; a physical plant, on its
+        envelope).
     out_path : path
         Target ``.fmu``; written atomically.
     horizon_s : float, optional
@@ -214,7 +217,7 @@ def export_observer(
     OutputError
         The FMU cannot be written where asked.
     """
-    plant, period = _load(model_or_path, without_effects, sample_period_s)
+    plant, period, point = _load(model_or_path, without_effects, sample_period_s)
     check_fmi_version(fmi_version)
     try:
         envelope = observer_linearisation(plant, linearisation, "observer FMU") == "envelope"
@@ -236,7 +239,8 @@ def export_observer(
         start_inputs = _finite_triple(start_inputs)
     cfg = _Config(plant, float(horizon_s), settings or MONITORING, anomaly or default,
                   model_name, envelope, references=references,
-                  start_inputs=start_inputs, period_s=period)  # fmt: skip
+                  start_inputs=start_inputs, period_s=period,
+                  operating_point=point)  # fmt: skip
     target = fmu_target(out_path)
     desc = describe_observer(cfg)
     return write_atomically(target, lambda work, file: _build(cfg, desc, work, file, fmi_version))
@@ -263,23 +267,33 @@ def _references(gauge: str, names: Any) -> tuple[str, ...]:
     return refs
 
 
-def _load(model_or_path: Any, without_effects: bool,
-          sample_period_s: float | None) -> tuple[Any, float]:  # fmt: skip
-    """The plant and the observer's sample period (see :func:`export_observer`)."""
-    plant, period = model_or_path, SAMPLE_PERIOD_S
-    if isinstance(model_or_path, (str, os.PathLike)):
-        from gatetwin.fmu.controller_settings import sample_period_s as records_period_s
-        from gatetwin.modelfile import read_model_file
+def _load(
+    model_or_path: Any, without_effects: bool, sample_period_s: float | None
+) -> tuple[Any, float, tuple[float, float] | None]:
+    """The plant, the observer's sample period and, for a physical model file that states
+    its validity ranges, its operating point (see :func:`export_observer`)."""
+    from gatetwin.modelfile import ModelFile, read_model_file
 
+    model, period, point = model_or_path, SAMPLE_PERIOD_S, None
+    if isinstance(model_or_path, (str, os.PathLike)):
         model = read_model_file(model_or_path)
-        plant, period = model.plant, records_period_s(model)
+    plant = model
+    if isinstance(model, ModelFile):
+        from gatetwin.fmu import controller_settings
+
+        plant, period = model.plant, controller_settings.sample_period_s(model)
+        if isinstance(plant, PhysicalPlant) and plant.opening_ref_mm <= 0.0:
+            try:
+                point = controller_settings.operating_point(model)
+            except ExportError:
+                point = None  # no validity ranges: ENVELOPE_START_OPENING_MM
     if sample_period_s is not None:
         period = sample_period_s
     if not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0.0):
         raise ExportError(f"observer FMU: sample period {period!r} s must be finite and > 0")
     if without_effects and isinstance(plant, (FopdtPlant, PhysicalPlant)):
         plant = dataclasses.replace(plant, effects=())
-    return plant, float(period)
+    return plant, float(period), point
 
 
 def _build(cfg: _Config, desc: FmuDescription, work: Path, file: str, fmi_version: str) -> Path:
@@ -365,9 +379,10 @@ def _finite_triple(values: Any) -> tuple[float, float, float]:
 def _start_inputs(cfg: _Config) -> tuple[float, float, float]:
     """Start values of the level, opening and discharge inputs: the schedule's first knot at
     ``opening_ref_mm``; for the envelope observer a steady point of the gate law (the middle
-    of the schedule's discharges, ``opening_ref_mm`` or, where that is a closed gate,
-    :data:`ENVELOPE_START_OPENING_MM`), so that a master that sets no input starts it; those
-    given to :func:`export_observer` where given."""
+    of the schedule's discharges, ``opening_ref_mm`` or, where that is a closed gate, the
+    model file's operating point (:func:`~gatetwin.fmu.controller_settings.operating_point`)
+    or, for a bare plant, :data:`ENVELOPE_START_OPENING_MM`), so that a master that sets no
+    input starts it; those given to :func:`export_observer` where given."""
     if cfg.start_inputs is not None:
         return cfg.start_inputs
     plant = cfg.plant
@@ -378,6 +393,8 @@ def _start_inputs(cfg: _Config) -> tuple[float, float, float]:
 
     flow = 0.5 * (knots[0] + knots[-1])
     opening = plant.opening_ref_mm if plant.opening_ref_mm > 0.0 else ENVELOPE_START_OPENING_MM
+    if cfg.operating_point is not None:
+        flow, opening = cfg.operating_point
     return steady_level_mm(plant, flow, opening), opening, flow
 
 
