@@ -11,6 +11,7 @@ import shutil
 import struct
 import subprocess
 import sys
+import tempfile
 import zipfile
 from pathlib import Path
 
@@ -32,8 +33,8 @@ TESTS = Path(__file__).resolve().parent
 MODEL = TESTS.parent / "models" / "fopdt_3F.json"
 WINE = shutil.which("wine") or shutil.which("wine64")
 needs_zig = pytest.mark.skipif(not zig_available(), reason="ziglang (gatetwin[cross]) absent")
-#: Minutes of cross-compiling and of wine and qemu runs: CI runs the module with the slow subset
-#: (over both workers: its first two wine runs in CI take minutes each, side by side there)
+#: Minutes of cross-compiling (and seconds of wine and qemu runs): CI runs the module with the
+#: slow subset, over both workers
 pytestmark = pytest.mark.slow
 #: The FMI 2.0 co-simulation functions every binary must export.
 FMI2_FUNCTIONS = {
@@ -178,11 +179,17 @@ def _trace_inputs(folder: Path) -> tuple[list[str], Path]:
 
 
 def _trace(command: list[str], inputs: Path) -> np.ndarray:
-    with inputs.open() as stdin:
-        done = subprocess.run(command, stdin=stdin, capture_output=True, text=True, timeout=600,
+    """Run the trace host; its output through files, not pipes: the first wine run of a
+    machine starts the wine server and its services, which inherit the host's descriptors and
+    outlive it (a pipe would not close until they quit), so the call waits only for the
+    host's own exit."""
+    with inputs.open() as stdin, tempfile.TemporaryFile("w+") as stdout, \
+            tempfile.TemporaryFile("w+") as stderr:  # fmt: skip
+        done = subprocess.run(command, stdin=stdin, stdout=stdout, stderr=stderr, timeout=600,
                               env={**__import__("os").environ, "WINEDEBUG": "-all"})  # fmt: skip
-    assert done.returncode == 0, done.stderr[-2000:]
-    return np.array([float(v) for v in done.stdout.split()])
+        stdout.seek(0), stderr.seek(0)
+        assert done.returncode == 0, stderr.read()[-2000:]
+        return np.array([float(v) for v in stdout.read().split()])
 
 
 def _host(root: Path, target: str | None, out: Path, version: str = "2.0") -> Path:
