@@ -134,7 +134,11 @@ def test_a_single_record_model_holds_over_the_records_discharge(fopdt):
     assert lo <= q.min() and q.max() <= hi
 
 
-@pytest.mark.slow  # about 80 s: the storage is fitted twice (see below)
+# 80-190 s (the storage is fitted twice, see below): a whole physical identification, which
+# CI's slow subset already runs for the bundled folder (tests/test_models.py); this one runs
+# with the long tests
+@pytest.mark.long
+@pytest.mark.slow
 def test_a_physical_model_from_one_record_reads_the_static_table_beside_it(tmp_path):
     # the actuator's speed needs three gate moves or more: a PRBS test has them
     model = identify(RECORDS / "C.csv", family="physical", gauge="3F")
