@@ -24,6 +24,7 @@ import os
 import shutil
 import stat
 import subprocess
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -72,8 +73,10 @@ def prune(now: float | None = None) -> None:
 @cache
 def _compiler_version(command: tuple[str, ...]) -> str:
     try:
-        done = subprocess.run([*command, "--version"], capture_output=True, text=True,
-                              timeout=60, check=False)  # fmt: skip
+        # in a folder of its own: Zig's `cc --version` compiles an empty a.c there, leaving a.o
+        with tempfile.TemporaryDirectory() as folder:
+            done = subprocess.run([*command, "--version"], capture_output=True, text=True,
+                                  timeout=60, check=False, cwd=folder)  # fmt: skip
     except (OSError, subprocess.TimeoutExpired) as exc:
         return f"cannot run: {exc}"
     return done.stdout + done.stderr

@@ -199,9 +199,8 @@ def _host(root: Path, target: str | None, out: Path, version: str = "2.0") -> Pa
     cc = [compiler()] if target is None else [sys.executable, "-m", "ziglang", "cc", "-target",
                                               target]  # fmt: skip
     libs = [] if target and "windows" in target else ["-ldl"]
-    # in the host's own folder: Zig's C compiler leaves an empty a.o in its working directory
     subprocess.run([*cc, *flags, "-o", str(out), str(TESTS / "fmu_trace.c"), *libs],
-                   check=True, capture_output=True, cwd=out.parent)  # fmt: skip
+                   check=True, capture_output=True)  # fmt: skip
     return out
 
 
