@@ -152,8 +152,9 @@ def _code_digest(backend: str) -> str:
 
         files = sorted(p for p in templates_dir().iterdir() if p.suffix in {".c", ".h"})
     else:
-        names = ("slave_template.py", "slave_guard.py", "slave_state.py")
-        files = [Path(__file__).with_name(name) for name in names]
+        from gatetwin.fmu.python_build import GUARD, PARTS, STATE, TEMPLATE
+
+        files = [TEMPLATE, GUARD, STATE, *PARTS]
     plant_dir = Path(__file__).resolve().parents[1] / "plant"
     files += [plant_dir / "physical_kernel.py", plant_dir / "blocks.py"]
     digest = hashlib.sha256()

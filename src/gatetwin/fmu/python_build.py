@@ -1,10 +1,11 @@
 """Build the pythonfmu backend of a plant FMU.
 
 The slave is ``slave_template.py`` with the description embedded as JSON and the sources of
-the FMI guard (``slave_guard.py``), the state checks (``slave_state.py``), the effect blocks
-and the physical kernel pasted in, so the FMU carries its own code and needs neither gatetwin
-nor numpy where it runs (only a Python with the pythonfmu runtime that pythonfmu bundles into
-the FMU). pythonfmu's own modelDescription.xml
+the FMI guard (``slave_guard.py``), the state checks (``slave_state.py``), the effect blocks,
+the physical kernel and the slave's own parts (:data:`PARTS`: what they share, and one mixin
+per family, each without its imports of gatetwin) pasted in, so the FMU carries its own code
+and needs neither gatetwin nor numpy where it runs (only a Python with the pythonfmu runtime
+that pythonfmu bundles into the FMU). pythonfmu's own modelDescription.xml
 lacks ModelStructure/InitialUnknowns, units and descriptions; it is replaced by the one
 rendered from the same description as the C FMU's, keeping pythonfmu's modelIdentifier (the
 name of the binary it ships).
@@ -31,6 +32,7 @@ __all__ = [
     "FLAGS",
     "GUARD",
     "KERNEL",
+    "PARTS",
     "STATE",
     "TEMPLATE",
     "blocks_source",
@@ -39,6 +41,7 @@ __all__ = [
     "kernel_source",
     "module_name",
     "module_source",
+    "part_source",
     "slave_source",
 ]
 
@@ -56,6 +59,12 @@ _STATE_END = "# END gatetwin.fmu.slave_state\n"
 KERNEL = Path(__file__).resolve().parents[1] / "plant" / "physical_kernel.py"
 _KERNEL_BEGIN = "# BEGIN gatetwin.plant.physical_kernel\n"
 _KERNEL_END = "# END gatetwin.plant.physical_kernel\n"
+#: The slave's own parts, each spliced in between the template's markers named after it: what
+#: the parts share (CONFIG, PlantError), then the ARX, FOPDT and physical families.
+PARTS = tuple(Path(__file__).with_name(f"slave_{name}.py")
+              for name in ("config", "arx", "fopdt", "physical"))  # fmt: skip
+_IMPORTS_BEGIN = "# BEGIN gatetwin imports (removed at export: the slave defines these names)\n"
+_IMPORTS_END = "# END gatetwin imports\n"
 #: pythonfmu 0.7.0 serialises FMU states through ``Fmi2Slave._fmu_state_to_bytes`` (JSON);
 #: the FMU needs a Python interpreter, hence needsExecutionTool.
 FLAGS = CoSimulationFlags(
@@ -101,24 +110,35 @@ def kernel_source() -> str:
     return module_source(KERNEL)
 
 
-def _splice(text: str, begin: str, end: str, body: str) -> str:
+def part_source(path: Path) -> str:
+    """gatetwin/fmu/<path> (one of :data:`PARTS`) embedded without its imports of gatetwin,
+    whose names the slave defines itself."""
+    text = _embedded(path, f"gatetwin/fmu/{path.name}")
+    return _splice(text, _IMPORTS_BEGIN, _IMPORTS_END, "", path.name)
+
+
+def _splice(text: str, begin: str, end: str, body: str, where: str = TEMPLATE.name) -> str:
     head, sep, rest = text.partition(begin)
     _, sep_end, tail = rest.partition(end)
     if not (sep and sep_end):
-        raise ExportError(f"{TEMPLATE.name}: {begin.strip()} markers missing")
+        raise ExportError(f"{where}: {begin.strip()} markers missing")
     return head + body + tail
 
 
 def slave_source(desc: FmuDescription) -> str:
-    """The slave module with the description and the effect-block kernels embedded."""
+    """The slave module with the description, its parts and the effect-block kernels
+    embedded."""
     text = TEMPLATE.read_text(encoding="utf-8")
-    if text.count(_CONFIG_LINE) != 1:
-        raise ExportError(f"{TEMPLATE.name}: CONFIG_JSON marker line missing")
     text = _splice(text, _BLOCKS_BEGIN, _BLOCKS_END, blocks_source())
     text = _splice(text, _GUARD_BEGIN, _GUARD_END, guard_source())
     text = _splice(text, _STATE_BEGIN, _STATE_END,
                    _embedded(STATE, "gatetwin/fmu/slave_state.py"))  # fmt: skip
     text = _splice(text, _KERNEL_BEGIN, _KERNEL_END, kernel_source())
+    for path in PARTS:
+        text = _splice(text, f"# BEGIN gatetwin.fmu.{path.stem}\n",
+                       f"# END gatetwin.fmu.{path.stem}\n", part_source(path))  # fmt: skip
+    if text.count(_CONFIG_LINE) != 1:
+        raise ExportError(f"{PARTS[0].name}: CONFIG_JSON marker line missing")
     config = json.dumps(slave_config(desc), sort_keys=True, allow_nan=False)
     return text.replace(_CONFIG_LINE, f"CONFIG_JSON = {config!r}")
 
