@@ -18,7 +18,12 @@ Variable names (FMI structured naming, 1-based knot index ``k``):
   (:mod:`gatetwin.plant.effects`), tunable (the rate limit's ``substep_s`` fixed), with the
   block's limits checked by both backends.
 
-This module builds nothing; see :mod:`gatetwin.fmu.c_build` and :mod:`gatetwin.fmu.python_build`.
+The renderings live in modules of their own: ``model_config.h`` in
+:mod:`gatetwin.fmu.config_header`, ``modelDescription.xml`` in :mod:`gatetwin.fmu.description2`
+(FMI 2.0) and :mod:`gatetwin.fmu.description3` (FMI 3.0); the variables' and units'
+vocabulary every component shares in :mod:`gatetwin.fmu.interface`. Their public names are
+importable from here too. This module builds nothing; see :mod:`gatetwin.fmu.c_build` and
+:mod:`gatetwin.fmu.python_build`.
 """
 
 from __future__ import annotations
@@ -29,27 +34,34 @@ import math
 import re
 import uuid
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
-from xml.etree import ElementTree as ET
+from typing import Any
 
 from gatetwin.errors import ExportError, ModelFileError
-from gatetwin.fmu.checks import (
-    MAX_GAUGE_CHARS,
-    c_string_literal,
-    check_well_formed,
-    gauge_name_ok,
-    xml_text,
+from gatetwin.fmu.checks import MAX_GAUGE_CHARS, gauge_name_ok, xml_text
+from gatetwin.fmu.config_header import (
+    _effect_limits,
+    component_config_lines,
+    model_config_header,
+    variable_table_lines,
 )
-from gatetwin.fmu.limits import (
-    MAX_COMMUNICATION_STEP_S,
-    MAX_TIME_S,
-    PARAMETER_MAX_ABS,
-    VALIDITY_QUANTITIES,
-    check_parameter_values,
-    validity_ranges,
+from gatetwin.fmu.description2 import (
+    CoSimulationFlags,
+    finished_xml,
+    initial_dependencies,
+    model_description_xml,
+    shared_elements,
+    xml_bool,
 )
+from gatetwin.fmu.interface import (
+    COMMUNICATION_POINT_RTOL,
+    LOG_CATEGORIES,
+    UNITS,
+    ComponentInterface,
+    VariableSpec,
+)
+from gatetwin.fmu.limits import VALIDITY_QUANTITIES, check_parameter_values, validity_ranges
 from gatetwin.plant import physical_kernel
-from gatetwin.plant.effects import BLOCK_FIELDS, KINDS, parameter_specs
+from gatetwin.plant.effects import parameter_specs
 from gatetwin.plant.model import (
     FLOW_RANGE_M3H,
     LOWER_BOUNDS,
@@ -97,29 +109,6 @@ __all__ = [
 
 #: Largest ARX orders the FMUs accept (fixed-size C state).
 MAX_ARX_ORDER = 8
-#: doStep refuses a currentCommunicationPoint further than this (relative) from the FMU's time.
-COMMUNICATION_POINT_RTOL = 1e-9
-#: Log categories both backends declare.
-LOG_CATEGORIES = {
-    "logStatusWarning": "Warnings (an input or the level outside the model's validity, or the "
-    "discharge outside the schedule's knots)",
-    "logStatusError": "Errors: refused inputs, parameters and communication steps",
-    "logAll": "Everything, including informational messages",
-}
-#: name -> (description, SI base-unit exponents, factor to SI)
-UNITS: dict[str, tuple[str, dict[str, int], float]] = {
-    "mm": ("millimetre", {"m": 1}, 0.001),
-    "m3/h": ("cubic metre per hour", {"m": 3, "s": -1}, 1.0 / 3600.0),
-    "s": ("second", {"s": 1}, 1.0),
-    "mm/mm": ("millimetre per millimetre (dimensionless)", {}, 1.0),
-    "mm/s": ("millimetre per second", {"m": 1, "s": -1}, 0.001),
-    "1/mm": ("per millimetre", {"m": -1}, 1000.0),
-    "h/m3": ("per cubic metre per hour", {"m": -3, "s": 1}, 3600.0),
-    "mm/(m3/h)": ("millimetre per cubic metre per hour", {"m": -2, "s": 1}, 3.6),
-    "1": ("dimensionless", {}, 1.0),
-    "m": ("metre", {"m": 1}, 1.0),
-    "m2": ("square metre", {"m": 2}, 1.0),
-}
 _FOPDT_COLUMNS = {
     "gain_mm_per_mm": ("mm/mm", "Static gain K of level on opening"),
     "time_constant_s": ("s", "Time constant T (> 0)"),
@@ -127,53 +116,6 @@ _FOPDT_COLUMNS = {
     "level_ref_mm": ("mm", "Rating level at opening_ref_mm"),
 }
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
-#: What a variable name may hold to be written into model_config.h as a C string literal.
-_C_NAME = re.compile(r"[A-Za-z0-9_.\[\]]{1,200}")
-
-
-@dataclass(frozen=True)
-class VariableSpec:
-    """One FMI Real variable. ``kind`` is ``input``, ``output``, ``tunable`` or ``fixed``."""
-
-    name: str
-    vr: int
-    causality: str
-    variability: str
-    initial: str | None
-    unit: str
-    description: str
-    start: float | None
-    initial_dependency: bool = True
-
-    @property
-    def kind(self) -> str:
-        if self.causality == "parameter":
-            return self.variability
-        return self.causality
-
-
-class ComponentInterface(Protocol):
-    """What the renderings of an FMU's interface (``modelDescription.xml``, the head and the
-    variable table of ``model_config.h``) need of a component: a plant
-    (:class:`FmuDescription`) or a controller (:mod:`gatetwin.fmu.controller`)."""
-
-    @property
-    def model_identifier(self) -> str: ...
-
-    @property
-    def guid(self) -> str: ...
-
-    @property
-    def summary(self) -> str: ...
-
-    @property
-    def step_size_s(self) -> float: ...
-
-    @property
-    def variables(self) -> tuple[VariableSpec, ...]: ...
-
-    @property
-    def output(self) -> VariableSpec: ...
 
 
 @dataclass(frozen=True)
@@ -464,164 +406,6 @@ def _short(value: Any, limit: int = 80) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-# -- renderings -------------------------------------------------------------------------------
-
-
-def _c_double(value: float) -> str:
-    text = repr(float(value))
-    return text if any(c in text for c in ".en") else text + ".0"
-
-
-def _macro(name: str) -> str:
-    return "VR_COL_" + re.sub(r"[^A-Za-z0-9]", "_", name).upper()
-
-
-def component_config_lines(desc: ComponentInterface, component_header: str) -> list[str]:
-    """The head of any component's ``model_config.h`` (component.h): identity, the header
-    that defines its ModelData, the glue's limits."""
-    return [
-        f"/* Generated by gatetwin.fmu.description for {desc.model_identifier}; do not edit. */",
-        "#ifndef GATETWIN_MODEL_CONFIG_H",
-        "#define GATETWIN_MODEL_CONFIG_H",
-        "",
-        f"#define GT_MODEL_IDENTIFIER {c_string_literal(desc.model_identifier)}",
-        f"#define GT_GUID {c_string_literal(desc.guid)}",
-        f"#define GT_COMPONENT_HEADER {c_string_literal(component_header)}",
-        f"#define GT_N_REAL {len(desc.variables)}",
-        f"#define GT_COMMUNICATION_POINT_RTOL {_c_double(COMMUNICATION_POINT_RTOL)}",
-        f"#define GT_MAX_COMMUNICATION_STEP_S {_c_double(MAX_COMMUNICATION_STEP_S)}",
-        f"#define GT_MAX_TIME_S {_c_double(MAX_TIME_S)}",
-        f"#define GT_PARAMETER_MAX_ABS {_c_double(PARAMETER_MAX_ABS)}",
-        "#define GT_LOG_CATEGORIES {" + ", ".join(f'"{c}"' for c in LOG_CATEGORIES) + "}",
-    ]
-
-
-def variable_table_lines(variables: tuple[VariableSpec, ...]) -> list[str]:
-    """The tail of any component's ``model_config.h``: every Real variable as
-    ``GT_VARIABLES(X)`` (component.c builds the table from it), and the closing guard."""
-    kinds = {
-        "input": "GT_KIND_INPUT",
-        "output": "GT_KIND_OUTPUT",
-        "tunable": "GT_KIND_TUNABLE",
-        "fixed": "GT_KIND_FIXED",
-    }
-    for v in variables:  # names become C string literals: nothing that could end one
-        if not _C_NAME.fullmatch(v.name):
-            raise ExportError(f"variable name {v.name!r} has characters a C FMU cannot carry")
-    lines = [
-        "",
-        "/* every Real variable in value-reference order: name, kind, start */",
-        "#define GT_VARIABLES(X) \\",
-    ]
-    lines += [
-        f"    X({c_string_literal(v.name)}, {kinds[v.kind]}, {_c_double(v.start or 0.0)}) \\"
-        for v in variables
-    ]
-    return [*lines, "", "#endif", ""]
-
-
-def model_config_header(desc: FmuDescription) -> str:
-    """``model_config.h`` of the C FMU: identity, sizes, value references, variable table."""
-    lines = [
-        *component_config_lines(desc, "plant_data.h"),
-        f'#define GT_DYNAMICS_HEADER "model_{desc.family}.h"',
-        f"#define GT_N_KNOTS {desc.n_knots}",
-        f"#define GT_OPENING_MIN_MM {_c_double(OPENING_RANGE_MM[0])}",
-        f"#define GT_OPENING_MAX_MM {_c_double(OPENING_RANGE_MM[1])}",
-        f"#define GT_FLOW_MIN_M3H {_c_double(FLOW_RANGE_M3H[0])}",
-        f"#define GT_FLOW_MAX_M3H {_c_double(FLOW_RANGE_M3H[1])}",
-    ]
-    if desc.arx_orders is None:
-        lines.append(f"#define GT_HISTORY_CAPACITY {DELAY_HISTORY_CAPACITY}")
-    else:
-        na, nb, nk = desc.arx_orders
-        lines += [
-            f"#define GT_NA {na}",
-            f"#define GT_NB {nb}",
-            f"#define GT_NK {nk}",
-            f"#define GT_ARX_STEP_RTOL {_c_double(ARX_STEP_RTOL)}",
-            f"#define GT_ARX_MAX_SUBSTEPS {_c_double(ARX_MAX_SUBSTEPS)}",
-        ]
-    lines += [
-        "",
-        "/* value references (indices into ModelData.real) */",
-        f"#define VR_OPENING_MM {desc.vr('opening_mm')}",
-        f"#define VR_FLOW_M3H {desc.vr('flow_m3h')}",
-        f"#define VR_OPENING_REF_MM {desc.vr('opening_ref_mm')}",
-        f"#define VR_OUTPUT {desc.output.vr}",
-    ]
-    if desc.arx_orders is not None:
-        lines.append(f"#define VR_SAMPLE_PERIOD_S {desc.vr('sample_period_s')}")
-    lines += _kernel_config_lines(desc)
-    lines += _validity_config_lines(desc)
-    lines.append("/* schedule column c at knot k (from 0): VR_COL_c + k */")
-    lines += [f"#define {_macro(name)} {vr}" for name, vr in desc.columns.items()]
-    lines += _effect_config_lines(desc)
-    return "\n".join(lines + variable_table_lines(desc.variables))
-
-
-def _validity_config_lines(desc: FmuDescription) -> list[str]:
-    """The validity envelope: GT_VALIDITY_<Q> is 1 when the model states the range of Q."""
-    ranges = validity_ranges(desc.provenance)
-    lines = ["/* validity envelope of the model file: 1 when a range is stated, then its ends */"]
-    for name, unit, stem in VALIDITY_QUANTITIES:
-        lines.append(f"#define GT_VALIDITY_{stem} {int(name in ranges)}")
-        lo, hi = ranges.get(name, (0.0, 0.0))
-        lines += [
-            f"#define GT_VALIDITY_{stem}_MIN {_c_double(lo)}",
-            f"#define GT_VALIDITY_{stem}_MAX {_c_double(hi)}",
-            f'#define GT_VALIDITY_{stem}_UNIT "{unit}"',
-        ]
-    return lines
-
-
-def _kernel_config_lines(desc: FmuDescription) -> list[str]:
-    """The physical kernel's parameter block (physical family, envelope FOPDT and ARX)."""
-    envelope = int(desc.family in ("fopdt", "arx") and desc.kernel_first is not None)
-    lines = [f"#define GT_ENVELOPE {envelope}"]
-    if desc.kernel_first is None:
-        return lines
-    first = desc.kernel_first
-    bounded = [first + physical_kernel.INDEX[n] for n in LOWER_BOUNDS]
-    bounds = LOWER_BOUNDS.values()
-    return lines + [
-        "/* the physical kernel's parameters from VR_KERNEL_FIRST on, in kernel order */",
-        f"#define VR_KERNEL_FIRST {first}",
-        "#define GT_KERNEL_BOUNDED " + ", ".join(str(vr) for vr in bounded),
-        "#define GT_KERNEL_LOWER_BOUNDS " + ", ".join(repr(float(b)) for b in bounds),
-        f'#define GT_KERNEL_STORAGE_RULE "{STORAGE_RULE}"',
-        f'#define GT_KERNEL_OPERATING_STORAGE_RULE "{OPERATING_STORAGE_RULE}"',
-        f"#define GT_PHYSICAL_MAX_SUBSTEPS {MAX_SUBSTEPS}",
-        f"#define GT_PHYSICAL_MAX_SUBSTEP_INDEX {physical_kernel.INDEX['max_substep_s']}",
-    ]
-
-
-def _effect_limits(desc: FmuDescription) -> list[tuple[int, float, float, bool]]:
-    """``(vr, minimum, maximum, minimum_exclusive)`` of every effect parameter."""
-    out = []
-    for kind, vrs in desc.effects.items():
-        for p in parameter_specs(kind):
-            if not (math.isfinite(p.minimum) and math.isfinite(p.maximum)):
-                raise ExportError(f"effect {kind}: {p.name} needs finite limits for the FMU")
-            out.append((vrs[p.name], p.minimum, p.maximum, p.minimum_exclusive))
-    return out
-
-
-def _effect_config_lines(desc: FmuDescription) -> list[str]:
-    lines = ["", "/* effect blocks (gatetwin.plant.effects): 1 when the model carries one */"]
-    for kind in KINDS:
-        stem = BLOCK_FIELDS[kind].upper()
-        lines.append(f"#define GT_HAS_{stem} {int(kind in desc.effects)}")
-        for name, vr in desc.effects.get(kind, {}).items():
-            lines.append(f"#define VR_FX_{stem}_{name.upper()} {vr}")
-    lines.append("/* effect parameter limits: vr, minimum, maximum, minimum exclusive */")
-    lines.append("#define GT_EFFECT_LIMITS(X) \\")
-    lines += [f"    X({vr}, {_c_double(lo)}, {_c_double(hi)}, {int(excl)}) \\"
-              for vr, lo, hi, excl in _effect_limits(desc)]  # fmt: skip
-    lines.append("")
-    return lines
-
-
 def slave_config(desc: FmuDescription) -> dict[str, Any]:
     """The description as plain JSON data for the self-contained pythonfmu slave."""
     return {
@@ -670,153 +454,3 @@ def _slave_validity(desc: FmuDescription) -> dict[str, list[Any]]:
     units = {name: unit for name, unit, _ in VALIDITY_QUANTITIES}
     return {q: [lo, hi, output if q == "level_mm" else q, units[q]]
             for q, (lo, hi) in validity_ranges(desc.provenance).items()}  # fmt: skip
-
-
-@dataclass(frozen=True)
-class CoSimulationFlags:
-    """The ``CoSimulation`` element's capability flags of one backend."""
-
-    needs_execution_tool: bool
-    can_serialize_fmu_state: bool
-    can_not_use_memory_management_functions: bool
-    source_files: tuple[str, ...] = ()
-
-
-def model_description_xml(desc: ComponentInterface, flags: CoSimulationFlags, tool: str) -> bytes:
-    """``modelDescription.xml`` (FMI 2.0, co-simulation) for either backend, of a plant or of
-    a controller.
-
-    Every attribute passes through :func:`~gatetwin.fmu.checks.xml_text` and the result is
-    parsed back, so the file is well-formed XML whatever text the model carried.
-    """
-    root = ET.Element(
-        "fmiModelDescription",
-        {
-            "fmiVersion": "2.0",
-            "modelName": desc.model_identifier,
-            "guid": desc.guid,
-            "description": desc.summary,
-            "generationTool": tool,
-            "variableNamingConvention": "structured",
-            "numberOfEventIndicators": "0",
-        },
-    )
-    cs = ET.SubElement(
-        root,
-        "CoSimulation",
-        {
-            "modelIdentifier": desc.model_identifier,
-            "needsExecutionTool": xml_bool(flags.needs_execution_tool),
-            "canHandleVariableCommunicationStepSize": "true",
-            "canInterpolateInputs": "false",
-            "maxOutputDerivativeOrder": "0",
-            "canRunAsynchronuously": "false",
-            "canBeInstantiatedOnlyOncePerProcess": "false",
-            "canNotUseMemoryManagementFunctions": xml_bool(
-                flags.can_not_use_memory_management_functions
-            ),
-            "canGetAndSetFMUstate": "true",
-            "canSerializeFMUstate": xml_bool(flags.can_serialize_fmu_state),
-            "providesDirectionalDerivative": "false",
-        },
-    )
-    if flags.source_files:
-        files = ET.SubElement(cs, "SourceFiles")
-        for name in flags.source_files:
-            ET.SubElement(files, "File", {"name": name})
-    shared_elements(root, desc)
-    _model_variables(root, desc)
-    _model_structure(root, desc)
-    return finished_xml(root, f"{desc.model_identifier}: modelDescription.xml")
-
-
-def shared_elements(root: ET.Element, desc: ComponentInterface) -> None:
-    """What both FMI versions write alike: units, log categories, default experiment."""
-    _unit_definitions(root)
-    categories = ET.SubElement(root, "LogCategories")
-    for name, text in LOG_CATEGORIES.items():
-        ET.SubElement(categories, "Category", {"name": name, "description": text})
-    ET.SubElement(
-        root, "DefaultExperiment", {"startTime": "0.0", "stepSize": repr(desc.step_size_s)}
-    )
-
-
-def finished_xml(root: ET.Element, what: str) -> bytes:
-    """The document's bytes, every attribute escaped and the result parsed back."""
-    for element in root.iter():
-        for key, value in element.attrib.items():
-            element.set(key, xml_text(value))
-    ET.indent(root)
-    xml = ET.tostring(root, encoding="UTF-8", xml_declaration=True) + b"\n"
-    check_well_formed(xml, what)
-    return xml
-
-
-def xml_bool(value: bool) -> str:
-    return "true" if value else "false"
-
-
-def _unit_definitions(root: ET.Element) -> None:
-    units = ET.SubElement(root, "UnitDefinitions")
-    for name, (_, exponents, factor) in UNITS.items():
-        unit = ET.SubElement(units, "Unit", {"name": name})
-        base = {k: str(v) for k, v in exponents.items()}
-        if factor != 1.0:
-            base["factor"] = repr(factor)
-        ET.SubElement(unit, "BaseUnit", base)
-
-
-def _model_variables(root: ET.Element, desc: ComponentInterface) -> None:
-    variables = ET.SubElement(root, "ModelVariables")
-    for v in desc.variables:
-        attrs = {
-            "name": v.name,
-            "valueReference": str(v.vr),
-            "description": v.description,
-            "causality": v.causality,
-            "variability": v.variability,
-        }
-        if v.initial is not None:
-            attrs["initial"] = v.initial
-        sv = ET.SubElement(variables, "ScalarVariable", attrs)
-        real = {"unit": v.unit}
-        if v.start is not None:
-            real["start"] = repr(float(v.start))
-        ET.SubElement(sv, "Real", real)
-
-
-def initial_dependencies(desc: ComponentInterface) -> list[VariableSpec]:
-    """The inputs and parameters the output's initial value depends on: those marked
-    ``initial_dependency`` but the dynamics-only columns (time constant, dead time, sample
-    period); for a plant, what its equilibrium depends on."""
-    dynamic_only = {"time_constant_s", "dead_time_s", "sample_period_s"}
-    return [
-        v
-        for v in desc.variables
-        if v.causality in ("input", "parameter")
-        and v.initial_dependency
-        and not any(v.name.startswith(f"schedule.{c}[") or v.name == c for c in dynamic_only)
-    ]
-
-
-def _model_structure(root: ET.Element, desc: ComponentInterface) -> None:
-    """The outputs have no direct feedthrough; initially they depend on
-    :func:`initial_dependencies` (a plant's output: the equilibrium of the inputs)."""
-    index = {v.name: i for i, v in enumerate(desc.variables, start=1)}
-    initial_deps = [index[v.name] for v in initial_dependencies(desc)]
-    structure = ET.SubElement(root, "ModelStructure")
-    # every output (a plant has one; a controller FMU has its command and diagnostics)
-    outs = [index[v.name] for v in desc.variables if v.causality == "output"]
-    outputs = ET.SubElement(structure, "Outputs")
-    for out in outs:
-        ET.SubElement(outputs, "Unknown", {"index": str(out), "dependencies": ""})
-    initial = ET.SubElement(structure, "InitialUnknowns")
-    for out in outs:
-        ET.SubElement(
-            initial,
-            "Unknown",
-            {
-                "index": str(out),
-                "dependencies": " ".join(map(str, initial_deps)),
-            },
-        )
