@@ -13,6 +13,8 @@ thresholds, and render the findings as JSON, JUnit XML and plots.
   inside it;
 * :mod:`~gatetwin.validate.thresholds` -- ``--fail-under`` / ``--fail-over`` limits;
 * :mod:`~gatetwin.validate.harness` -- one FMU on many records, and the FMU × record matrix;
+* :mod:`~gatetwin.validate.results` -- what that finds, per record and per FMU;
+* :mod:`~gatetwin.validate.matrix` -- the matrix as flat cells and as a Markdown table;
 * :mod:`~gatetwin.validate.outputs` -- JSON, JUnit and PNG rendering, atomic writing.
 
 Exit-code policy of ``gatetwin validate``: 0 when everything passed, :data:`EXIT_FAILED`
