@@ -4,6 +4,7 @@ Drive an FMI 2.0 co-simulation FMU with a record's measured gate opening and dis
 compare its free-running level output with the measured level, apply the caller's
 thresholds, and render the findings as JSON, JUnit XML and plots.
 
+* :mod:`~gatetwin.validate.fmu_inspect` -- whether a file is an FMU the harness can run;
 * :mod:`~gatetwin.validate.fmu_runner` -- open, check and run an FMU through fmpy;
 * :mod:`~gatetwin.validate.isolation` -- the same run in a child process, under a time limit,
   with the cause named when the FMU crashes, exits or hangs;

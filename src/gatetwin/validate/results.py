@@ -18,7 +18,7 @@ from gatetwin.identify.metrics import Whiteness
 from gatetwin.identify.serial import finite_list, finite_or_none
 from gatetwin.noise import NoiseFloor
 from gatetwin.validate.compare import FreeRunMetrics, StepComparison, worst_step_differences
-from gatetwin.validate.fmu_runner import FmuInfo
+from gatetwin.validate.fmu_inspect import FmuInfo
 from gatetwin.validate.thresholds import Check, Threshold
 from gatetwin.validate.validity import Envelope, ValidityFinding
 
