@@ -201,7 +201,7 @@ def test_a_step_beyond_the_sample_budget_is_refused(fmu):
     """The longest step is taken; one sample more is refused (not worked through)."""
     from fmpy.fmi1 import FMICallException
 
-    from gatetwin.fmu.observer_fmu import MAX_SAMPLES_PER_STEP
+    from gatetwin.fmu.observer_config import MAX_SAMPLES_PER_STEP
 
     slave, vr = _slave(fmu)
     slave.exitInitializationMode()

@@ -41,7 +41,8 @@ where that rule alone holds.
 
 The observer starts at rest on the inputs set in
 initialisation mode; ``doStep(t, h)`` takes the inputs at ``t`` as the sample at ``t`` (``h``
-a whole number of sample periods, at most :data:`MAX_SAMPLES_PER_STEP`, each taking the held
+a whole number of sample periods, at most
+:data:`~gatetwin.fmu.observer_config.MAX_SAMPLES_PER_STEP`, each taking the held
 inputs); after it the outputs are the estimate at ``t``.
 
 No heap after instantiation: the instance (one ``ModelData``) is allocated once by the glue.
@@ -63,26 +64,21 @@ from gatetwin.fmu.c_build import build_generated_component, check_fmi_version, z
 from gatetwin.fmu.description import FmuDescription, VariableSpec, output_name
 from gatetwin.fmu.generated_component import (
     Row,
-    c_double,
     code_digest,
-    config_header,
     fmu_target,
     generated_guid,
     schedule_rows,
     variables_of,
     write_atomically,
 )
-from gatetwin.mpc.codegen import Layout
+from gatetwin.fmu.observer_config import (
+    envelope_config_header,
+    observer_config_header,
+)
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S, register_length
 from gatetwin.mpc.gauge_drift import DRIFT_KIND, THRESHOLD_MM_PER_S, WINDOW_SAMPLES
 from gatetwin.mpc.observer_codegen import (
     DRIFT_RULE,
-    ENVELOPE_PREFIX,
-    ESTIMATE,
-    LIMITS,
-    N_POINTS,
-    PREFIX,
-    SLOW_RULE,
     build_envelope_functions,
     build_observer_functions,
     envelope_dead_time_s,
@@ -92,8 +88,6 @@ from gatetwin.mpc.observer_codegen import (
 from gatetwin.mpc.online import (
     DEFAULT_HORIZON_S,
     ENVELOPE_ANOMALY,
-    MAX_HORIZON_S,
-    MONITOR,
     MONITORING,
     SLOW_MONITORING,
     AnomalySettings,
@@ -118,9 +112,6 @@ ENVELOPE_COMPONENT_FILES = ("observer_envelope.c", "observer_envelope_data.h",
                             "kernel_point.h")  # fmt: skip
 #: The C the envelope observer compiles beside its component and generated code.
 ENVELOPE_C_FILES = ("observer_support.c", "kernel_point.c", "physical_kernel.c")
-#: Most samples one communication step may span (3 h 20 min of 1.2 s samples): a budget of
-#: work per call (~14 µs a sample, so ~0.15 s) that keeps a huge step from stalling the host.
-MAX_SAMPLES_PER_STEP = 10_000
 DEFAULT_NAME = "gatetwin_observer"
 #: Start value of the envelope observer's opening input where ``opening_ref_mm`` is a closed
 #: gate (a physical plant's is 0) and no model file gives the operating point: 30 mm,
@@ -538,8 +529,8 @@ def describe_observer(cfg: _Config) -> FmuDescription:
 
 
 def _code_digest(envelope: bool = False) -> str:
-    modules = ("codegen.py", "observer_codegen.py", "online.py", "discrete.py", "observer.py",
-               "statespace.py", "gauge_drift.py")  # fmt: skip
+    modules = ("codegen.py", "observer_codegen.py", "online.py", "online_rules.py", "discrete.py",
+               "observer.py", "statespace.py", "gauge_drift.py")  # fmt: skip
     if envelope:
         return code_digest(ENVELOPE_COMPONENT_FILES, (*modules, "envelope.py"))
     return code_digest(COMPONENT_FILES, modules)
@@ -605,94 +596,6 @@ def run_observer_fmu(
     finally:
         shutil.rmtree(unzipped, ignore_errors=True)
     return {name: out[:, k] for k, name in enumerate(names)}
-
-
-def _drift_config(desc: FmuDescription, references: tuple[str, ...],
-                  prefix: str) -> tuple[list[str], dict[str, str]]:  # fmt: skip
-    """The gauge-drift rule's lines of ``model_config.h`` and its ``VR_*`` names
-    (``GT_DRIFT_N_REFS`` 0 without reference gauges)."""
-    if not references:
-        return ["/* no reference gauges: no gauge-drift rule */", "#define GT_DRIFT_N_REFS 0"], {}
-    vr = {v.name: v.vr for v in desc.variables}
-    lines = [
-        "/* the gauge-drift rule (gatetwin.mpc.gauge_drift) */",
-        f"#define GT_DRIFT_N_REFS {len(references)}",
-        f"#define GT_DRIFT_WINDOW {WINDOW_SAMPLES}",
-        f"#define GT_DRIFT_N_RULE {len(DRIFT_RULE)}",
-        f"#define GT_DRIFT_FUNCTION {prefix}drift",
-        "#define GT_DRIFT_REF_VRS {" + ", ".join(str(vr[output_name(g)]) for g in references) + "}",
-        "#define GT_DRIFT_RULE_VRS {" + ", ".join(str(vr[n]) for n in DRIFT_RULE) + "}",
-    ]
-    named = ("gauge_slope_mm_per_s", "gauge_drift", "gauge_drift_threshold_mm_per_s")
-    return lines, {n.upper(): n for n in named}
-
-
-def observer_config_header(
-    desc: FmuDescription,
-    layout: Layout,
-    sizes: dict[str, dict[str, int]],
-    references: tuple[str, ...] = (),
-) -> str:
-    """``model_config.h`` of the observer FMU."""
-    vr = {v.name: v.vr for v in desc.variables}
-    limits = tuple(f"anomaly_{n}" for n in LIMITS)
-    own = [
-        "/* the observer */",
-        f"#define GT_OBS_N_ESTIMATE {len(ESTIMATE)}",
-        f"#define GT_OBS_N_MONITOR {len(MONITOR)}",
-        f"#define GT_OBS_N_LIMITS {len(LIMITS)}",
-        f"#define GT_OBS_MAX_HORIZON_S {c_double(MAX_HORIZON_S)}",
-        f"#define GT_OBS_MAX_SAMPLES_PER_STEP {MAX_SAMPLES_PER_STEP}",
-        "/* value references of the generated correct's estimate and limits, in order */",
-        "#define GT_OBS_ESTIMATE_VRS {" + ", ".join(str(vr[n]) for n in ESTIMATE) + "}",
-        "#define GT_OBS_LIMIT_VRS {" + ", ".join(str(vr[n]) for n in limits) + "}",
-    ]
-    drift, drift_vrs = _drift_config(desc, references, PREFIX)
-    named = ("opening_mm", "flow_m3h", *ESTIMATE, "predicted_level_mm", "horizon_s", *limits)
-    refs = {"LEVEL": output_name(desc.gauge), **{n.upper(): n for n in named}, **drift_vrs}
-    return config_header(desc, "observer_data.h", layout, sizes, desc.step_size_s,
-                         own + drift, refs)  # fmt: skip
-
-
-def envelope_config_header(
-    desc: FmuDescription,
-    layout: Layout,
-    sizes: dict[str, dict[str, int]],
-    plant: FopdtPlant | PhysicalPlant,
-    references: tuple[str, ...] = (),
-) -> str:
-    """``model_config.h`` of the envelope observer FMU (no schedule parameters: the plant's
-    kernel parameters are a constant array)."""
-    from gatetwin.mpc.envelope import envelope_parameters
-
-    vr = {v.name: v.vr for v in desc.variables}
-    limits = tuple(f"anomaly_{n}" for n in LIMITS)
-    kernel = ", ".join(c_double(v) for v in envelope_parameters(plant))
-    own = [
-        "/* the envelope observer */",
-        f"#define GT_OBS_N_ESTIMATE {len(ESTIMATE)}",
-        f"#define GT_OBS_N_MONITOR {len(MONITOR)}",
-        f"#define GT_OBS_N_LIMITS {len(LIMITS)}",
-        f"#define GT_OBS_MAX_HORIZON_S {c_double(MAX_HORIZON_S)}",
-        f"#define GT_OBS_MAX_SAMPLES_PER_STEP {MAX_SAMPLES_PER_STEP}",
-        f"#define GT_ENV_N_POINTS {N_POINTS}",
-        f"#define GT_ENV_N_X {2 * N_POINTS}",
-        f"#define GT_ENV_N_RULE {len(SLOW_RULE)}",
-        f"#define GT_ENV_KIND_INDEX {ESTIMATE.index('anomaly_kind')}",
-        "/* the plant kernel's parameters (gatetwin.plant.physical_kernel.PARAMETERS) */",
-        "#define GT_ENV_KERNEL_P {" + kernel + "}",
-        "/* value references of the generated functions' outputs and inputs, in order */",
-        "#define GT_OBS_ESTIMATE_VRS {" + ", ".join(str(vr[n]) for n in ESTIMATE) + "}",
-        "#define GT_OBS_LIMIT_VRS {" + ", ".join(str(vr[n]) for n in limits) + "}",
-        "#define GT_ENV_RULE_VRS {" + ", ".join(str(vr[n]) for n in SLOW_RULE) + "}",
-        f"/* generated function names carry the prefix {ENVELOPE_PREFIX} */",
-    ]
-    named = ("opening_mm", "flow_m3h", *ESTIMATE, "predicted_level_mm", "horizon_s", *limits,
-             "slow_cusum")  # fmt: skip
-    drift, drift_vrs = _drift_config(desc, references, ENVELOPE_PREFIX)
-    refs = {"LEVEL": output_name(desc.gauge), **{n.upper(): n for n in named}, **drift_vrs}
-    return config_header(desc, "observer_envelope_data.h", layout, sizes, desc.step_size_s,
-                         own + drift, refs, schedule=False)  # fmt: skip
 
 
 __all__ = ["DEFAULT_NAME", "describe_observer", "envelope_config_header", "export_observer",
