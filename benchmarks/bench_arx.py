@@ -107,7 +107,7 @@ def _fmu_ns(plant, backend: str, samples: int, folder: Path) -> float:
 
 def measure(samples: int) -> dict[str, float]:
     """Nanoseconds per ARX sample, by rendering and orders."""
-    from gatetwin.diagnose.grid_sim import grid_inputs, simulate_grid
+    from gatetwin.diagnosis.grid_sim import grid_inputs, simulate_grid
     from gatetwin.plant.simulate import simulate
 
     warnings.simplefilter("ignore")

@@ -31,11 +31,11 @@ from pathlib import Path
 
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.fmu import export_fmu
-from gatetwin.identify import reconstructed_opening
+from gatetwin.identification import reconstructed_opening
 from gatetwin.modelfile import read_model_file
 from gatetwin.records import detect_table_kind, read_record
-from gatetwin.validate import communication_grid, inspect_fmu, validate_fmu
-from gatetwin.validate.isolation import RunRequest, run_in_process, run_isolated
+from gatetwin.validation import communication_grid, inspect_fmu, validate_fmu
+from gatetwin.validation.isolation import RunRequest, run_in_process, run_isolated
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ("fopdt_3F", "physical_3F")

@@ -1,6 +1,6 @@
 """Timing of the identification methods (prints; never asserts).
 
-1. ARX(2,2,1) at 1e6 samples: :func:`gatetwin.identify.fit_arx` (normal equations from
+1. ARX(2,2,1) at 1e6 samples: :func:`gatetwin.identification.fit_arx` (normal equations from
    lagged dot products) against ``numpy.linalg.lstsq`` on the explicitly built regressor of
    the same rows, in the same run, with the ratio. Two layouts: all samples with the
    opening reconstructed (segments cut at logging gaps and NaNs), and hold rows only
@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from gatetwin.identify import (
+from gatetwin.identification import (
     continuous_segments,
     fit_arx,
     fit_fopdt,

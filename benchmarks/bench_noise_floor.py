@@ -19,7 +19,7 @@ from gatetwin.flume.experiments import reference_scenarios
 from gatetwin.flume.simulate import run_flume, spin_up
 from gatetwin.noise import hold_openings, plain_pooled_sd, record_noise_floor, steady_stretches
 from gatetwin.records import read_record
-from gatetwin.validate import free_run_metrics, noise_floor_fit_percent
+from gatetwin.validation import free_run_metrics, noise_floor_fit_percent
 
 GAUGES = ("1D", "2E", "3F", "4G", "5H")
 

@@ -5,7 +5,7 @@ the default horizon, noise levels and anomaly settings) and runs it through fmpy
 
 * every bundled record as logged (clean: any rise of the anomaly flag is a false alarm);
 * five bundled records with moves (C, D, Emoves35, Emoves75, Erandom60) with each effect of
-  :data:`gatetwin.diagnose.onset.ONSET_EFFECTS` switched on at the first gate move after 40 %
+  :data:`gatetwin.diagnosis.onset.ONSET_EFFECTS` switched on at the first gate move after 40 %
   of the record ("flume": the record keeps its own noise and model mismatch);
 * the same five input series with the level simulated by the observer's own model plus white
   noise of the observer's measurement SD, then the same effects ("model": a record the model
@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from gatetwin.bundled import bundled_records_dir
-from gatetwin.diagnose.onset import ONSET_EFFECTS, detection, first_move_after, with_onset
+from gatetwin.diagnosis.onset import ONSET_EFFECTS, detection, first_move_after, with_onset
 from gatetwin.errors import FlumeError
 from gatetwin.flume.experiments import reference_scenarios, run_scenario
 from gatetwin.flume.scenario import with_inflow

@@ -2,7 +2,7 @@
 
 Generates a district's week-long histories (``gatetwin flume --district N --routine mixed``
 does the same) or reads an existing folder, identifies every gate with
-:func:`gatetwin.identify.routine.identify_routine`, and prints per gate the relative errors
+:func:`gatetwin.identification.routine.identify_routine`, and prints per gate the relative errors
 of the overall K and T against the median truth of the windows used, the share of windows
 within 10 % on both, and the simulated time per wall second of generation and of
 identification.
@@ -28,7 +28,7 @@ from gatetwin.errors import IdentificationError
 from gatetwin.fleet.district import GAUGE, GateTruth
 from gatetwin.fleet.routine import routine_flume, write_routine_district
 from gatetwin.flume.routine import local_fopdt
-from gatetwin.identify.routine import identify_routine
+from gatetwin.identification.routine import identify_routine
 from gatetwin.records import read_record
 
 BAND = 0.10

@@ -9,7 +9,7 @@ Run: ``python benchmarks/bench_sippy.py [--repeats 5]``.
 
 Apples to apples:
 
-* **Data.** Gauge 3F prepared exactly as :func:`gatetwin.identify.identify_prbs` does
+* **Data.** Gauge 3F prepared exactly as :func:`gatetwin.identification.identify_prbs` does
   (opening reconstructed during actuator motion, all rows, Hampel spike correction), the
   same samples, demeaned by the same operating point (means over the samples used);
   SIPPY is called with ``centering="None"`` on these deviations.
@@ -25,7 +25,7 @@ Apples to apples:
 * **Metrics.** Both sets of coefficients are scored by the same gatetwin code: one-step
   R² of the structure's own predictor on the fit rows (for OE the predictor is the
   simulation), and free-run fit % on the last 30 % of the record by a model fitted on the
-  first 70 % (the free run of :func:`gatetwin.identify.free_run_on_segments`).
+  first 70 % (the free run of :func:`gatetwin.identification.free_run_on_segments`).
 * **Time.** Wall time of the fit call on the whole record, median of ``--repeats`` calls
   (SIPPY's messages to stdout are silenced during the calls).
 
@@ -33,7 +33,7 @@ Methods: SIPPY ARX by linear least squares (``ARX_mod="LLS"``), ARMAX by its ite
 linear least squares (``ARMAX_mod="ILLS"``, pseudo-linear regression), OE by its
 optimisation method (``OE_mod="OPT"``, CasADi/IPOPT); gatetwin ARX by the normal
 equations, ARMAX and OE by Levenberg-Marquardt on the prediction errors
-(:mod:`gatetwin.identify.pem`).
+(:mod:`gatetwin.identification.pem`).
 """
 
 from __future__ import annotations
@@ -52,12 +52,12 @@ from typing import Any
 import numpy as np
 
 from gatetwin.bundled import bundled_records_dir
-from gatetwin.identify.armax import fit_armax
-from gatetwin.identify.arx import ArxFit, deviations, fit_arx
-from gatetwin.identify.metrics import free_run_on_segments, one_step_metrics
-from gatetwin.identify.oe import fit_oe
-from gatetwin.identify.pem import PemOrders, one_step_prediction
-from gatetwin.identify.prbs import PrbsSignals, prbs_signals
+from gatetwin.identification.armax import fit_armax
+from gatetwin.identification.arx import ArxFit, deviations, fit_arx
+from gatetwin.identification.metrics import free_run_on_segments, one_step_metrics
+from gatetwin.identification.oe import fit_oe
+from gatetwin.identification.pem import PemOrders, one_step_prediction
+from gatetwin.identification.prbs import PrbsSignals, prbs_signals
 from gatetwin.records import read_record
 
 NA, NB, NC, NK = 2, 2, 2, 1

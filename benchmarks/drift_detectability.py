@@ -10,7 +10,7 @@ fits a straight line to the envelope observer's ``disturbance_mm`` over a slidin
   not bundled): what a rule on the slope would have to tolerate;
 * on the 15 clean bundled records;
 * on the five bundled bases of ``benchmarks/bench_observer.py`` with a gauge drift of 0.01,
-  0.02 and 0.05 mm/s from the onset on (:func:`gatetwin.diagnose.onset.with_onset`), after
+  0.02 and 0.05 mm/s from the onset on (:func:`gatetwin.diagnosis.onset.with_onset`), after
   the onset.
 
 A slope rule sees a drift only where the drifted record's slope exceeds the clean ones'
@@ -30,7 +30,7 @@ import numpy as np
 from bench_observer import BASES
 from calibrate_observer import GAUGE, MARGIN, ROOT, _held, scenarios
 from gatetwin.bundled import bundled_records_dir
-from gatetwin.diagnose.onset import first_move_after, with_onset
+from gatetwin.diagnosis.onset import first_move_after, with_onset
 from gatetwin.flume.experiments import run_scenario
 from gatetwin.modelfile import read_model_file
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S

@@ -1,6 +1,6 @@
 """How large a slowed gate's mark on the level is, against the envelope model's own mismatch.
 
-The diagnosis suite's ``slowed_gate`` (:data:`gatetwin.diagnose.onset.ONSET_EFFECTS`: the gate
+The diagnosis suite's ``slowed_gate`` (:data:`gatetwin.diagnosis.onset.ONSET_EFFECTS`: the gate
 follows its commands at 0.1 mm/s) changes the level only while the gate lags its command:
 after a move of ``dE`` mm, for ``dE / 0.1`` s. Its mark is the difference of two simulations
 of the truth plant (``models/fopdt_3F.json``, as ``benchmarks/bench_observer.py``) added to
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from gatetwin.bundled import bundled_records_dir
-from gatetwin.diagnose.onset import ONSET_EFFECTS, first_move_after, with_onset
+from gatetwin.diagnosis.onset import ONSET_EFFECTS, first_move_after, with_onset
 from gatetwin.modelfile import read_model_file
 from gatetwin.mpc.online import MONITORING, OnlineObserver, measured_inputs
 from gatetwin.records import read_record

@@ -117,7 +117,7 @@ def test_the_family_follows_the_test_type_and_the_gauge_defaults_to_3f(fopdt, ar
 
 
 def test_a_single_record_fopdt_matches_the_step_tests_fit(fopdt):
-    from gatetwin.identify import identify_step
+    from gatetwin.identification import identify_step
 
     onset = identify_step(read_record(RECORDS / "A.csv"), "3F").gauges["3F"].fit
     point = fopdt.at(*fopdt.operating_point())
@@ -319,7 +319,7 @@ def test_an_fmi_version_not_built_is_refused_with_one_line_and_no_file(
 
 
 def test_validate_scores_an_fmu_as_the_harness_does(fopdt, tmp_path):
-    from gatetwin.validate import matrix_cells, parse_thresholds, validate_fmu
+    from gatetwin.validation import matrix_cells, parse_thresholds, validate_fmu
 
     fmu = fopdt.export_fmu(tmp_path / "fopdt_3F.fmu")
     records = [RECORDS / "A.csv", str(RECORDS / "Q50.csv")]
@@ -334,7 +334,7 @@ def test_validate_scores_an_fmu_as_the_harness_does(fopdt, tmp_path):
 
 
 def test_a_bad_threshold_is_refused(fopdt, tmp_path):
-    from gatetwin.validate import ValidationError
+    from gatetwin.validation import ValidationError
 
     fmu = fopdt.export_fmu(tmp_path / "fopdt_3F.fmu")
     with pytest.raises(ValidationError):
@@ -366,16 +366,17 @@ def test_diagnose_refuses_a_record_without_a_file():
 # --------------------------------------------------------------------------- the package
 
 
-def test_api_functions_survive_importing_the_packages_of_the_same_name():
-    import gatetwin.diagnose.workflow
-    import gatetwin.identify.suite
-    import gatetwin.validate.harness  # noqa: F401
-    from gatetwin.validate import validate_fmu
+def test_api_functions_and_stage_packages_have_their_own_names():
+    import gatetwin.diagnosis.workflow
+    import gatetwin.identification.suite
+    import gatetwin.validation.harness  # noqa: F401
+    from gatetwin.validation import validate_fmu
 
     assert callable(validate_fmu)
     for name in ("identify", "validate", "diagnose"):
         assert getattr(gatetwin, name).__module__.startswith("gatetwin.api"), name
-    assert sys.modules["gatetwin.validate"].__name__ == "gatetwin.validate"
+    for name in ("identification", "validation", "diagnosis"):
+        assert getattr(gatetwin, name) is sys.modules[f"gatetwin.{name}"], name
 
 
 def test_all_lists_each_public_name_once():

@@ -20,8 +20,8 @@ from scipy.sparse.csgraph import connected_components
 
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "gatetwin"
 #: Subpackages that are libraries: they may not import the orchestrator or the CLI.
-LIBRARIES = ("identify", "fmu", "validate", "mpc", "diagnose", "plant", "records", "flume",
-             "fleet", "ssp")  # fmt: skip
+LIBRARIES = ("identification", "fmu", "validation", "mpc", "diagnosis", "plant", "records",
+             "flume", "fleet", "ssp")  # fmt: skip
 #: The orchestration of ``gatetwin run`` and the command line.
 TOP_LAYERS = ("gatetwin.run", "gatetwin.cli")
 

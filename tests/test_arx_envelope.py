@@ -12,8 +12,8 @@ import pytest
 
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.errors import ModelFileError
-from gatetwin.identify.arx_envelope import envelope_arx, fit_condition
-from gatetwin.identify.preprocess import reconstructed_opening
+from gatetwin.identification.arx_envelope import envelope_arx, fit_condition
+from gatetwin.identification.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
 from gatetwin.plant.model import envelope_point, plant_from_dict, plant_to_dict
 from gatetwin.plant.simulate import simulate
@@ -41,7 +41,7 @@ def _known(physical, a1=0.97, b=(0.07, -0.04)):
 
 
 def _condition_template():
-    from gatetwin.identify.arx_envelope import EnvelopeArxCondition
+    from gatetwin.identification.arx_envelope import EnvelopeArxCondition
 
     return EnvelopeArxCondition("X", 41.5, 35.0, 150.0, 0.97, (0.05, -0.02), 40.0, 0.0, 0.0, 0.0)
 

@@ -16,14 +16,14 @@ from diagnose_cases import draw_case
 from fmu_support import arx_plant, compiler, fopdt_plant
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.cli import main
-from gatetwin.diagnose import DiagnosisSettings, diagnose_record
-from gatetwin.diagnose.baseline import identify_baseline
-from gatetwin.diagnose.candidates import CANDIDATES, Context
-from gatetwin.diagnose.data import commanded_opening, prepare
-from gatetwin.diagnose.grid_sim import grid_inputs, simulate_grid
-from gatetwin.diagnose.noise import noise_floor, windows
-from gatetwin.diagnose.select import CandidateResult, choose
-from gatetwin.diagnose.signatures import signatures
+from gatetwin.diagnosis import DiagnosisSettings, diagnose_record
+from gatetwin.diagnosis.baseline import identify_baseline
+from gatetwin.diagnosis.candidates import CANDIDATES, Context
+from gatetwin.diagnosis.data import commanded_opening, prepare
+from gatetwin.diagnosis.grid_sim import grid_inputs, simulate_grid
+from gatetwin.diagnosis.noise import noise_floor, windows
+from gatetwin.diagnosis.select import CandidateResult, choose
+from gatetwin.diagnosis.signatures import signatures
 from gatetwin.errors import IdentificationError
 from gatetwin.modelfile import model_document, read_model_file, write_model_file
 from gatetwin.plant.effects import KINDS, effect_dict

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 from diagnose_cases import JUDGED, case_plan, draw_case
-from gatetwin.diagnose import diagnose_record
+from gatetwin.diagnosis import diagnose_record
 
 GAP_REDUCTION = 0.5
 PARAMETER_TOLERANCE = 0.25

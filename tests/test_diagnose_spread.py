@@ -13,8 +13,8 @@ import pytest
 from dask_support import dask_cluster
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.cli import main
-from gatetwin.diagnose import DiagnosisSettings, diagnose_record
-from gatetwin.diagnose.spread import DiagnoseTask, diagnose_records
+from gatetwin.diagnosis import DiagnosisSettings, diagnose_record
+from gatetwin.diagnosis.spread import DiagnoseTask, diagnose_records
 from gatetwin.fleet.execute import FleetSettings
 
 #: B, a step test, and C, a PRBS test: an FOPDT and an ARX baseline.

@@ -24,7 +24,7 @@ from gatetwin.flume.envelope import (
     in_band,
 )
 from gatetwin.flume.experiments import reference_scenarios
-from gatetwin.identify.suite import load_folder
+from gatetwin.identification.suite import load_folder
 from gatetwin.records import read_record
 from gatetwin.records.sidecar import VALIDATION_ROLE
 

@@ -15,11 +15,11 @@ import pytest
 
 from gatetwin.flume.envelope import flow_steps_scenario, moves_scenario, random_moves_scenario
 from gatetwin.flume.experiments import run_scenario
-from gatetwin.identify.suite import free_run_fit
+from gatetwin.identification.suite import free_run_fit
 from gatetwin.modelfile import read_model_file
 from gatetwin.noise import record_noise_floor
 from gatetwin.records import read_record
-from gatetwin.validate import noise_floor_fit_percent
+from gatetwin.validation import noise_floor_fit_percent
 
 MODELS = sorted((Path(__file__).resolve().parents[1] / "models").glob("*_*.json"))
 SCENARIOS = [

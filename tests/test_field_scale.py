@@ -25,9 +25,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 import field_scale as field  # noqa: E402
 from gatetwin.fmu.controller import rest_level_mm  # noqa: E402
 from gatetwin.fmu.controller_settings import HORIZON_MAX, controller_plant, horizon  # noqa: E402
-from gatetwin.identify import physical_start as start  # noqa: E402
-from gatetwin.identify.rating import fit_static_table  # noqa: E402
-from gatetwin.identify.suite import arx_gauge_of  # noqa: E402
+from gatetwin.identification import physical_start as start  # noqa: E402
+from gatetwin.identification.rating import fit_static_table  # noqa: E402
+from gatetwin.identification.suite import arx_gauge_of  # noqa: E402
 from gatetwin.modelfile import read_model_file  # noqa: E402
 from gatetwin.plant import physical_kernel as kernel  # noqa: E402
 from gatetwin.plant.inputs import check_inputs  # noqa: E402
@@ -93,8 +93,8 @@ def test_the_gate_law_grows_past_a_step_the_data_do_not_ask_for(records: Path) -
     the whole law does. The growth passes over the drift step and keeps the whole law, whose
     least-squares fit misses the points by no more than the truth's law does (the truth is
     one of its parameter sets)."""
-    from gatetwin.identify import physical
-    from gatetwin.identify.suite import role_of
+    from gatetwin.identification import physical
+    from gatetwin.identification.suite import role_of
 
     static, recs = _read(records)
     recs = {n: r for n, r in recs.items() if role_of(r) == "fit"}

@@ -13,7 +13,7 @@ from gatetwin.cli import main
 from gatetwin.fleet.district import district_gates
 from gatetwin.fleet.routine import write_routine_gate
 from gatetwin.flume.routine import RoutineSettings
-from gatetwin.identify.routine import identify_routine
+from gatetwin.identification.routine import identify_routine
 from gatetwin.records import read_record
 
 
@@ -135,7 +135,7 @@ def test_parquet_histories_in_a_fleet_give_gatetwin_routines_model(
     # 301 MiB leaves one MiB beyond the libraries' 300: the smallest chunk (3,600 rows, an
     # hour at 1 Hz) and so about ten chunks over this half-day history; the result must not
     # depend on the chunking, so equality is exact
-    from gatetwin.identify import routine_chunks
+    from gatetwin.identification import routine_chunks
 
     scans = []
     scan = routine_chunks.scan_routine_history

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from gatetwin.flume.paper_targets import STEP_TABLES, TABLE_5
-from gatetwin.identify import identify_step
-from gatetwin.identify.rating import fit_static_table
+from gatetwin.identification import identify_step
+from gatetwin.identification.rating import fit_static_table
 from gatetwin.records import read_record, read_static_table
 
 RECORDS = resources.files("gatetwin") / "data" / "records"

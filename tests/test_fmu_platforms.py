@@ -22,7 +22,7 @@ from fmpy import read_model_description
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.fmu import export_fmu
 from gatetwin.fmu.platforms import platforms_of, zig_available
-from gatetwin.identify.preprocess import reconstructed_opening
+from gatetwin.identification.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
 from gatetwin.records import read_record
 

@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 import pytest
 
-from gatetwin.diagnose.onset import ONSET_EFFECTS, detection
+from gatetwin.diagnosis.onset import ONSET_EFFECTS, detection
 from gatetwin.errors import ControlError
 from gatetwin.flume.experiments import run_scenario
 from gatetwin.flume.scenario import with_inflow

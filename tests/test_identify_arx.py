@@ -1,4 +1,4 @@
-"""Known-truth tests of ARX identification (gatetwin.identify.arx, metrics, orders, prbs)."""
+"""Known-truth tests of ARX identification (gatetwin.identification.arx, metrics, orders, prbs)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pytest
 from scipy import signal
 
 from gatetwin.errors import IdentificationError
-from gatetwin.identify.arx import ArxFit, fit_arx, predict_one_step, simulate_free
-from gatetwin.identify.metrics import (
+from gatetwin.identification.arx import ArxFit, fit_arx, predict_one_step, simulate_free
+from gatetwin.identification.metrics import (
     dc_gain,
     dominant_pole,
     is_stable,
@@ -19,9 +19,9 @@ from gatetwin.identify.metrics import (
     residual_whiteness,
     simulation_metrics,
 )
-from gatetwin.identify.orders import choose, search_orders
-from gatetwin.identify.prbs import identify_prbs
-from gatetwin.identify.preprocess import (
+from gatetwin.identification.orders import choose, search_orders
+from gatetwin.identification.prbs import identify_prbs
+from gatetwin.identification.preprocess import (
     continuous_segments,
     hampel_filter,
     holdout_split,

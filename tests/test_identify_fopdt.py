@@ -1,4 +1,4 @@
-"""Known-truth tests of the FOPDT step methods (gatetwin.identify.fopdt / .step)."""
+"""Known-truth tests of the FOPDT step methods (gatetwin.identification.fopdt / .step)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from gatetwin.errors import IdentificationError
-from gatetwin.identify.fopdt import FopdtFit, PaperStepResult, fit_fopdt, paper_step_method
-from gatetwin.identify.step import StepIdentification, identify_step
+from gatetwin.identification.fopdt import FopdtFit, PaperStepResult, fit_fopdt, paper_step_method
+from gatetwin.identification.step import StepIdentification, identify_step
 from gatetwin.records import record_from_arrays
 
 TS = 1.2

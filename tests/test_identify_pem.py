@@ -21,21 +21,21 @@ import pytest
 from scipy import signal, stats
 
 from gatetwin.errors import IdentificationError
-from gatetwin.identify.armax import fit_armax
-from gatetwin.identify.arx import ArxFit, deviations, fit_arx, predict_one_step, simulate_free
-from gatetwin.identify.bj import fit_bj
-from gatetwin.identify.discrete_select import select_discrete
-from gatetwin.identify.metrics import dc_gain, free_run_on_segments
-from gatetwin.identify.oe import fit_oe
-from gatetwin.identify.pem import (
+from gatetwin.identification.armax import fit_armax
+from gatetwin.identification.arx import ArxFit, deviations, fit_arx, predict_one_step, simulate_free
+from gatetwin.identification.bj import fit_bj
+from gatetwin.identification.discrete_select import select_discrete
+from gatetwin.identification.metrics import dc_gain, free_run_on_segments
+from gatetwin.identification.oe import fit_oe
+from gatetwin.identification.pem import (
     PemOrders,
     innovations,
     is_admissible,
     one_step_prediction,
     reflect_into_unit_disc,
 )
-from gatetwin.identify.pemfit import PemFit, from_arx
-from gatetwin.identify.prbs import identify_prbs, prbs_signals
+from gatetwin.identification.pemfit import PemFit, from_arx
+from gatetwin.identification.prbs import identify_prbs, prbs_signals
 from gatetwin.records import Record, read_record, record_from_arrays
 
 F_TRUE = (1.2, -0.3)  # poles 0.845 and 0.355 ("+" convention: x(k) = 1.2 x(k-1) - 0.3 ...)

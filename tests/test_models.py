@@ -12,7 +12,7 @@ import pytest
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.cli import main
 from gatetwin.errors import ModelFileError
-from gatetwin.identify.suite import identify_folder
+from gatetwin.identification.suite import identify_folder
 from gatetwin.modelfile import read_model_file, write_model_files
 
 try:

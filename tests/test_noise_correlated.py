@@ -33,7 +33,7 @@ from gatetwin.noise import (
     steady_stretches,
 )
 from gatetwin.records import read_record
-from gatetwin.validate import free_run_metrics, noise_floor_fit_percent
+from gatetwin.validation import free_run_metrics, noise_floor_fit_percent
 
 PERIOD_S = 1.2
 PHI, WHITE, SIGMA_MM = 0.45, 0.02, 2.0  # the flume's surface waves: 1.5 s at 1.2 s sampling

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from fmpy.validation import validate_fmu
 
-from gatetwin.diagnose.onset import ONSET_EFFECTS, detection
+from gatetwin.diagnosis.onset import ONSET_EFFECTS, detection
 from gatetwin.errors import ExportError
 from gatetwin.flume.experiments import run_scenario
 from gatetwin.fmu.observer_fmu import export_observer, run_observer_fmu

@@ -15,7 +15,7 @@ import pytest
 from fmpy.validation import validate_fmu
 
 from gatetwin.cli import main
-from gatetwin.diagnose.onset import detection
+from gatetwin.diagnosis.onset import detection
 from gatetwin.errors import ExportError
 from gatetwin.flume.experiments import run_scenario
 from gatetwin.flume.scenario import with_inflow

@@ -1,6 +1,6 @@
 """The observer FMU (gatetwin.fmu.observer_fmu) against its Python rendering
 (gatetwin.mpc.online.OnlineObserver), its refusals, and online detection of hidden effects
-(gatetwin.diagnose.onset) on bundled records."""
+(gatetwin.diagnosis.onset) on bundled records."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from fmpy.validation import validate_fmu
 
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.cli import main
-from gatetwin.diagnose.onset import OnsetError, detection, first_move_after, with_onset
+from gatetwin.diagnosis.onset import OnsetError, detection, first_move_after, with_onset
 from gatetwin.errors import ControlError, ExportError
 from gatetwin.fmu.observer_fmu import export_observer, run_observer_fmu
 from gatetwin.modelfile import read_model_file

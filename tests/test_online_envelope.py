@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 import pytest
 
-from gatetwin.diagnose.onset import detection, with_onset
+from gatetwin.diagnosis.onset import detection, with_onset
 from gatetwin.errors import ControlError, FlumeError
 from gatetwin.flume.experiments import run_scenario
 from gatetwin.flume.scenario import with_inflow

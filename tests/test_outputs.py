@@ -19,7 +19,7 @@ from gatetwin.cli import main
 from gatetwin.errors import OutputError, PipelineError, ValidationError
 from gatetwin.run.outdir import MARKER, RUN_PID_FILE, clean_stale_work
 from gatetwin.run.pipeline import STAGES, PipelineContext, PipelineStage, run_pipeline
-from gatetwin.validate import inspect_fmu
+from gatetwin.validation import inspect_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
@@ -88,8 +88,7 @@ def _one_error_line(capsys) -> str:
 def test_a_read_only_destination_is_one_line(read_only, capsys, monkeypatch, argv):
     import importlib
 
-    # by module path: the package's public ``gatetwin.identify`` is a function
-    suite = importlib.import_module("gatetwin.identify.suite")
+    suite = importlib.import_module("gatetwin.identification.suite")
 
     def never(*args, **kwargs):  # refused before the long identification starts
         raise AssertionError("identification ran before the destination was checked")

@@ -26,8 +26,8 @@ from gatetwin.fmu.c_build import (
     find_compiler,
     generated_kernel,
 )
-from gatetwin.identify.physical import NO_SEICHE, fit_physical, kernel_simulator
-from gatetwin.identify.preprocess import reconstructed_opening
+from gatetwin.identification.physical import NO_SEICHE, fit_physical, kernel_simulator
+from gatetwin.identification.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
 from gatetwin.plant import physical_kernel as kernel
 from gatetwin.plant.effects import effect_dict

@@ -193,7 +193,7 @@ def _bundled_context():
     from types import SimpleNamespace
 
     from gatetwin.bundled import bundled_records_dir
-    from gatetwin.identify.suite import load_folder
+    from gatetwin.identification.suite import load_folder
 
     models = Path(__file__).resolve().parents[1] / "models"
     paths = sorted(p for p in models.glob("*.json") if p.name != "schema.json")

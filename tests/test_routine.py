@@ -29,7 +29,7 @@ from gatetwin.fleet.routine import (
 from gatetwin.flume.logger import log_run
 from gatetwin.flume.routine import RoutineSettings, local_fopdt, moves_of, routine_run
 from gatetwin.flume.simulate import run_flume, spin_up
-from gatetwin.identify.routine import RoutineIdentification, identify_routine
+from gatetwin.identification.routine import RoutineIdentification, identify_routine
 from gatetwin.records import read_record, record_from_arrays
 
 #: The brief's accuracy band on K and T (relative to the flume's truth).
@@ -235,7 +235,7 @@ def _parquet_history(csv: Path, out: Path) -> Path:
 @pytest.mark.parametrize("index", [0, 3])
 def test_history_read_in_chunks_equals_the_whole_history(short_district, tmp_path,
                                                          index) -> None:  # fmt: skip
-    from gatetwin.identify.routine_chunks import identify_routine_chunked
+    from gatetwin.identification.routine_chunks import identify_routine_chunked
 
     gate = district_gates(4, seed=11)[index]
     pq = _parquet_history(short_district / gate.gate / "routine.csv", tmp_path)
@@ -257,7 +257,7 @@ def test_history_read_in_chunks_equals_the_whole_history(short_district, tmp_pat
 def test_folder_of_day_files_equals_the_whole_history(short_district, tmp_path) -> None:
     import pyarrow.parquet
 
-    from gatetwin.identify.routine_chunks import identify_routine_chunked
+    from gatetwin.identification.routine_chunks import identify_routine_chunked
 
     gate = district_gates(4, seed=11)[1]
     pq = _parquet_history(short_district / gate.gate / "routine.csv", tmp_path)
@@ -276,7 +276,7 @@ def test_folder_of_day_files_equals_the_whole_history(short_district, tmp_path) 
 
 
 def test_chunked_history_without_window_refuses_as_the_whole_one(tmp_path) -> None:
-    from gatetwin.identify.routine_chunks import identify_routine_chunked
+    from gatetwin.identification.routine_chunks import identify_routine_chunked
 
     gate = district_gates(1, seed=2)[0]
     write_routine_gate(gate, tmp_path, RoutineSettings(days=0.1, hold_s=(1e6, 2e6), gaps=0))
@@ -305,7 +305,7 @@ def test_a_long_hold_is_not_segmented_again_at_every_chunk(tmp_path, monkeypatch
     record of the held rows is built where the gate moves, not at every chunk of a long
     hold (which made a history held still for days quadratic in its length), and the result
     is still the whole history's."""
-    from gatetwin.identify import routine_chunks
+    from gatetwin.identification import routine_chunks
 
     gate = district_gates(1, seed=5)[0]
     settings = RoutineSettings(days=0.5, hold_s=(7200.0, 10800.0), gaps=0)

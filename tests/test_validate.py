@@ -33,7 +33,7 @@ from gatetwin.cli import main
 from gatetwin.fmu import export_fmu
 from gatetwin.plant import ArxPlant, FopdtPlant, Schedule, simulate
 from gatetwin.records import read_record, record_from_arrays
-from gatetwin.validate import (
+from gatetwin.validation import (
     Threshold,
     ValidationError,
     communication_grid,

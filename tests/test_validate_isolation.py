@@ -29,7 +29,7 @@ from fmpy import platform, read_model_description, sharedLibraryExtension
 
 from fmu_support import compiler
 from gatetwin.records import read_record
-from gatetwin.validate import (
+from gatetwin.validation import (
     ValidationError,
     communication_grid,
     junit_xml,
@@ -37,7 +37,7 @@ from gatetwin.validate import (
     validate_fmu,
     validate_matrix,
 )
-from gatetwin.validate.fmu_runner import MAX_FMU_STEPS
+from gatetwin.validation.fmu_runner import MAX_FMU_STEPS
 from test_validate import A, B, export, plant
 
 pytestmark = pytest.mark.skipif(compiler() is None, reason="no C compiler (cc/gcc) on PATH")

@@ -33,7 +33,7 @@ from gatetwin.fmu import export_fmu
 from gatetwin.noise import record_noise_floor
 from gatetwin.plant import FopdtPlant, Schedule
 from gatetwin.records import Record, record_from_arrays
-from gatetwin.validate import (
+from gatetwin.validation import (
     Threshold,
     free_run_metrics,
     matrix_cells,

@@ -79,8 +79,8 @@ def test_the_runs_matrices_on_a_pool_are_the_serial_matrices(fmu, tmp_path):
     FMU, the cells the serial matrix gives."""
     from gatetwin.fleet.execute import FleetSettings
     from gatetwin.run.stages import MATRIX_FAIL_UNDER
-    from gatetwin.validate import parse_thresholds, validate_matrix
-    from gatetwin.validate.spread import validate_matrices
+    from gatetwin.validation import parse_thresholds, validate_matrix
+    from gatetwin.validation.spread import validate_matrices
 
     model = read_model_file(MODEL)
     python_fmu = export_fmu(model.plant, tmp_path / "fopdt_3F_python.fmu", backend="python",

@@ -29,7 +29,7 @@ from gatetwin.modelfile import validity_envelope
 from gatetwin.plant import FopdtPlant, Schedule
 from gatetwin.records import read_record
 from gatetwin.run.stages import write_report
-from gatetwin.validate import (
+from gatetwin.validation import (
     VALIDITY_CHECK,
     ValidationError,
     matrix_cells,

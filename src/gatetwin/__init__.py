@@ -6,14 +6,12 @@ exports them as FMI 2.0 co-simulation FMUs, validates them, runs an MPC demo on 
 diagnoses what they miss. A virtual flume produces reference records.
 
 The names below are the public API (see docs/python.md). ``identify``, ``validate`` and
-``diagnose`` are functions here and, by their full names, the stage packages behind them:
-``from gatetwin.validate import validate_fmu`` reaches the package.
+``diagnose`` are functions here; the stage packages behind them are
+``gatetwin.identification``, ``gatetwin.validation`` and ``gatetwin.diagnosis``
+(``from gatetwin.validation import validate_fmu``).
 """
 
-import sys as _sys
-import types as _types
-
-from gatetwin.api import (  # noqa: E402
+from gatetwin.api import (
     Diagnosis,
     Model,
     ModelSet,
@@ -26,8 +24,8 @@ from gatetwin.api import (  # noqa: E402
     load_model,
     validate,
 )
-from gatetwin.bundled import bundled_records_dir  # noqa: E402
-from gatetwin.errors import (  # noqa: E402
+from gatetwin.bundled import bundled_records_dir
+from gatetwin.errors import (
     ExportError,
     FlumeError,
     GatetwinError,
@@ -35,7 +33,7 @@ from gatetwin.errors import (  # noqa: E402
     ModelFileError,
     RecordError,
 )
-from gatetwin.records import (  # noqa: E402
+from gatetwin.records import (
     HoldSegment,
     Record,
     StaticTable,
@@ -44,7 +42,7 @@ from gatetwin.records import (  # noqa: E402
     read_static_table,
     record_from_arrays,
 )
-from gatetwin.version import __version__  # noqa: E402
+from gatetwin.version import __version__
 
 __all__ = [
     "Diagnosis",
@@ -74,25 +72,3 @@ __all__ = [
     "record_from_arrays",
     "validate",
 ]
-
-#: API functions named like a stage package; importing the package must not replace them.
-_FUNCTIONS_NAMED_LIKE_PACKAGES = frozenset({"diagnose", "identify", "validate"})
-
-
-class _Package(_types.ModuleType):
-    """The module type of ``gatetwin``.
-
-    Importing a submodule binds it as an attribute of its parent package; for
-    ``gatetwin.identify``, ``gatetwin.validate`` and ``gatetwin.diagnose`` that would
-    replace the API function of the same name. This type keeps the function; the packages
-    stay reachable through ``sys.modules``, that is by every ``from gatetwin.X import Y``
-    and ``import gatetwin.X.Y``.
-    """
-
-    def __setattr__(self, name: str, value: object) -> None:
-        if name in _FUNCTIONS_NAMED_LIKE_PACKAGES and isinstance(value, _types.ModuleType):
-            return
-        super().__setattr__(name, value)
-
-
-_sys.modules[__name__].__class__ = _Package

@@ -30,8 +30,8 @@ What it cannot separate is an oscillation still ringing in the second half of a 
 slowly decaying seiche): that raises ``sigma``. Without any such stretch it falls back to the
 robust SD of first differences of hold samples divided by ``sqrt(2)``, and says so.
 
-Plain functions on arrays, used by the diagnosis (:mod:`gatetwin.diagnose.noise`) and by the
-validation harness (:mod:`gatetwin.validate.harness`); :func:`record_noise_floor` applies them
+Plain functions on arrays, used by the diagnosis (:mod:`gatetwin.diagnosis.noise`) and by the
+validation harness (:mod:`gatetwin.validation.harness`); :func:`record_noise_floor` applies them
 to a :class:`~gatetwin.records.Record`.
 """
 

@@ -1,9 +1,9 @@
 """The Python API: read, identify, simulate, export, validate and diagnose in a few calls.
 
 Everything here is re-exported by :mod:`gatetwin` (``gatetwin.identify(...)``,
-``gatetwin.Model``); the work itself is done by the stage packages (:mod:`gatetwin.identify`,
-:mod:`gatetwin.plant`, :mod:`gatetwin.fmu`, :mod:`gatetwin.validate`,
-:mod:`gatetwin.diagnose`). This package adds no arithmetic, only plain objects and calls.
+``gatetwin.Model``); the work itself is done by the stage packages (:mod:`gatetwin.identification`,
+:mod:`gatetwin.plant`, :mod:`gatetwin.fmu`, :mod:`gatetwin.validation`,
+:mod:`gatetwin.diagnosis`). This package adds no arithmetic, only plain objects and calls.
 """
 
 from gatetwin.api._diagnosis import Diagnosis, diagnose

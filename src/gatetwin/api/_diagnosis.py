@@ -1,4 +1,4 @@
-"""Diagnose a record against a model: :func:`gatetwin.diagnose.diagnose_record` as one call
+"""Diagnose a record against a model: :func:`gatetwin.diagnosis.diagnose_record` as one call
 whose result has named fields."""
 
 from __future__ import annotations
@@ -117,7 +117,7 @@ def diagnose(record: Record | str | os.PathLike[str],
     >>> found.gauge, found.rmse_after_mm <= found.rmse_before_mm
     ('3F', True)
     """
-    from gatetwin.diagnose import DiagnosisSettings, diagnose_record
+    from gatetwin.diagnosis import DiagnosisSettings, diagnose_record
 
     settings = DiagnosisSettings(gauge=gauge)
     places = {"plots_dir": plots_dir, "fmu_dir": fmu_dir, "settings": settings}

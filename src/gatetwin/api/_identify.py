@@ -1,11 +1,11 @@
 """Identify a model from one record, or every model of a records folder.
 
 One record gives one model of one gauge, valid at that record's discharge: an FOPDT from a
-step test (:func:`gatetwin.identify.identify_step`, refined driven by the reconstructed
+step test (:func:`gatetwin.identification.identify_step`, refined driven by the reconstructed
 opening as in ``gatetwin run``), an ARX model from a PRBS test
-(:func:`gatetwin.identify.identify_prbs`), or a physical model from any record together
-with a static rating table (:func:`gatetwin.identify.physical.fit_physical`). A folder
-gives the models ``gatetwin run`` builds (:func:`gatetwin.identify.suite.identify_folder`).
+(:func:`gatetwin.identification.identify_prbs`), or a physical model from any record together
+with a static rating table (:func:`gatetwin.identification.physical.fit_physical`). A folder
+gives the models ``gatetwin run`` builds (:func:`gatetwin.identification.suite.identify_folder`).
 """
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ def _with_level_range(doc: dict[str, Any], record: Record, gauge: str) -> dict[s
 
 
 def _provenance(record: Record, method: str, metrics: dict[str, Any]) -> dict[str, Any]:
-    from gatetwin.identify.suite import role_of
+    from gatetwin.identification.suite import role_of
 
     return {"method": method,
             "records": [{"name": _stem(record), "sha256": record.sha256,
@@ -77,10 +77,10 @@ def _provenance(record: Record, method: str, metrics: dict[str, Any]) -> dict[st
 
 
 def _fopdt(record: Record, gauge: str, name: str) -> dict[str, Any]:
-    from gatetwin.identify import identify_step, reconstructed_opening
-    from gatetwin.identify.fopdt_driven import fit_fopdt_driven
-    from gatetwin.identify.schedule import DIGITS, StepCondition
-    from gatetwin.identify.suite import OPENING_BAND_MM, free_run_fit
+    from gatetwin.identification import identify_step, reconstructed_opening
+    from gatetwin.identification.fopdt_driven import fit_fopdt_driven
+    from gatetwin.identification.schedule import DIGITS, StepCondition
+    from gatetwin.identification.suite import OPENING_BAND_MM, free_run_fit
     from gatetwin.modelfile import model_document
     from gatetwin.plant.model import FopdtPlant
 
@@ -118,8 +118,8 @@ def _fopdt(record: Record, gauge: str, name: str) -> dict[str, Any]:
 
 
 def _arx(record: Record, gauge: str, name: str, orders: tuple[int, int, int]) -> dict[str, Any]:
-    from gatetwin.identify import identify_prbs
-    from gatetwin.identify.suite import OPENING_BAND_MM
+    from gatetwin.identification import identify_prbs
+    from gatetwin.identification.suite import OPENING_BAND_MM
     from gatetwin.modelfile import model_document
     from gatetwin.plant.model import ArxPlant
 
@@ -163,8 +163,8 @@ def _static(record: Record, static: StaticTable | str | os.PathLike[str] | None)
 
 
 def _physical(record: Record, gauge: str, name: str, static: Any) -> dict[str, Any]:
-    from gatetwin.identify.physical import data_ranges, fit_physical
-    from gatetwin.identify.suite import free_run_fit
+    from gatetwin.identification.physical import data_ranges, fit_physical
+    from gatetwin.identification.suite import free_run_fit
     from gatetwin.modelfile import physical_document
 
     table = _static(record, static)
@@ -290,7 +290,7 @@ def identify_folder(path: str | os.PathLike[str], progress: Any = None) -> Model
     >>> sorted(models)[:3], models["fopdt_3F"].validity["flow_m3h"]
     (['fopdt_1D', 'fopdt_2E', 'fopdt_3F'], [20.0, 90.0])
     """
-    from gatetwin.identify.suite import identify_folder as identify_all
+    from gatetwin.identification.suite import identify_folder as identify_all
 
     folder = Path(os.fspath(path))
     if not folder.is_dir():

@@ -98,7 +98,7 @@ def model_from_document(content: dict[str, Any], path: str = "") -> Model:
 
 
 def _arx_point(plant: ArxPlant, flow_m3h: float, opening_mm: float) -> OperatingPoint:
-    from gatetwin.identify.metrics import dc_gain, dominant_pole
+    from gatetwin.identification.metrics import dc_gain, dominant_pole
 
     a, b = plant.coefficients(flow_m3h)
     gain = dc_gain(a, b)
@@ -118,7 +118,7 @@ def _local_point(plant: FopdtPlant, flow_m3h: float, opening_mm: float) -> Opera
 class Model:
     """An identified model of the level at one gauge: its plant and its model file.
 
-    Get one from :func:`gatetwin.identify`, :func:`gatetwin.identify_folder` or
+    Get one from :func:`gatetwin.identification`, :func:`gatetwin.identify_folder` or
     :func:`gatetwin.load_model`.
 
     Attributes

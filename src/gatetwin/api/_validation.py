@@ -1,4 +1,4 @@
-"""Validate FMUs against records: the fmpy harness (:mod:`gatetwin.validate`) as one call
+"""Validate FMUs against records: the fmpy harness (:mod:`gatetwin.validation`) as one call
 whose result is a table, a verdict and a figure."""
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ class ValidationReport:
     Attributes
     ----------
     results : tuple of FmuValidation
-        One per FMU (:class:`gatetwin.validate.FmuValidation`): metrics, noise floor,
+        One per FMU (:class:`gatetwin.validation.FmuValidation`): metrics, noise floor,
         validity and checks per record, with the signals in each record's ``trace``.
 
     Examples
@@ -54,9 +54,9 @@ class ValidationReport:
     @property
     def cells(self) -> list[dict[str, Any]]:
         """One flat, JSON-ready dict per FMU × record (see
-        :func:`gatetwin.validate.matrix_cells`): ``fit_percent``, ``rmse_mm``, ``passed``...
+        :func:`gatetwin.validation.matrix_cells`): ``fit_percent``, ``rmse_mm``, ``passed``...
         """
-        from gatetwin.validate import matrix_cells
+        from gatetwin.validation import matrix_cells
 
         return [cell for r in self.results for cell in matrix_cells(r)]
 
@@ -66,7 +66,7 @@ class ValidationReport:
 
     def markdown(self) -> str:
         """The cells as the Markdown table ``gatetwin validate`` prints."""
-        from gatetwin.validate import matrix_markdown
+        from gatetwin.validation import matrix_markdown
 
         return matrix_markdown(self.cells)
 
@@ -142,7 +142,7 @@ def validate(fmus: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
         Fail a record lying outside the validity the FMU states.
     variable_map : str or PathLike, optional
         For FMUs gatetwin did not write: a TOML file naming their variable and unit behind
-        each record column (``gatetwin validate --map``; :mod:`gatetwin.validate.mapping`).
+        each record column (``gatetwin validate --map``; :mod:`gatetwin.validation.mapping`).
 
     Returns
     -------
@@ -164,8 +164,8 @@ def validate(fmus: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
     >>> cell["fit_percent"] > 85, cell["inside_validity"]
     (True, True)
     """
-    from gatetwin.validate import parse_thresholds, validate_fmu
-    from gatetwin.validate.mapping import read_variable_map
+    from gatetwin.validation import parse_thresholds, validate_fmu
+    from gatetwin.validation.mapping import read_variable_map
 
     vmap = read_variable_map(os.fspath(variable_map)) if variable_map is not None else None
     paths = [os.fspath(p) for p in _many(fmus, (str, os.PathLike))]

@@ -299,8 +299,8 @@ def _add_validate_arguments(parser: argparse.ArgumentParser) -> None:
 def _validate(args: argparse.Namespace, thresholds: Any) -> Any:
     """The validation, here record after record, or one record per task elsewhere."""
     from gatetwin.errors import GatetwinError
-    from gatetwin.validate import validate_fmu
-    from gatetwin.validate.mapping import read_variable_map
+    from gatetwin.validation import validate_fmu
+    from gatetwin.validation.mapping import read_variable_map
 
     variable_map = read_variable_map(args.map) if args.map else None
     options = dict(gauge=args.gauge, thresholds=thresholds, timeout_s=args.timeout,
@@ -314,7 +314,7 @@ def _validate(args: argparse.Namespace, thresholds: Any) -> Any:
     if not args.scheduler and args.workers == 1:
         return validate_fmu(args.fmu, args.records, **options)
     from gatetwin.fleet.execute import FleetSettings
-    from gatetwin.validate.spread import validate_fmu_spread
+    from gatetwin.validation.spread import validate_fmu_spread
 
     settings = FleetSettings(scheduler=args.scheduler, workers=args.workers)
     return validate_fmu_spread(args.fmu, args.records, settings, progress=print_to_stderr,
@@ -322,7 +322,7 @@ def _validate(args: argparse.Namespace, thresholds: Any) -> Any:
 
 
 def _run_validate(args: argparse.Namespace) -> int:
-    from gatetwin.validate import (
+    from gatetwin.validation import (
         EXIT_FAILED,
         OutputPaths,
         matrix_cells,

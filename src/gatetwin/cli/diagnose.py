@@ -1,4 +1,4 @@
-"""The ``gatetwin diagnose`` subcommand: arguments and run (the logic is in gatetwin.diagnose)."""
+"""The ``gatetwin diagnose`` subcommand: arguments and run (the logic is in gatetwin.diagnosis)."""
 
 from __future__ import annotations
 
@@ -95,8 +95,8 @@ def _describe(result: dict) -> list[str]:
 
 
 def _diagnoses(args: argparse.Namespace, fmu_dir: Path) -> list[dict[str, Any]]:
-    from gatetwin.diagnose import DiagnosisSettings, diagnose_record
-    from gatetwin.diagnose.spread import DiagnoseTask, diagnose_records
+    from gatetwin.diagnosis import DiagnosisSettings, diagnose_record
+    from gatetwin.diagnosis.spread import DiagnoseTask, diagnose_records
 
     settings = DiagnosisSettings(gauge=args.gauge, input=args.input)
     spread = spread_settings(args, "diagnose")

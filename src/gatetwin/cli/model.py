@@ -63,7 +63,7 @@ def _orders(values: list[str] | None) -> tuple[int, int, int] | str:
 
 
 def run_identify(args: argparse.Namespace) -> int:
-    from gatetwin.identify import identify_prbs, identify_step
+    from gatetwin.identification import identify_prbs, identify_step
     from gatetwin.records import read_record
 
     check_writable(args.json)
@@ -126,8 +126,8 @@ def add_routine_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _routine_result(args: argparse.Namespace, criteria: Any) -> Any:
     """The whole history read at once, or chunk by chunk (``--max-memory`` or a folder)."""
-    from gatetwin.identify.routine import identify_routine
-    from gatetwin.identify.routine_chunks import (
+    from gatetwin.identification.routine import identify_routine
+    from gatetwin.identification.routine_chunks import (
         DEFAULT_CHUNK_ROWS,
         chunk_rows_for,
         identify_routine_chunked,
@@ -141,7 +141,7 @@ def _routine_result(args: argparse.Namespace, criteria: Any) -> Any:
 
 
 def run_routine(args: argparse.Namespace) -> int:
-    from gatetwin.identify.routine import WindowCriteria
+    from gatetwin.identification.routine import WindowCriteria
 
     check_writable(args.json)
     if not (args.pre_s > 0 and args.post_s > 0):
@@ -233,7 +233,7 @@ def _run_fleet(args: argparse.Namespace) -> int:
 
 def _check_budget(max_memory_mib: float) -> None:
     """Refuse a memory budget the chunked reader cannot keep, naming the option."""
-    from gatetwin.identify.routine_chunks import chunk_rows_for
+    from gatetwin.identification.routine_chunks import chunk_rows_for
 
     try:
         chunk_rows_for(max_memory_mib)
@@ -247,7 +247,7 @@ def _print_to_stderr(message: str) -> None:
 
 def run_models(args: argparse.Namespace) -> int:
     from gatetwin.bundled import bundled_records_dir
-    from gatetwin.identify.suite import identify_folder
+    from gatetwin.identification.suite import identify_folder
     from gatetwin.modelfile import write_model_files
 
     check_writable(args.out, folder=True)  # before any gate is identified, fleet or not
@@ -495,7 +495,7 @@ def run_observe(args: argparse.Namespace) -> int:
     import numpy as np
 
     from gatetwin._io import write_text_atomic
-    from gatetwin.diagnose.onset import detection
+    from gatetwin.diagnosis.onset import detection
     from gatetwin.modelfile import read_model_file
     from gatetwin.mpc.online import OnlineObserver, measured_inputs
     from gatetwin.records import read_record

@@ -129,7 +129,7 @@ def add_simulate_ssp_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_simulate_ssp(args: argparse.Namespace) -> int:
-    from gatetwin.diagnose.onset import detection
+    from gatetwin.diagnosis.onset import detection
     from gatetwin.ssp import simulate_ssp
 
     if args.step_size is not None and not args.step_size > 0:

@@ -7,8 +7,8 @@ serially, on a local process pool or on a ``dask.distributed`` cluster
 :func:`write_district` generates a synthetic district with known truth. Each gate brings
 test records (step tests and a static rating table) like the bundled ones; routine
 operation histories (:mod:`gatetwin.fleet.routine`) are generated here too and identified
-one at a time by :func:`gatetwin.identify.routine.identify_routine` (a CSV file) or chunk by
-chunk by :mod:`gatetwin.identify.routine_chunks` (a Parquet file or a folder of day files).
+one at a time by :func:`gatetwin.identification.routine.identify_routine` (a CSV file) or chunk by
+chunk by :mod:`gatetwin.identification.routine_chunks` (a Parquet file or a folder of day files).
 """
 
 from gatetwin.fleet.district import GateTruth, district_gates, write_district

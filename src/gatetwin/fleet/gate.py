@@ -55,7 +55,7 @@ class GateJob:
     max_memory_mib : float | None
         Memory budget of a routine history read chunk by chunk (Parquet files and history
         folders), MiB; ``None`` for the default chunk of
-        :data:`~gatetwin.identify.routine_chunks.DEFAULT_CHUNK_ROWS` rows.
+        :data:`~gatetwin.identification.routine_chunks.DEFAULT_CHUNK_ROWS` rows.
     """
 
     gate: str
@@ -69,7 +69,7 @@ def identify_gate(job: GateJob) -> dict[str, Any]:
     ``routine``, ``summary`` and ``seconds`` (never raises for a bad gate).
 
     Records whose sidecar says ``test: "routine"`` are routine operation histories: each
-    gives its FOPDT from :func:`~gatetwin.identify.routine.identify_routine` (``routine``:
+    gives its FOPDT from :func:`~gatetwin.identification.routine.identify_routine` (``routine``:
     the identification documents by record name; see :func:`identify_history`). A gate of
     histories only, none with an informative window, has ``status`` ``no_window``; the
     other records build the model set as designed tests do.
@@ -105,7 +105,7 @@ def identify_gate(job: GateJob) -> dict[str, Any]:
 
 
 def _identify_tests(paths: list[Path], gate: str) -> Any:
-    from gatetwin.identify.suite import identify_records
+    from gatetwin.identification.suite import identify_records
 
     return identify_records(paths, f"gate {gate}")
 
@@ -149,7 +149,7 @@ def identify_history(path: str, max_memory_mib: float | None = None) -> dict[str
     "no_window": REASON}``.
 
     A Parquet file or a folder of day files is read chunk by chunk, as ``gatetwin routine
-    --max-memory`` reads it (:mod:`gatetwin.identify.routine_chunks`; the same result as
+    --max-memory`` reads it (:mod:`gatetwin.identification.routine_chunks`; the same result as
     the whole history), with chunks sized for ``max_memory_mib`` MiB when given; a CSV
     file is read whole (a single CSV cannot be read in parts).
 
@@ -159,8 +159,8 @@ def identify_history(path: str, max_memory_mib: float | None = None) -> dict[str
         The history cannot be read.
     """
     from gatetwin.errors import NoWindowError
-    from gatetwin.identify.routine import identify_routine
-    from gatetwin.identify.routine_chunks import (
+    from gatetwin.identification.routine import identify_routine
+    from gatetwin.identification.routine_chunks import (
         DEFAULT_CHUNK_ROWS,
         chunk_rows_for,
         scan_routine_history,

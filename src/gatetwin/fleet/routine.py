@@ -6,7 +6,7 @@ middle fit flow scaled by its width, the level the operator holds there. The gat
 gets ``routine.csv`` with its sidecar and ``truth.json`` (the gate's parameters and the
 flume's FOPDT at every move); the district folder a ``truth.json`` listing the gates.
 
-Test and benchmark data for :mod:`gatetwin.identify.routine`, not a model of a real district.
+Test and benchmark data for :mod:`gatetwin.identification.routine`, not a model of a real district.
 """
 
 from __future__ import annotations

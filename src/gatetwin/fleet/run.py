@@ -135,7 +135,7 @@ def run_fleet(sources: list[str], out: str | Path, settings: FleetSettings, *,
         or a memory budget too small to hold the interpreter; nothing is written then.
     """
     if max_memory_mib is not None:
-        from gatetwin.identify.routine_chunks import chunk_rows_for
+        from gatetwin.identification.routine_chunks import chunk_rows_for
 
         chunk_rows_for(max_memory_mib)  # refuses a budget below the libraries' own
     gates = discover_gates(sources)

@@ -13,7 +13,7 @@ input-driven FOPDT as the record's windows are. The run uses a coarser cell than
 district's step records (:data:`ROUTINE_DX_M`) so a week at 1.2 s costs seconds; the truth
 uses the same flume, so the two are consistent.
 
-This module generates data; identifying it is :mod:`gatetwin.identify.routine`'s business.
+This module generates data; identifying it is :mod:`gatetwin.identification.routine`'s business.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from gatetwin.flume.config import FlumeConfig
 from gatetwin.flume.envelope import steady_levels_mm
 from gatetwin.flume.logger import LoggedRecord, LoggerConfig, log_run
 from gatetwin.flume.simulate import FlumeRun, run_flume, spin_up
-from gatetwin.identify.fopdt_driven import fit_fopdt_driven
+from gatetwin.identification.fopdt_driven import fit_fopdt_driven
 
 __all__ = [
     "CONTROL_MODES",
@@ -163,7 +163,7 @@ def local_fopdt(cfg: FlumeConfig, flow_m3h: float, opening_from_mm: float,
                 opening_to_mm: float, gauge: str) -> LocalFopdt:  # fmt: skip
     """The flume's FOPDT at ``gauge`` for a move ``opening_from_mm → opening_to_mm`` at a
     constant ``flow_m3h``: a steady start, the move, :data:`TRUTH_POST_S` of response, and
-    :func:`~gatetwin.identify.fopdt_driven.fit_fopdt_driven` on the noise-free level with
+    :func:`~gatetwin.identification.fopdt_driven.fit_fopdt_driven` on the noise-free level with
     the opening reconstructed as from a record."""
     if not abs(opening_to_mm - opening_from_mm) >= 1.0:
         raise FlumeError("local FOPDT: the move must be >= 1 mm")

@@ -2,7 +2,7 @@
 
 Both backends render the same :class:`~gatetwin.fmu.description.FmuDescription` and follow
 :class:`gatetwin.plant.simulate.PlantSimulator` operation by operation. This package builds
-FMUs; validating and simulating them is left to fmpy and to gatetwin.validate.
+FMUs; validating and simulating them is left to fmpy and to gatetwin.validation.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from gatetwin._io import write_text_atomic
-from gatetwin.identify.preprocess import reconstructed_opening
+from gatetwin.identification.preprocess import reconstructed_opening
 from gatetwin.modelfile import ModelFile
 from gatetwin.plant.simulate import simulate
 from gatetwin.records import Record

@@ -121,7 +121,7 @@ def load_demo_plant(model_path: str | Path | None = None) -> FopdtPlant:
     if model_path is None:
         from gatetwin.bundled import bundled_records_dir
         from gatetwin.fleet.execute import map_tasks
-        from gatetwin.identify.suite import gauge_fopdt, load_folder
+        from gatetwin.identification.suite import gauge_fopdt, load_folder
 
         ident = load_folder(bundled_records_dir())
         [doc] = map_tasks(gauge_fopdt, [(ident, "3F")], None,

@@ -2,7 +2,7 @@
 
 Standard library only (``math``), no gatetwin imports: the pythonfmu slave embeds this module's
 source verbatim at export (:mod:`gatetwin.fmu.python_build`), the diagnosis' fast simulator
-compiles these functions with numba (:mod:`gatetwin.diagnose.grid_sim`), and the C FMU's
+compiles these functions with numba (:mod:`gatetwin.diagnosis.grid_sim`), and the C FMU's
 ``blocks.c`` is generated from their syntax tree (:mod:`gatetwin.plant.ast_render`), so the
 Python reference (:mod:`gatetwin.plant.simulate`), both FMUs and the fast simulator run the very
 same operations (the C FMU with the C library's ``exp``, ``log``, ``sin``, ...: on one platform

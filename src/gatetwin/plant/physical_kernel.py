@@ -24,7 +24,7 @@ slower mode too. The steady functions (bisection, level, time constant) see the 
 steady depth for the inflow.
 
 The discharge's centre ``Q_c`` and scale ``Q_s`` (m³/h) are parameters fixed at
-identification from the data's own discharge range (see :mod:`gatetwin.identify.physical`),
+identification from the data's own discharge range (see :mod:`gatetwin.identification.physical`),
 so the coefficients are of order one at any gate size. The steady depth is found by bisection
 on ``[DEPTH_LOW_M, depth_max_m]``, the upper end a parameter too (a lab flume and a canal pool
 differ by an order of magnitude in depth).

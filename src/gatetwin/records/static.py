@@ -2,7 +2,7 @@
 
 :func:`read_static_table` reads and checks the table of ``docs/record_format.md``;
 :func:`detect_table_kind` tells a rating table from a time-series record by its header.
-This module does not fit the rating; :mod:`gatetwin.identify.rating` does.
+This module does not fit the rating; :mod:`gatetwin.identification.rating` does.
 """
 
 from __future__ import annotations

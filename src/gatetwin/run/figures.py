@@ -1,6 +1,6 @@
 """Figures like the reference study's Figures 2–12, plus the schedule on Q (matplotlib PNG).
 
-Each function draws one figure from an :class:`~gatetwin.identify.suite.Identified` and
+Each function draws one figure from an :class:`~gatetwin.identification.suite.Identified` and
 writes it; :func:`write_all` writes every figure that the identified records support.
 """
 
@@ -15,9 +15,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from gatetwin.identify.arx import predict_one_step  # noqa: E402
-from gatetwin.identify.preprocess import record_segments  # noqa: E402
-from gatetwin.identify.suite import Identified  # noqa: E402
+from gatetwin.identification.arx import predict_one_step  # noqa: E402
+from gatetwin.identification.preprocess import record_segments  # noqa: E402
+from gatetwin.identification.suite import Identified  # noqa: E402
 
 __all__ = [
     "CAPTIONS",
@@ -120,7 +120,7 @@ def prbs_record(ident: Identified, cond: str, path: Path) -> Path:
 
 def _one_step(ident: Identified, cond: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rec, fit = ident.records[cond], ident.prbs[cond].fit
-    from gatetwin.identify.preprocess import reconstructed_opening
+    from gatetwin.identification.preprocess import reconstructed_opening
 
     u = reconstructed_opening(rec.time_s, rec.opening_mm, rec.hold) - fit.opening_mean_mm
     y = rec.levels_mm[GAUGE] - fit.level_mean_mm

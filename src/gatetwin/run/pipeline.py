@@ -155,7 +155,7 @@ def _summary_markdown(summaries: Sequence[dict[str, Any]]) -> str:
 
 def identify_models(ctx: PipelineContext) -> None:
     """Identify every record; write ``models/*.json`` (and the schema)."""
-    from gatetwin.identify.suite import identify_folder
+    from gatetwin.identification.suite import identify_folder
     from gatetwin.modelfile import write_model_files
 
     ident = identify_folder(ctx.records_dir, ctx.progress, ctx.fleet)

@@ -50,8 +50,8 @@ MATRIX_FAIL_UNDER = ("fit_percent=70",)
 def validate_all(ctx: Any) -> None:
     """Validate every exported FMU against every bundled record; ``validation.json``."""
     from gatetwin._io import write_json_atomic
-    from gatetwin.validate import matrix_markdown, parse_thresholds
-    from gatetwin.validate.spread import validate_matrices
+    from gatetwin.validation import matrix_markdown, parse_thresholds
+    from gatetwin.validation.spread import validate_matrices
 
     thresholds = parse_thresholds(MATRIX_FAIL_UNDER)
     pairs, outside = applicable_pairs(ctx)
@@ -115,7 +115,7 @@ def compare_families(ctx: Any) -> None:
     physical model of gauge 3F (fit, RMSE, bias, noise floor); a summary and report table."""
     from gatetwin._io import write_json_atomic
     from gatetwin.modelfile import read_model_file
-    from gatetwin.validate.families import families_markdown, family_row, local_form
+    from gatetwin.validation.families import families_markdown, family_row, local_form
 
     models = [read_model_file(p) for p in ctx.results["model_paths"]]
     by_name = {m.name: m.plant for m in models}
@@ -403,8 +403,8 @@ def diagnose_records(ctx: Any) -> None:
     """Diagnose the bundled records: ``diagnose.json``, augmented models and their FMUs
     (one record per task where ``ctx.fleet`` says; the same outputs)."""
     from gatetwin._io import write_json_atomic
-    from gatetwin.diagnose import DiagnosisSettings
-    from gatetwin.diagnose.spread import DiagnoseTask, diagnose_records
+    from gatetwin.diagnosis import DiagnosisSettings
+    from gatetwin.diagnosis.spread import DiagnoseTask, diagnose_records
 
     plots = str(ctx.out_dir / "figures" / "diagnose")
     chosen = [(r, m) for r, m in DIAGNOSE if (ctx.records_dir / f"{r}.csv").exists()]
@@ -447,7 +447,7 @@ def not_diagnosed(ctx: Any) -> list[dict[str, str]]:
     Validation records (several moves, discharge changes, or no move at all) are only
     validated against; the other fitted step tests repeat what A, B and Q55 show.
     """
-    from gatetwin.identify.suite import role_of
+    from gatetwin.identification.suite import role_of
     from gatetwin.records.sidecar import VALIDATION_ROLE
 
     ident = ctx.results.get("ident")
@@ -538,7 +538,7 @@ def write_report(ctx: Any) -> None:
     report.add_section("Identification figures", figures=figures)
     cells = ctx.results.get("validation", [])
     if cells:
-        from gatetwin.validate.harness import validity_text
+        from gatetwin.validation.harness import validity_text
 
         columns = ("backend", "fmu", "record", "fit_percent", "noise_floor_fit_percent",
                    "fit_vs_floor", "r2", "rmse_mm", "bias_mm", "validity", "passed")  # fmt: skip

@@ -5,13 +5,13 @@ Stages, each timed (``demo.json`` ``times_s``):
 1. **experiments** — the records of ``gatetwin swmm experiment --design all``
    (:func:`gatetwin.plants.swmm_designs.run_design`) into ``records/``;
 2. **identification** — the library calls of ``gatetwin models --records``
-   (:mod:`gatetwin.identify.suite`: the physical, FOPDT and ARX models) into ``models/``.
+   (:mod:`gatetwin.identification.suite`: the physical, FOPDT and ARX models) into ``models/``.
    A gauge whose physical fit fails gets the FOPDT of its step records alone, and the
    failure is reported (``identification.physical_failures``), not hidden;
 3. **export** — ``fopdt_<G>`` and ``physical_<G>`` of every gauge as C FMUs into ``fmus/``
    (the calls of ``gatetwin export --backend c``);
 4. **validation** — every FMU on the held-out records (roles ``held_out`` and
-   ``validation``, never fitted) with :func:`gatetwin.validate.validate_fmu`, the call of
+   ``validation``, never fitted) with :func:`gatetwin.validation.validate_fmu`, the call of
    ``gatetwin validate``; ``validation.json``. Criterion per FMU × record: free-run fit
    ≥ :data:`FIT_PASS_PERCENT` % or within :data:`FLOOR_MARGIN_POINTS` points of the
    record's noise floor (the fit a perfect model scores against the gauge noise), and
@@ -212,7 +212,7 @@ def _experiments(req: DemoRequest, core: SwmmCore, flow_m3h: float, opening: flo
 def identify_twins(records: Path, models: Path) -> dict[str, Any]:
     """The models of ``gatetwin models --records`` (physical, FOPDT and ARX), written into
     ``models``; a failed physical fit leaves that gauge its step-only FOPDT (reported)."""
-    from gatetwin.identify.suite import arx_model, fopdt_model, load_folder, physical_model
+    from gatetwin.identification.suite import arx_model, fopdt_model, load_folder, physical_model
     from gatetwin.modelfile import write_model_files
 
     ident = load_folder(records)
@@ -253,7 +253,7 @@ def export_twins(models: Path, fmus: Path) -> list[tuple[str, Path]]:
 def validate_twins(fmus: list[tuple[str, Path]], records: Path, work: Path) -> list[dict]:
     """Every FMU on the held-out records; writes ``validation.json``; one row per pair."""
     from gatetwin.records import read_record
-    from gatetwin.validate import validate_fmu
+    from gatetwin.validation import validate_fmu
 
     held = [read_record(p) for p in sorted(records.glob("*.csv"))
             if json.loads(p.with_suffix(".json").read_text(encoding="utf-8")).get("role")

@@ -1,7 +1,7 @@
 """Published vs ours: the reference study's Tables 2–5 next to gatetwin's results.
 
 Each function returns a :class:`Table` (header + rows of strings) from an
-:class:`~gatetwin.identify.suite.Identified`; :meth:`Table.markdown` renders it for
+:class:`~gatetwin.identification.suite.Identified`; :meth:`Table.markdown` renders it for
 ``summary.md`` and the docs, and the HTML report takes the same rows.
 """
 
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gatetwin.flume.paper_targets import STEP_TABLES, TABLE_4, TABLE_5
-from gatetwin.identify.suite import Identified
+from gatetwin.identification.suite import Identified
 
 __all__ = [
     "Table",

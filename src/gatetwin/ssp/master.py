@@ -27,7 +27,7 @@ times as there are components (outputs read in initialisation mode: each one's v
 rest), then each component leaves initialisation mode in document order.
 
 Isolation: the FMUs are foreign native code, so by default the whole run happens in a child
-process of the FMU host of :mod:`gatetwin.validate.isolation`. An FMU that calls ``exit()``
+process of the FMU host of :mod:`gatetwin.validation.isolation`. An FMU that calls ``exit()``
 or ``abort()``, writes through a null pointer, or does not return from a call within the
 limit (``timeout_s``, each call: a long run of quick steps is never cut) ends the run with
 one line naming the cause, the component, the call, the communication step and the time;
@@ -55,7 +55,7 @@ import numpy as np
 from gatetwin.errors import SspError
 from gatetwin.records.limits import check_unpacked_size, open_regular
 from gatetwin.ssp.documents import NS, SSD_SCHEMA, read_parameter_set, schema_problems
-from gatetwin.validate.fmu_runner import (
+from gatetwin.validation.fmu_runner import (
     DO_STEP,
     FREE_INSTANCE,
     GET_REAL,
@@ -72,11 +72,11 @@ from gatetwin.validate.fmu_runner import (
 SCHEMES = ("gauss-seidel", "jacobi")
 #: Largest number of communication steps one run takes: 13.9 days at the controllers' 1.2 s,
 #: as many as validate asks of an FMU for one record
-#: (:data:`gatetwin.validate.fmu_runner.MAX_FMU_STEPS`). The run's columns are held in
+#: (:data:`gatetwin.validation.fmu_runner.MAX_FMU_STEPS`). The run's columns are held in
 #: memory (8 bytes a value: 64 MB for the eight columns of a closed loop at the limit).
 MAX_STEPS = MAX_FMU_STEPS
 #: Wall-clock limit of one FMI call when none is given, s: the base limit of a validation run
-#: (:data:`gatetwin.validate.isolation.TIMEOUT_BASE_S`), which covers starting a process and
+#: (:data:`gatetwin.validation.isolation.TIMEOUT_BASE_S`), which covers starting a process and
 #: loading a binary; a gatetwin FMU's step takes microseconds to milliseconds.
 TIMEOUT_S = 10.0
 
@@ -455,7 +455,7 @@ def simulate_ssp(
         system, parameters = _unpack(path, folder, where)
         task = SspTask(system, folder, parameters, where, step_size_s, scheme)
         if isolate:
-            from gatetwin.validate.isolation import run_task
+            from gatetwin.validation.isolation import run_task
 
             answer = run_task(task, [None], [limit])
             if isinstance(answer, str):
@@ -472,7 +472,7 @@ def simulate_ssp(
 
 class SspTask:
     """One run of an unpacked package, as a task of
-    :func:`gatetwin.validate.isolation.run_task` (each FMI call bounded)."""
+    :func:`gatetwin.validation.isolation.run_task` (each FMI call bounded)."""
 
     per_call = True
     SLOTS = SspPosition.SLOTS
