@@ -269,3 +269,27 @@ def test_identify_step_refusals() -> None:
     flat = record_from_arrays(s.t, np.full(s.n, 20.0), np.ones(s.n, bool), flow, {"3F": s.h})
     with pytest.raises(IdentificationError, match="no step"):
         identify_step(flat)
+
+
+def test_the_driven_fit_takes_a_pool_slower_than_the_flume_caps() -> None:
+    """A canal pool's time constant (two hours) and dead time (five minutes) lie beyond the
+    driven fit's flume-scale caps (5000 s, 120 s): started from the step fit's values, it
+    fits them instead of refusing its own start. The data are the model's own noise-free
+    response on a 60 s grid, so the fit lands on the truth to the optimiser's tolerance
+    (1e-6 relative here, far below what one sample of 60 s could resolve)."""
+    from gatetwin.identification.fopdt_driven import (
+        DEAD_TIME_MAX_S,
+        TAU_MAX_S,
+        fit_fopdt_driven,
+        fopdt_response,
+    )
+
+    gain, tau, delay = -5.0, 7200.0, 300.0
+    assert tau > TAU_MAX_S and delay > DEAD_TIME_MAX_S
+    t = np.arange(0.0, 12 * 3600.0, 60.0)
+    opening = np.where(t < 3600.0, 500.0, 560.0)
+    level = 2000.0 + fopdt_response(t, opening, gain, tau, delay, 500.0)
+    fit = fit_fopdt_driven(t, opening, level, initial=(-4.0, 6000.0, 240.0))
+    assert fit.gain_mm_per_mm == pytest.approx(gain, rel=1e-6)
+    assert fit.time_constant_s == pytest.approx(tau, rel=1e-6)
+    assert fit.dead_time_s == pytest.approx(delay, rel=1e-6)

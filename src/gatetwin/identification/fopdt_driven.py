@@ -19,10 +19,15 @@ from scipy import optimize, signal
 
 from gatetwin.errors import IdentificationError
 
-__all__ = ["GRID_S", "DrivenFopdtFit", "fit_fopdt_driven", "fopdt_response"]
+__all__ = ["DEAD_TIME_MAX_S", "GRID_S", "TAU_MAX_S", "DrivenFopdtFit", "fit_fopdt_driven",
+           "fopdt_response"]  # fmt: skip
 
 #: Simulation grid of the fit, s (the response is exact for input linear between points).
 GRID_S = 0.1
+#: Upper bounds of the time constant and the dead time, s, unless ten times the start value is
+#: larger (:func:`fit_fopdt_driven`).
+TAU_MAX_S = 5000.0
+DEAD_TIME_MAX_S = 120.0
 
 
 @dataclass(frozen=True)
@@ -75,8 +80,11 @@ def fit_fopdt_driven(time_s: np.ndarray, opening_mm: np.ndarray, level_mm: np.nd
 
     k0, tau0, l0 = initial
     p0 = np.array([k0, tau0, l0, float(np.nanmedian(y[: max(5, ok.sum() // 20)]))])
+    # T and L bounded above by the flume-scale caps or ten times the step fit's start, the
+    # larger: a canal pool's hour-long time constant starts inside its bounds
+    tau_hi, delay_hi = max(TAU_MAX_S, 10.0 * tau0), max(DEAD_TIME_MAX_S, 10.0 * l0)
     res = optimize.least_squares(residual, p0, bounds=([-np.inf, 0.5, 0.0, -np.inf],
-                                                       [np.inf, 5000.0, 120.0, np.inf]),
+                                                       [np.inf, tau_hi, delay_hi, np.inf]),
                                  x_scale=[1.0, 10.0, 1.0, 10.0], diff_step=1e-6)  # fmt: skip
     n, dof = int(ok.sum()), max(1, int(ok.sum()) - 4)
     sigma2 = float(res.fun @ res.fun) / dof
