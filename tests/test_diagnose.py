@@ -258,3 +258,20 @@ def test_a_record_where_nothing_changes_is_refused():
                              np.full(n, 40.0), {"3F": level}, sample_period_s=1.2)  # fmt: skip
     with pytest.raises(IdentificationError, match="neither the opening nor the discharge"):
         prepare(rec, "3F")
+
+
+@pytest.mark.parametrize("ts", [0.1, 1.2, 10.0, 60.0, 600.0])
+def test_the_seiche_candidates_bounds_hold_a_range_at_any_sample_period(ts) -> None:
+    """A 60 s logger met a period range of [120 s, 120 s] (two samples up to a fixed two
+    minutes) and least squares refused it: the longest period searched grows with the
+    sample period, so each bound keeps its lower end below its upper and the spectrum's band
+    (2.5 samples to the longest period) holds bins."""
+    from types import SimpleNamespace
+
+    from gatetwin.diagnosis.candidates.seiche import SeicheCandidate
+    from gatetwin.diagnosis.signatures import seiche_longest_period_s
+
+    ctx = SimpleNamespace(data=SimpleNamespace(sample_period_s=ts))
+    lower, upper = SeicheCandidate().bounds(ctx)
+    assert all(lo < hi for lo, hi in zip(lower, upper, strict=True)), (lower, upper)
+    assert seiche_longest_period_s(ts) >= 2.5 * ts * 4  # a band of a few bins at least

@@ -7,8 +7,9 @@ is at least :data:`SUGGEST_STRENGTH` strong are the ones the residual points at;
 fitted first and flagged ``suggested`` in the output.
 
 * ``sensor_drift`` -- slope of the residual against time.
-* ``seiche`` -- peak of the residual's spectrum (Welch, high-passed at one minute) between
-  2.5 samples and a minute, against the spectrum's median; amplitude by regression on the
+* ``seiche`` -- peak of the residual's spectrum (Welch, high-passed at the longest period
+  searched) between 2.5 samples and :func:`seiche_longest_period_s` (a minute, or 24 samples
+  where those are longer), against the spectrum's median; amplitude by regression on the
   unit oscillation.
 * ``inflow_disturbance`` -- regression of the residual on first-order filtered discharge
   changes (time constants 10-100 s).
@@ -34,7 +35,8 @@ from gatetwin.diagnosis.fitting import Fit, effective_n
 from gatetwin.diagnosis.grid_sim import GridInputs, simulate_grid
 from gatetwin.plant.effects import effect_dict
 
-__all__ = ["SUGGEST_STRENGTH", "Signature", "move_coefficients", "signatures"]
+__all__ = ["SEICHE_LONGEST_SAMPLES", "SEICHE_MIN_LONGEST_S", "SUGGEST_STRENGTH", "Signature",
+           "move_coefficients", "seiche_longest_period_s", "signatures"]  # fmt: skip
 
 SUGGEST_STRENGTH = 2.0
 
@@ -96,16 +98,31 @@ def _drift(t: np.ndarray, r: np.ndarray) -> Signature:
                      {"rate_mm_per_s": slope})  # fmt: skip
 
 
+#: Longest seiche period the spectrum is searched for, s, at least: one minute (the flume's
+#: pools ring at 11.5 s; a canal pool of a kilometre at tens of minutes).
+SEICHE_MIN_LONGEST_S = 60.0
+#: ... and in samples: a sampling that resolves only slow oscillations is searched as far out
+#: as 24 samples (4 minutes at 10 s, 24 minutes at 60 s), where the band still holds the
+#: five spectral bins of a peak against its median.
+SEICHE_LONGEST_SAMPLES = 24
+
+
+def seiche_longest_period_s(sample_period_s: float) -> float:
+    """The longest seiche period diagnosis looks for at ``sample_period_s``, s."""
+    return max(SEICHE_MIN_LONGEST_S, SEICHE_LONGEST_SAMPLES * sample_period_s)
+
+
 def _seiche(data: DiagnosisData, fit: Fit, r_full: np.ndarray) -> Signature:
     if any(e["kind"] == "seiche" for e in fit.plant.effects):
         return Signature("seiche", "the baseline already carries a seiche", np.nan, 0.0, {})
     ts = data.sample_period_s
     r = np.where(np.isfinite(r_full) & data.fit_mask, r_full, 0.0)[data.fit_mask.nonzero()[0]]
-    w = max(3, int(round(60.0 / ts)) | 1)
+    longest = seiche_longest_period_s(ts)
+    w = max(3, int(round(longest / ts)) | 1)
     r = r - np.convolve(r, np.ones(w) / w, mode="same")
     nperseg = min(256, r.size)
     f, pxx = signal.welch(r, fs=1.0 / ts, nperseg=nperseg)
-    band = (f >= 1.0 / 60.0) & (f <= 1.0 / (2.5 * ts))
+    band = (f >= 1.0 / longest) & (f <= 1.0 / (2.5 * ts))
     if np.count_nonzero(band) < 5:
         return Signature("seiche", "spectral peak / median", np.nan, 0.0, {})
     k = int(np.argmax(np.where(band, pxx, -np.inf)))

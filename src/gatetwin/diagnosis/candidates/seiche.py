@@ -1,6 +1,7 @@
 """Candidate ``seiche``: a lightly damped oscillation of the pool excited by gate moves.
 
-Signature: a peak in the residual's spectrum between 2.5 samples and a minute. Start: the
+Signature: a peak in the residual's spectrum between 2.5 samples and a minute (or 24 samples,
+where longer: :func:`~gatetwin.diagnosis.signatures.seiche_longest_period_s`). Start: the
 peak's period, a decay of two periods, the amplitude regressed on the unit oscillation.
 Immaterial when a typical move excites less than the noise floor, when the period is shorter
 than two samples (not observable) or when it decays within a quarter period (no oscillation).
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 from gatetwin.diagnosis.candidates.base import Candidate, Context
 from gatetwin.diagnosis.fitting import Fit
+from gatetwin.diagnosis.signatures import seiche_longest_period_s
 
 __all__ = ["SeicheCandidate"]
 
@@ -21,8 +23,11 @@ class SeicheCandidate(Candidate):
     needs_moves = True
 
     def bounds(self, ctx: Context) -> tuple[list[float], list[float]]:
+        """Period from two samples to twice the longest searched, decay up to twenty times
+        that (120 s and 1200 s at the flume's 1.2 s), amplitude within ±50 mm per mm."""
         ts = ctx.data.sample_period_s
-        return [2.0 * ts, 0.5 * ts, -50.0], [120.0, 1200.0, 50.0]
+        longest = seiche_longest_period_s(ts)
+        return [2.0 * ts, 0.5 * ts, -50.0], [2.0 * longest, 20.0 * longest, 50.0]
 
     def starts(self, ctx: Context) -> list[list[float]]:
         period = ctx.estimate(self.kind, "period_s", 10.0)
