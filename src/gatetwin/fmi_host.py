@@ -10,6 +10,7 @@ run and the closed loop's FMU plant and controller all open FMUs here.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -67,6 +68,23 @@ class Instance:
 
     def freeInstance(self) -> None:  # noqa: N802
         self.slave.freeInstance()
+
+    def initialise(self, start_time_s: float, *settings: tuple[list[int], list[float]]) -> None:
+        """Set up the experiment at ``start_time_s``, enter initialisation mode, make each
+        ``(value references, values)`` setReal call of ``settings`` in order, and leave it."""
+        self.setupExperiment(startTime=start_time_s)
+        self.enterInitializationMode()
+        for vrs, values in settings:
+            self.setReal(list(vrs), [float(v) for v in values])
+        self.exitInitializationMode()
+
+    def close(self) -> None:
+        """Terminate (skipped where a refused call left the instance in error) and free."""
+        from fmpy.fmi1 import FMICallException
+
+        with contextlib.suppress(FMICallException):
+            self.terminate()
+        self.freeInstance()
 
 
 def open_instance(md: Any, unzip_dir: str, instance_name: str, *, what: str,

@@ -579,20 +579,15 @@ def run_observer_fmu(
         slave = open_instance(md, unzipped, "observer", what=str(fmu_path), error=ControlError,
                               logging_on=False)  # fmt: skip
         try:
-            slave.setupExperiment(startTime=0.0)
-            slave.enterInitializationMode()
-            for name, value in (parameters or {}).items():
-                slave.setReal([vr[name]], [float(value)])
-            slave.setReal(inputs, [float(v) for v in columns[0]])
-            slave.exitInitializationMode()
+            given = [([vr[name]], [value]) for name, value in (parameters or {}).items()]
+            slave.initialise(0.0, *given, (inputs, columns[0]))
             out_vrs = [vr[n] for n in names]
             for i in range(columns.shape[0]):
                 slave.setReal(inputs, [float(v) for v in columns[i]])
                 slave.doStep(float(i * ts), float(ts))
                 out[i] = slave.getReal(out_vrs)
-            slave.terminate()
         finally:
-            slave.freeInstance()
+            slave.close()
     finally:
         shutil.rmtree(unzipped, ignore_errors=True)
     return {name: out[:, k] for k, name in enumerate(names)}

@@ -12,7 +12,6 @@ opening of that sample. This module drives an FMU; it computes nothing of the co
 
 from __future__ import annotations
 
-import contextlib
 import math
 import re
 import shutil
@@ -111,11 +110,8 @@ class FmuController:
         self.failures = 0
         self.statuses = []
         try:
-            slave.setupExperiment(startTime=0.0)
-            slave.enterInitializationMode()
-            self._set([self._vr["start_opening_mm"]], [float(opening_mm)])
-            self._set(self._inputs, [float(level_mm), float(flow_m3h), float(level_mm)])
-            slave.exitInitializationMode()
+            slave.initialise(0.0, ([self._vr["start_opening_mm"]], [opening_mm]),
+                             (self._inputs, [level_mm, flow_m3h, level_mm]))  # fmt: skip
         except FMICallException as exc:
             raise ControlError(f"{self.path.name}: reset refused ({exc}){_logged(slave)}") from None
 
@@ -155,12 +151,8 @@ class FmuController:
 
     def close(self) -> None:
         """Free the instance (terminated first unless a refused call left it in error)."""
-        from fmpy.fmi1 import FMICallException
-
         if self._slave is not None:
-            with contextlib.suppress(FMICallException):  # an instance in error: just free it
-                self._slave.terminate()
-            self._slave.freeInstance()
+            self._slave.close()
             self._slave = None
 
     def cleanup(self) -> None:

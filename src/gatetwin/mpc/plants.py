@@ -211,10 +211,8 @@ class FmuCore:
                               error=ControlError, logging_on=False)  # fmt: skip
         self._slave = slave
         self.time_s = 0.0
-        slave.setupExperiment(startTime=0.0)
-        slave.enterInitializationMode()
-        self._set(opening_mm, flow_m3h)
-        slave.exitInitializationMode()
+        slave.initialise(0.0, ([self._vr["opening_mm"], self._vr["flow_m3h"]],
+                               [opening_mm, flow_m3h]))  # fmt: skip
         return float(slave.getReal([self._out])[0])
 
     def _set(self, opening_mm: float, flow_m3h: float) -> None:
@@ -241,8 +239,7 @@ class FmuCore:
 
     def close(self) -> None:
         if self._slave is not None:
-            self._slave.terminate()
-            self._slave.freeInstance()
+            self._slave.close()
             self._slave = None
 
     def cleanup(self) -> None:
