@@ -44,7 +44,7 @@ EXPECTED: dict[str, list[str]] = {
     "negative_flow.csv": ["row 33", "column 'flow_m3h'", "negative"],
     "negative_opening.csv": ["row 8", "column 'opening_mm'", "negative"],
     "empty_time.csv": ["row 16", "column 'time_s'", "empty cell"],
-    "empty_flow.csv": ["row 17", "column 'flow_m3h'", "empty cell"],
+    "empty_flow.csv": ["column 'flow_m3h'", "every cell is empty"],
     "hold_without_opening.csv": ["row 65 to row 124", "column 'opening_mm'"],
     "step_without_step.csv": ["column 'opening_mm'", "test 'step' (from the sidecar)", "no step"],
     "too_few_samples_step.csv": ["row 22", "20 valid samples", "≥ 40"],

@@ -249,9 +249,25 @@ def test_record_from_arrays_names_samples() -> None:
     with pytest.raises(RecordError, match=r"^<arrays>: sample 7: column 'time_s': duplicated"):
         record_from_arrays(**data)
     data = _arrays(STEP)
-    data["flow_m3h"][3] = np.nan
-    with pytest.raises(RecordError, match=r"synthetic: sample 3: column 'flow_m3h': empty"):
+    data["flow_m3h"][:] = np.nan
+    with pytest.raises(RecordError, match=r"^synthetic: column 'flow_m3h': every cell is empty"):
         record_from_arrays(**data, path="synthetic")
+
+
+def test_an_empty_discharge_cell_holds_the_last_logged_one() -> None:
+    """The record format: empty cells are missing values. A flow meter's dropout is held
+    from the last logged discharge (the first logged one before any), and the record says
+    where (``flow_filled``, and the summary's count)."""
+    data = _arrays(STEP)
+    logged = data["flow_m3h"].copy()
+    data["flow_m3h"][[0, 1, 7, 8, 9]] = np.nan
+    record = record_from_arrays(**data, path="synthetic")
+    expected = logged.copy()
+    expected[[0, 1]] = logged[2]
+    expected[[7, 8, 9]] = logged[6]
+    assert np.array_equal(record.flow_m3h, expected)
+    assert np.flatnonzero(record.flow_filled).tolist() == [0, 1, 7, 8, 9]
+    assert record.summary()["flow_filled_samples"] == 5
 
 
 def test_record_from_arrays_metadata_and_options() -> None:

@@ -154,7 +154,12 @@ CSV_FILES: dict[str, Callable[[], str | bytes]] = {
     "negative_flow.csv": lambda: to_text(set_cell(base_rows(), 33, "flow_m3h", "-29.5")),
     "negative_opening.csv": lambda: to_text(set_cell(base_rows(), 8, "opening_mm", "-15")),
     "empty_time.csv": lambda: to_text(set_cell(base_rows(), 16, "time_s", "")),
-    "empty_flow.csv": lambda: to_text(set_cell(base_rows(), 17, "flow_m3h", "")),
+    "empty_flow.csv": lambda: to_text(
+        [
+            [*r[: HEADER.index("flow_m3h")], "", *r[HEADER.index("flow_m3h") + 1 :]]
+            for r in base_rows()
+        ]
+    ),  # fmt: skip
     "hold_without_opening.csv": lambda: to_text(
         [[r[0], "" if k >= 63 else r[1], *r[2:]] for k, r in enumerate(base_rows())]
     ),

@@ -71,7 +71,8 @@ class Record:
     hold : ndarray of bool
         True where ``state`` is ``hold`` (actuator still), False for ``open``.
     flow_m3h : ndarray
-        Inflow discharge, m³/h.
+        Inflow discharge, m³/h. An empty cell (a flow meter's dropout) holds the last logged
+        value, the first logged one before it (see ``flow_filled``).
     levels_mm : dict[str, ndarray]
         Upstream level per gauge name (``"3F"`` for column ``level_3F_mm``), mm.
     gauges_m : dict[str, float]
@@ -93,6 +94,8 @@ class Record:
         Hash of the CSV bytes, for provenance.
     opening_filled : ndarray of bool or None
         True for hold samples whose empty opening was filled from their segment.
+    flow_filled : ndarray of bool or None
+        True for samples whose empty discharge was filled by holding the last logged one.
     unobserved_steps : int
         Opening changes between hold segments that fall inside a logging gap (onset
         unknown, so not in ``steps``).
@@ -119,6 +122,7 @@ class Record:
     metadata: dict[str, Any] = field(default_factory=dict)
     sha256: str = ""
     opening_filled: np.ndarray | None = None
+    flow_filled: np.ndarray | None = None
     unobserved_steps: int = 0
     units: dict[str, Any] = field(default_factory=lambda: dict(INTERNAL_UNITS))
     gate_width_m: float | None = None
@@ -459,6 +463,7 @@ def _build_record(
     origin: Origin, cols: _Columns, sidecar: Sidecar, test: str | None, sha256: str, path: str
 ) -> Record:
     _check_values(origin, cols, sidecar.bounds)
+    flow_m3h, flow_filled = _held_flow(cols.flow_m3h)
     period = _sample_period(origin, cols.time_s, sidecar)
     seg = segments.segment_holds(origin, cols.time_s, cols.opening_mm, cols.hold, period)
     holds = tuple(
@@ -476,7 +481,7 @@ def _build_record(
         time_s=frozen(cols.time_s),
         opening_mm=frozen(seg.opening_mm),
         hold=frozen(cols.hold),
-        flow_m3h=frozen(cols.flow_m3h),
+        flow_m3h=frozen(flow_m3h),
         levels_mm={g: frozen(v) for g, v in cols.levels_mm.items()},
         gauges_m={g: d for g, d in sidecar.gauges_m.items() if g in cols.levels_mm},
         test=chosen,
@@ -487,6 +492,7 @@ def _build_record(
         metadata=dict(sidecar.metadata),
         sha256=sha256,
         opening_filled=frozen(seg.filled),
+        flow_filled=frozen(flow_filled),
         unobserved_steps=unobserved,
         units=cols.units(),
         gate_width_m=sidecar.gate_width_m,
@@ -496,6 +502,18 @@ def _build_record(
         record.levels_mm,
     ))  # fmt: skip
     return record
+
+
+def _held_flow(flow_m3h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The discharge with each empty cell holding the last logged value (the first logged one
+    before any), and where that was done: what a flow meter's dropout leaves is taken as
+    unchanged, as the logger holds every other input between samples."""
+    missing = np.isnan(flow_m3h)
+    if not missing.any():
+        return flow_m3h, missing
+    logged = np.flatnonzero(~missing)
+    last = np.maximum.accumulate(np.where(missing, -1, np.arange(flow_m3h.size)))
+    return flow_m3h[np.where(last < 0, logged[0], last)], missing
 
 
 def _sample_period(origin: Origin, time_s: np.ndarray, sidecar: Sidecar) -> float:
@@ -524,7 +542,8 @@ def _check_values(origin: Origin, cols: _Columns, bounds: Bounds) -> None:
     checks.check_bounds(origin, "time_s", cols.time_s, TIME_ABS_MAX_S, "s")
     checks.check_time(origin, cols.time_s)
     checks.check_gaps(origin, cols.time_s, bounds.gap_max_s)
-    checks.check_no_missing(origin, "flow_m3h", cols.flow_m3h)
+    if np.isnan(cols.flow_m3h).all():
+        raise origin.error(origin.column("flow_m3h"), "every cell is empty; expected m³/h")
     checks.check_non_negative(origin, "flow_m3h", cols.flow_m3h, "m³/h")
     checks.check_range(origin, "flow_m3h", cols.flow_m3h, bounds.flow_m3h, "m³/h")
     checks.check_non_negative(origin, "opening_mm", cols.opening_mm, "mm")
@@ -560,6 +579,9 @@ def _record_summary(record: Record) -> dict[str, Any]:
         },
         "opening_filled_samples": int(np.count_nonzero(record.opening_filled))
         if record.opening_filled is not None
+        else 0,
+        "flow_filled_samples": int(np.count_nonzero(record.flow_filled))
+        if record.flow_filled is not None
         else 0,
         "steps": [
             {

@@ -58,7 +58,12 @@ def format_record_summary(summary: dict[str, Any]) -> str:
         f"(time {span['start']:g} … {span['stop']:g} s, {summary['duration_s']:.1f} s)",
         *_units_line(summary.get("units")),
         f"gauges   {_fmt_gauges(summary['gauges'])}",
-        f"flow     {_fmt_range(summary['flow_m3h'], 'm³/h')}",
+        f"flow     {_fmt_range(summary['flow_m3h'], 'm³/h')}"
+        + (
+            f" ({summary['flow_filled_samples']} empty cells held from the last logged value)"
+            if summary.get("flow_filled_samples")
+            else ""
+        ),  # fmt: skip
         f"opening  {opening['min']:.4g} … {opening['max']:.4g} mm"
         f" ({summary['opening_filled_samples']} empty hold openings filled)",
         f"holds    {holds['count']} segment(s) of {holds['samples_min']} … "
