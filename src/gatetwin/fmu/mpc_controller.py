@@ -135,7 +135,8 @@ def _load(model_or_path: Any) -> FopdtPlant:
         raise ExportError(f"mpc controller FMU: needs a scheduled FOPDT plant (got {kind})")
     if plant.effects:
         kinds = ", ".join(e["kind"] for e in plant.effects)
-        raise ExportError(f"mpc controller FMU: effect blocks are not covered (plant has {kinds})")
+        raise ExportError(f"mpc controller FMU: effect blocks are not covered (plant has {kinds}); "
+                          "without_effects=True (--without-effects) drops them")  # fmt: skip
     return plant
 
 
