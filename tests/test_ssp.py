@@ -555,3 +555,60 @@ def test_ecos_runs_the_mpc_and_observer_package_as_the_jacobi_master(mpc_package
     run = simulate_ssp(mpc_package, scheme="jacobi")
     assert any(name.startswith("observer.") for name in run.columns)
     _compare_ecos(mpc_package, run)
+
+
+def _field_fopdt(tmp_path: Path) -> Path:
+    """fopdt_3F's schedule carried to a field gate: discharges ×600 (5-14 m³/s), levels ×10,
+    openings ×20, time constants ×60 (an hour), 60 s records with 3 mm of gauge noise; no
+    envelope and no effect blocks (the gate law is the flume's)."""
+    import json
+
+    doc = json.loads(MODEL.read_text(encoding="utf-8"))
+    plant, sched = doc["plant"], doc["plant"]["schedule"]
+    sched["flow_m3h"] = [600.0 * q for q in sched["flow_m3h"]]
+    sched["level_ref_mm"] = [10.0 * h for h in sched["level_ref_mm"]]
+    sched["time_constant_s"] = [60.0 * t for t in sched["time_constant_s"]]
+    sched["gain_mm_per_mm"] = [k / 2.0 for k in sched["gain_mm_per_mm"]]
+    plant["opening_ref_mm"] *= 20.0
+    plant.pop("envelope"), plant.pop("effects")
+    doc["operating_point"] = {"opening_ref_mm": plant["opening_ref_mm"],
+                              "level_ref_mm": sched["level_ref_mm"],
+                              "flow_m3h": sched["flow_m3h"]}  # fmt: skip
+    doc["validity"] = {"flow_m3h": [600.0 * 20.0, 600.0 * 90.0],
+                       "opening_range_mm": [200.0, 1600.0], "level_range_mm": [940.0, 3720.0],
+                       "sample_period_s": 60.0, "level_noise_sd_mm": 3.0}  # fmt: skip
+    path = tmp_path / "fopdt_field.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    return path
+
+
+def test_the_loop_of_a_field_model_is_its_own(tmp_path, capsys):
+    """A gate whose validity does not hold the flume demo's operating point (40 m³/h, 25 mm)
+    gets a loop sized from its model file: its sample period, the middle of its discharge
+    range, set-point steps of a tenth of its level band inside that band, and a run of six
+    MPC horizons (hours for an hour-long pool) instead of the flume's 30 minutes of 1.2 s
+    steps at 40 m³/h. The bundled flume model keeps the flume demo's loop. The PI closes the
+    loop: at the end of each set-point segment the level is within the settle band (three
+    gauge SDs) of the set-point."""
+    from gatetwin.fmu.controller_settings import demo_minutes, demo_settings
+
+    assert demo_settings(read_model_file(MODEL)) == DemoSettings()
+    model = read_model_file(_field_fopdt(tmp_path))
+    s = demo_settings(model)
+    band = (940.0, 3720.0)
+    assert s.pi.sample_period_s == 60.0 and 12000.0 <= s.flow_m3h <= 54000.0
+    assert 200.0 <= s.opening_mm <= 1600.0 and s.setpoint_step_mm == 0.1 * (band[1] - band[0])
+    assert s.loop.settle_band_mm == 9.0 and demo_minutes(s) > 60.0
+    out = tmp_path / "loop.ssp"
+    assert main(["ssp", str(_field_fopdt(tmp_path)), "--out", str(out)]) == 0
+    capsys.readouterr()
+    run = simulate_ssp(out)
+    assert np.allclose(np.diff(run.time_s), 60.0)
+    assert run.time_s[-1] + 60.0 == pytest.approx(demo_minutes(s) * 60.0)
+    setpoint = run.columns["controller.setpoint_mm"]
+    level = run.columns["controller.level_3F_mm"]
+    assert band[0] <= setpoint.min() < setpoint.max() <= band[1]
+    ends = np.flatnonzero(np.diff(setpoint) != 0.0).tolist() + [setpoint.size - 1]
+    assert len(ends) == 4
+    for k in ends:
+        assert abs(level[k] - setpoint[k]) <= s.loop.settle_band_mm, (k, level[k], setpoint[k])

@@ -370,12 +370,15 @@ def _add_mpc_demo_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", metavar="OUT.json", required=True, help="metrics (JSON)")
     parser.add_argument("--plots", metavar="DIR", required=True, help="one PNG per scenario")
     parser.add_argument(
-        "--minutes", type=float, default=30.0, help="simulated minutes per scenario (default 30)"
-    )
+        "--minutes", type=float, default=None,
+        help="simulated minutes per scenario (default 30, or six spans of the MPC's horizon "
+        "where longer: a pool that settles in hours)",
+    )  # fmt: skip
     parser.add_argument(
         "--model", metavar="MODEL.json",
         help="FOPDT model file to control (default: the 3F schedule identified from "
-        "the bundled records)",
+        "the bundled records); a gate whose validity does not hold the flume demo's operating "
+        "point gets scenarios, limits and sample period from its own model file",
     )  # fmt: skip
 
 
@@ -391,8 +394,19 @@ def _run_mpc_demo(args: argparse.Namespace) -> int:
         from gatetwin.plants.swmm_loop import mpc_demo_inputs
 
         extra["settings"], extra["core_factory"] = mpc_demo_inputs(plant, args.swmm_plant)
+    elif args.model is not None:
+        from gatetwin.fmu.controller_settings import demo_settings
+        from gatetwin.modelfile import read_model_file
+
+        extra["settings"] = demo_settings(read_model_file(args.model))
+    minutes = args.minutes
+    if minutes is None:
+        from gatetwin.fmu.controller_settings import demo_minutes
+        from gatetwin.mpc.demo import DemoSettings
+
+        minutes = demo_minutes(extra.get("settings") or DemoSettings())
     result = run_mpc_demo(
-        plant, plant_kind=args.plant, minutes=args.minutes,
+        plant, plant_kind=args.plant, minutes=minutes,
         out_plots_dir=args.plots, progress=print_to_stderr, **extra,
     )  # fmt: skip
     _write_json(args.json, result)

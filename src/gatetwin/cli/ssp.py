@@ -38,7 +38,8 @@ def add_ssp_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument(
         "--minutes", type=float,
-        help="length of the demo's setpoint_steps scenario, simulated minutes (default 30)",
+        help="length of the demo's setpoint_steps scenario, simulated minutes (default 30, "
+        "or six spans of the MPC's horizon where longer: a pool that settles in hours)",
     )  # fmt: skip
     parser.add_argument(
         "--observe", metavar="RECORD.csv",
@@ -58,8 +59,9 @@ LOOP_OPTIONS = ("controller", "horizon", "observer", "minutes")
 
 def run_ssp(args: argparse.Namespace) -> int:
     from gatetwin.fmu.controller import check_controller_kind
+    from gatetwin.fmu.controller_settings import demo_minutes, demo_settings
     from gatetwin.modelfile import read_model_file
-    from gatetwin.mpc.demo import DemoSettings, demo_scenarios
+    from gatetwin.mpc.demo import demo_scenarios
     from gatetwin.ssp import write_ssp
 
     if args.observe is not None:
@@ -68,15 +70,16 @@ def run_ssp(args: argparse.Namespace) -> int:
         raise GatetwinError("--gauge applies to --observe")
     controller = args.controller or "pi"
     check_controller_kind(controller)
-    settings = DemoSettings()
-    if args.horizon is not None:
-        if controller != "mpc":
-            raise GatetwinError("--horizon applies to --controller mpc")
-        settings = replace(settings, mpc=replace(settings.mpc, horizon=args.horizon))
+    if args.horizon is not None and controller != "mpc":
+        raise GatetwinError("--horizon applies to --controller mpc")
     model = read_model_file(args.model)
+    settings = demo_settings(model)
+    if args.horizon is not None:
+        settings = replace(settings, mpc=replace(settings.mpc, horizon=args.horizon))
     check_writable(args.out)
     try:
-        scenario = demo_scenarios(30.0 if args.minutes is None else args.minutes, settings)[0]
+        minutes = demo_minutes(settings) if args.minutes is None else args.minutes
+        scenario = demo_scenarios(minutes, settings)[0]
     except GatetwinError as exc:
         raise GatetwinError(f"--minutes: {exc}") from None
     path = write_ssp(model, args.out, controller=controller, scenario=scenario,

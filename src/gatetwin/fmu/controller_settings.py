@@ -66,14 +66,20 @@ from gatetwin.plant.model import (
 
 __all__ = [
     "BISECTION_STEPS",
+    "DEMO_HORIZON_SPANS",
+    "DEMO_MINUTES",
     "DISTURBANCE_SHARE",
     "GAIN_FLOOR",
     "HORIZON_MAX",
     "HORIZON_MIN",
     "LEGACY_SAMPLE_PERIOD_S",
     "LINEARISATION_KNOTS",
+    "SETPOINT_STEP_SHARE",
     "SETTLING_TIME_CONSTANTS",
+    "WIDE_FLOW_STEP_SHARE",
     "controller_plant",
+    "demo_minutes",
+    "demo_settings",
     "derived_settings",
     "horizon",
     "level_band_mm",
@@ -272,6 +278,70 @@ def observer_settings(noise_sd_mm: float, opening_mm: float, time_constant_s: fl
     walk = DISTURBANCE_SHARE * opening_mm * math.sqrt(ts / max(time_constant_s, ts))
     return ObserverSettings(measurement_sd_mm=noise_sd_mm, level_sd_mm=noise_sd_mm,
                             disturbance_sd_mm=max(walk, 1e-6))  # fmt: skip
+
+
+#: The demo's set-point steps as a share of the model's level band (the flume's 20 mm steps are
+#: 7 % of its 100-360 mm band).
+SETPOINT_STEP_SHARE = 0.1
+#: The wide-range scenario's discharge step as a share of its discharge (the flume's 30 m³/h
+#: at 50 m³/h is 0.6; a field gate's range is narrower relative to its discharge).
+WIDE_FLOW_STEP_SHARE = 0.3
+
+
+def demo_settings(model: ModelFile) -> Any:
+    """The closed loop's :class:`~gatetwin.mpc.demo.DemoSettings` for ``model``'s gate.
+
+    The flume demo's (``DemoSettings()``) where the model's validity holds their operating
+    point (discharge and opening), so the bundled models keep their published loop. Any
+    other gate gets its own: the operating point, limits, sample period, horizon and
+    observer of :func:`derived_settings` (those ``export-controller`` builds with), set-point
+    steps of :data:`SETPOINT_STEP_SHARE` of its level band, the inflow step up to the top of
+    its discharge range, the wide-range scenario between the band's quarter points with
+    discharge steps of :data:`WIDE_FLOW_STEP_SHARE`, gauge noise of the records' level noise
+    (white at the sample period) and a settle band of three times that noise. A model file
+    with no level range keeps the flume demo's steps at its own operating point.
+    """
+    from gatetwin.mpc.demo import DemoSettings
+    from gatetwin.mpc.loop import LoopSettings
+    from gatetwin.mpc.plants import MeasurementNoise
+
+    demo = DemoSettings()
+    box = validity_envelope(model.content)
+    q_lo, q_hi = box.get("flow_m3h", (-math.inf, math.inf))
+    e_lo, e_hi = box.get("opening_mm", (-math.inf, math.inf))
+    if q_lo <= demo.flow_m3h <= q_hi and e_lo <= demo.opening_mm <= e_hi:
+        return demo
+    s = derived_settings(model, controller_plant(model))
+    band = s.mpc.level_band_mm or box.get("level_mm")
+    if band is None:
+        return s  # no level range to size the steps by: the flume demo's steps
+    band_lo, band_hi = band
+    width = band_hi - band_lo
+    ts = s.pi.sample_period_s
+    sd = float(model.content.get("validity", {}).get("level_noise_sd_mm") or demo.noise.sd_mm)
+    return replace(
+        s, setpoint_step_mm=SETPOINT_STEP_SHARE * width,
+        inflow_step_to_m3h=max(q_hi, s.flow_m3h) if math.isfinite(q_hi) else s.flow_m3h,
+        wide_flow_m3h=s.flow_m3h, wide_flow_step_m3h=WIDE_FLOW_STEP_SHARE * s.flow_m3h,
+        wide_levels_mm=(band_lo + 0.25 * width, band_hi - 0.25 * width),
+        noise=MeasurementNoise(sd_mm=sd, correlation_s=ts / 10.0, resolution_mm=0.1),
+        loop=LoopSettings(settle_band_mm=3.0 * sd, sample_period_s=ts),
+    )  # fmt: skip
+
+
+#: The demo's scenarios last at least this long, min (the flume's loop).
+DEMO_MINUTES = 30.0
+#: ... and at least this many spans of the MPC's horizon (which covers the plant's settling,
+#: 4 T + L): each of the set-point steps at 1/6, 1/2 and 5/6 of the run gets two.
+DEMO_HORIZON_SPANS = 6.0
+
+
+def demo_minutes(settings: Any) -> float:
+    """How long the demo's scenarios run for ``settings`` (:func:`demo_settings`'), min:
+    :data:`DEMO_MINUTES`, or :data:`DEMO_HORIZON_SPANS` spans of the MPC's horizon where
+    longer (a pool that settles in hours runs for hours)."""
+    span_s = settings.mpc.horizon * settings.mpc.sample_period_s
+    return max(DEMO_MINUTES, DEMO_HORIZON_SPANS * span_s / 60.0)
 
 
 def derived_settings(model: ModelFile, plant: FopdtPlant,
