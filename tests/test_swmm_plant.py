@@ -291,3 +291,24 @@ def test_the_shipped_asce_canal_is_steady_near_its_target_depth() -> None:
         assert plant.gate_flow_m3h() == pytest.approx(0.7 * 3600.0, rel=0.01)
     finally:
         plant.close()
+
+
+@pytest.mark.parametrize("sample_period_s", [1.0, 10.0, 60.0, 300.0])
+def test_each_step_test_holds_the_step_methods_window_at_any_sample_period(
+    sample_period_s: float,
+) -> None:
+    """The reader refuses a step record with fewer than STEP_WINDOW_SAMPLES valid hold samples
+    before or after its step; a design sized in seconds from the pool's time constant alone
+    gave a 60 s logger on a 545 s pool 11 of them. Each step schedule now holds the window
+    (plus the first sample, logged before the hold is steady) on both sides."""
+    from gatetwin.plants.swmm_designs import Base, step_schedules
+    from gatetwin.plants.swmm_experiments import StepResponse
+    from gatetwin.records.segments import STEP_WINDOW_SAMPLES
+
+    response = StepResponse(gain_mm_per_mm=-3.6, time_constant_s=545.0, dead_time_s=0.2,
+                            step_mm=24.0)  # fmt: skip
+    base = Base(200.0, 2880.0, response, sample_period_s, 5.0)
+    for sch in step_schedules(base):
+        (_, _), (step_s, _) = sch.opening_mm
+        assert step_s / sample_period_s >= STEP_WINDOW_SAMPLES + 1, sch.name
+        assert (sch.duration_s - step_s) / sample_period_s >= STEP_WINDOW_SAMPLES + 1, sch.name

@@ -29,6 +29,7 @@ from gatetwin.plants.swmm_experiments import (
     run_schedule,
     sidecar,
 )
+from gatetwin.records.segments import STEP_WINDOW_SAMPLES
 
 __all__ = [
     "Base",
@@ -65,9 +66,13 @@ class Base:
 
 
 def step_schedules(b: Base) -> list[Schedule]:
-    """Step tests on the operating line (opening ∝ flow), four fit and one held out."""
-    pre = b.whole(max(b.response.time_constant_s, 5 * b.sample_period_s))
-    post = b.whole(5 * b.settle_s)
+    """Step tests on the operating line (opening ∝ flow), four fit and one held out; each
+    hold at least the step method's window of samples long (a slow logger on a quick pool:
+    at 60 s, a 1400 s time constant is 23 samples, and the reader refuses a step record
+    with fewer than 40 before its step)."""
+    window = (STEP_WINDOW_SAMPLES + 2) * b.sample_period_s
+    pre = b.whole(max(b.response.time_constant_s, 5 * b.sample_period_s, window))
+    post = b.whole(max(5 * b.settle_s, window))
     out = []
     factors = [(f, "fit") for f in FIT_FLOW_FACTORS] + [(HELD_OUT_FLOW_FACTOR, "held_out")]
     for f, role in factors:
