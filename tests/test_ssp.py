@@ -612,3 +612,8 @@ def test_the_loop_of_a_field_model_is_its_own(tmp_path, capsys):
     assert len(ends) == 4
     for k in ends:
         assert abs(level[k] - setpoint[k]) <= s.loop.settle_band_mm, (k, level[k], setpoint[k])
+    # with the observer: it samples at the records' period too, so the loop runs
+    watched = tmp_path / "watched.ssp"
+    assert main(["ssp", str(_field_fopdt(tmp_path)), "--observer", "--out", str(watched)]) == 0
+    capsys.readouterr()
+    assert np.allclose(np.diff(simulate_ssp(watched).time_s), 60.0)

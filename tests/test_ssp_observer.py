@@ -225,9 +225,10 @@ def _refused(argv: list[str], tmp_path: Path, capsys) -> str:
 def test_what_the_observer_cannot_take_is_refused_in_one_line_without_output(
     tmp_path, capsys, monkeypatch
 ):
-    """A record without the gauge, with an empty level or discharge (``observe`` refuses
-    both), too long for simulate-ssp or for the scenario FMU; a model the observer does not
-    cover, another gauge, the loop's options: one line, exit 2, no package."""
+    """A record without the gauge, with an empty level (``observe`` refuses it) or, made in
+    memory, discharge, too long for simulate-ssp or for the scenario FMU; a model the
+    observer does not cover, another gauge, the loop's options: one line, exit 2, no
+    package."""
     import gatetwin.fmu.signal_source as signal_source
     import gatetwin.ssp.observed_record as observed_record
 
@@ -263,8 +264,8 @@ def test_what_the_observer_cannot_take_is_refused_in_one_line_without_output(
     monkeypatch.setattr(signal_source, "MAX_KNOTS", 100)
     line = _refused([model, "--observe", str(RECORD), effects], tmp_path, capsys)
     assert "level_3F_mm changes at" in line and "at most 100 knots a signal" in line
-    # the reader refuses an empty or negative discharge in a CSV; a record made in memory
-    # meets the same check as the level
+    # the reader holds an empty discharge cell of a CSV at the last logged one and refuses a
+    # negative one; a record made in memory meets the same check as the level
     record = read_record(RECORD)
     flow = np.array(record.flow_m3h)
     flow[7] = np.nan
@@ -275,15 +276,15 @@ def test_what_the_observer_cannot_take_is_refused_in_one_line_without_output(
     assert not (tmp_path / "m.ssp").exists()
 
 
-def _every(tmp_path: Path, k: int) -> Path:
+def _every(tmp_path: Path, k: int, source: Path = RECORD) -> Path:
     """The record with one data line in ``k`` kept, its sidecar's sample period ``k`` times
     the record's (a free test): a slower logger."""
     import json
 
-    lines = RECORD.read_text(encoding="utf-8").splitlines()
-    out = tmp_path / f"every{k}.csv"
+    lines = source.read_text(encoding="utf-8").splitlines()
+    out = tmp_path / f"{source.stem}_every{k}.csv"
     out.write_text("\n".join([lines[0], *lines[1::k]]) + "\n", encoding="utf-8")
-    meta = json.loads(RECORD.with_suffix(".json").read_text(encoding="utf-8"))
+    meta = json.loads(source.with_suffix(".json").read_text(encoding="utf-8"))
     meta["sample_period_s"] = k * meta["sample_period_s"]
     meta["test"] = "free"  # too few samples left for a PRBS test's checks
     out.with_suffix(".json").write_text(json.dumps(meta), encoding="utf-8")
@@ -327,6 +328,30 @@ def test_the_observer_samples_at_the_records_period(tmp_path, capsys):
     # not the 1.2 s observer on the same samples: its prediction spans another time
     fast = OnlineObserver(plant).run(*inputs)
     assert np.max(np.abs(fast["predicted_level_mm"] - python["predicted_level_mm"])) > 1.0
+
+
+def test_observes_gauge_drift_rule_runs_at_the_records_period(tmp_path, capsys):
+    """``observe --reference-gauges`` on a record logged every 4.8 s (Erandom60, one sample in
+    four): the drift rule's slope is per second of the record (its window spans 400 samples
+    of 4.8 s), as the rule run at that period gives it, to the CSV's 10 significant digits
+    (it was the 1.2 s rule's, four times too steep)."""
+    from gatetwin.mpc.gauge_drift import GaugeDriftMonitor
+
+    slow = _every(tmp_path, 4, bundled_records_dir() / "Erandom60.csv")
+    est = tmp_path / "drift.csv"
+    assert main(["observe", str(MODEL), str(slow), "--gauge", GAUGE, "--without-effects",
+                 "--reference-gauges", "2E", "--out", str(est)]) == 0  # fmt: skip
+    capsys.readouterr()
+    record = read_record(slow)
+    rule = GaugeDriftMonitor(sample_period_s=4.8).run(
+        measured_inputs(record, GAUGE)[0], [measured_inputs(record, "2E")[0]]
+    )
+    got = np.genfromtxt(est, delimiter=",", names=True)["gauge_slope_mm_per_s"]
+    expected = rule["gauge_slope_mm_per_s"]
+    full = np.isfinite(expected)  # NaN until the window is full
+    assert np.array_equal(np.isfinite(got), full) and 0 < full.sum() < full.size
+    assert np.ptp(expected[full]) > 0.0
+    assert np.all(np.abs(got - expected)[full] <= 1e-12 + PRINTED_RTOL * np.abs(expected[full]))
 
 
 def test_export_observer_samples_at_the_model_files_period(tmp_path, capsys):

@@ -79,7 +79,8 @@ class Instance:
         self.exitInitializationMode()
 
     def close(self) -> None:
-        """Terminate (skipped where a refused call left the instance in error) and free."""
+        """Terminate (its refusal ignored: an instance a refused call left in error cannot
+        terminate) and free."""
         from fmpy.fmi1 import FMICallException
 
         with contextlib.suppress(FMICallException):

@@ -371,8 +371,8 @@ def _add_mpc_demo_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plots", metavar="DIR", required=True, help="one PNG per scenario")
     parser.add_argument(
         "--minutes", type=float, default=None,
-        help="simulated minutes per scenario (default 30, or six spans of the MPC's horizon "
-        "where longer: a pool that settles in hours)",
+        help="simulated minutes per scenario (default 30; with --model, six spans of the MPC's "
+        "horizon where longer: a pool that settles in hours)",
     )  # fmt: skip
     parser.add_argument(
         "--model", metavar="MODEL.json",
@@ -400,11 +400,11 @@ def _run_mpc_demo(args: argparse.Namespace) -> int:
 
         extra["settings"] = demo_settings(read_model_file(args.model))
     minutes = args.minutes
-    if minutes is None:
-        from gatetwin.fmu.controller_settings import demo_minutes
-        from gatetwin.mpc.demo import DemoSettings
+    if minutes is None:  # the flume's 30 minutes, longer for a slow gate's own model
+        from gatetwin.fmu.controller_settings import DEMO_MINUTES, demo_minutes
 
-        minutes = demo_minutes(extra.get("settings") or DemoSettings())
+        sized = args.model is not None and args.plant != "swmm"
+        minutes = demo_minutes(extra["settings"]) if sized else DEMO_MINUTES
     result = run_mpc_demo(
         plant, plant_kind=args.plant, minutes=minutes,
         out_plots_dir=args.plots, progress=print_to_stderr, **extra,

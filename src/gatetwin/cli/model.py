@@ -480,13 +480,14 @@ def add_observe_arguments(parser: argparse.ArgumentParser) -> None:
 def _with_gauge_rule(out: dict, record, args: argparse.Namespace) -> dict:
     """The observer's outputs with the redundancy rule of gatetwin.mpc.gauge_drift added."""
     from gatetwin.errors import ControlError
-    from gatetwin.mpc.gauge_drift import with_gauge_rule
+    from gatetwin.mpc.gauge_drift import GaugeDriftMonitor, with_gauge_rule
     from gatetwin.mpc.online import measured_inputs
 
     if args.gauge in args.reference_gauges:
         raise ControlError(f"observe: --reference-gauges lists the observed gauge {args.gauge}")
     others = [measured_inputs(record, g)[0] for g in args.reference_gauges]
-    return with_gauge_rule(out, measured_inputs(record, args.gauge)[0], others)
+    monitor = GaugeDriftMonitor(sample_period_s=float(record.sample_period_s))
+    return with_gauge_rule(out, measured_inputs(record, args.gauge)[0], others, monitor)
 
 
 def run_observe(args: argparse.Namespace) -> int:

@@ -298,8 +298,9 @@ def demo_settings(model: ModelFile) -> Any:
     steps of :data:`SETPOINT_STEP_SHARE` of its level band, the inflow step up to the top of
     its discharge range, the wide-range scenario between the band's quarter points with
     discharge steps of :data:`WIDE_FLOW_STEP_SHARE`, gauge noise of the records' level noise
-    (white at the sample period) and a settle band of three times that noise. A model file
-    with no level range keeps the flume demo's steps at its own operating point.
+    (white at the sample period) and a settle band of three times that noise, all sized
+    from the validity's level range. A model file with none keeps the flume demo's steps
+    and scoring at its own operating point and sample period.
     """
     from gatetwin.mpc.demo import DemoSettings
     from gatetwin.mpc.loop import LoopSettings
@@ -312,12 +313,12 @@ def demo_settings(model: ModelFile) -> Any:
     if q_lo <= demo.flow_m3h <= q_hi and e_lo <= demo.opening_mm <= e_hi:
         return demo
     s = derived_settings(model, controller_plant(model))
-    band = s.mpc.level_band_mm or box.get("level_mm")
-    if band is None:
-        return s  # no level range to size the steps by: the flume demo's steps
+    ts = s.pi.sample_period_s
+    band = box.get("level_mm")
+    if band is None:  # no level range to size the steps by: the flume demo's steps
+        return replace(s, loop=replace(s.loop, sample_period_s=ts))
     band_lo, band_hi = band
     width = band_hi - band_lo
-    ts = s.pi.sample_period_s
     sd = float(model.content.get("validity", {}).get("level_noise_sd_mm") or demo.noise.sd_mm)
     return replace(
         s, setpoint_step_mm=SETPOINT_STEP_SHARE * width,

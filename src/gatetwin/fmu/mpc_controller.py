@@ -136,7 +136,8 @@ def _load(model_or_path: Any) -> FopdtPlant:
     if plant.effects:
         kinds = ", ".join(e["kind"] for e in plant.effects)
         raise ExportError(f"mpc controller FMU: effect blocks are not covered (plant has {kinds}); "
-                          "without_effects=True (--without-effects) drops them")  # fmt: skip
+                          "export_controller(..., without_effects=True) and "
+                          "export-controller --without-effects drop them")  # fmt: skip
     return plant
 
 

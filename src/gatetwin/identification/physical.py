@@ -16,11 +16,12 @@ Stages, each on the data that determines its parameters, with joint refinements:
 4. **Joint**: the law's and the storage's parameters on the stacked residuals of 1 and 3,
    each source weighted by the inverse of its residual RMS after stage 3 (its noise level),
    with standard errors from the Jacobian.
-5. **Tail pool** (:func:`_fit_tail`): a submerged gate discharges into a pool of its own,
-   whose depth lowers the head and answers on its own, slower time scale — an upstream gauge
-   alone shows it as a second mode. Its four parameters are fitted jointly with the core law
-   and the storage, from a pool half as deep as the water above the gate with an orifice
-   below (the next check) and the core law refitted against that tailwater; the pool replaces
+5. **Tail pool** (``physical_hydraulics._fit_tail``): a submerged gate discharges into a
+   pool of its own, whose depth lowers the head and answers on its own, slower time scale —
+   an upstream gauge alone shows it as a second mode. Its four parameters are fitted
+   jointly with the core law and the storage, from a pool half as deep as the water above
+   the gate with an orifice below (the next check) and the core law refitted against that
+   tailwater; the pool replaces
    the free gate when it is physical and fits the weighted residuals better with no more
    parameters, or an F-test of its extra parameters rejects the free gate.
 6. **Seiche** (period, decay time, amplitude per mm of gate move: the pool's oscillation that
@@ -36,7 +37,8 @@ gauge's floor in :mod:`gatetwin.identification.physical_hydraulics`, the seiche 
 :mod:`gatetwin.identification.physical_seiche`, and the residuals and least squares they share in
 :mod:`gatetwin.identification.physical_residuals`. Their public names are importable from here too.
 
-The simulator here is the kernel compiled by numba (:func:`kernel_simulator`): the same
+The simulator of the fits is the kernel compiled by numba
+(:func:`gatetwin.identification.physical_residuals.kernel_simulator`): the same
 arithmetic as every other rendering, stepping as :class:`gatetwin.plant.physical.
 PhysicalSimulator` does (tests hold the two equal).
 
@@ -56,8 +58,8 @@ states each value and where it came from):
 * ``max_substep_s``: half the sample period, or a tenth of the shortest small-signal time
   constant of the starting model at the steady points, whichever is shorter.
 
-The storage area starts from the scan of :func:`_storage_start` (time constants from one sample
-period to the longest record), the actuator from its moves.
+The storage area starts from the scan of ``physical_hydraulics._storage_start`` (time
+constants from one sample period to the longest record), the actuator from its moves.
 """
 
 from __future__ import annotations

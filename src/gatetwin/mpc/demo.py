@@ -359,7 +359,7 @@ def run_mpc_demo(
         The plant in the loop: the exported C FMU through fmpy, the virtual flume, the
         Python reference simulation, or an EPA SWMM model (made by ``core_factory``).
     minutes : float
-        Simulated minutes per scenario (control period 1.2 s), at least 2.
+        Simulated minutes per scenario (at the settings' control periods), at least 2.
     out_plots_dir : path, optional
         Where to write ``<scenario>.png``.
     settings : DemoSettings, optional

@@ -276,12 +276,15 @@ OUTPUTS = tuple(f.name for f in fields(OnlineEstimate))
 
 def default_horizon_s(sample_period_s: float) -> float:
     """The default forecast horizon at ``sample_period_s``, s: :data:`DEFAULT_HORIZON_S` where
-    it is a whole number of samples, else the nearest whole number of them (at least one)."""
+    it is a whole number of samples, else the nearest whole number of them (halves up; at
+    least one). The observer's other windows (:data:`SCALE_WINDOW_SAMPLES`, the run of the
+    fast rule, the gauge-drift window) count samples whatever the period."""
     try:
         forecast_samples(DEFAULT_HORIZON_S, sample_period_s)
         return DEFAULT_HORIZON_S
     except ControlError:
-        return max(1, round(DEFAULT_HORIZON_S / sample_period_s)) * float(sample_period_s)
+        samples = max(1, math.floor(DEFAULT_HORIZON_S / sample_period_s + 0.5))
+        return samples * float(sample_period_s)
 
 
 def forecast_samples(horizon_s: float, sample_period_s: float) -> int:

@@ -60,7 +60,7 @@ def format_record_summary(summary: dict[str, Any]) -> str:
         f"gauges   {_fmt_gauges(summary['gauges'])}",
         f"flow     {_fmt_range(summary['flow_m3h'], 'm³/h')}"
         + (
-            f" ({summary['flow_filled_samples']} empty cells held from the last logged value)"
+            f" ({summary['flow_filled_samples']} empty cells held from the logged ones)"
             if summary.get("flow_filled_samples")
             else ""
         ),  # fmt: skip

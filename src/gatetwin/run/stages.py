@@ -337,7 +337,7 @@ def closed_loop_fmu_task(job: tuple[str, str, dict[str, Any]]) -> bytes:
             options = dict(options)
             export_controller(model, options.pop("controller"), out, **options)
         else:
-            export_observer(model.plant, out, **options)
+            export_observer(model, out, **options)
         return out.read_bytes()
 
 

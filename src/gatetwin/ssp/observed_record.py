@@ -28,8 +28,10 @@ engine gives the observer's estimates of ``observe`` over the record, one per sa
 
 Like ``observe``, the observer takes the record's rows as consecutive samples of ``T``: the
 time stamps' jitter is not replayed (the run's time is ``i·T``). A record which holds a
-logging gap (after which the run's time would no longer be the record's), an empty level or
-discharge (``observe`` refuses both, the observer has no rule for a missing sample), or more
+logging gap (after which the run's time would no longer be the record's), an empty level
+(``observe`` refuses it too, the observer has no rule for a missing sample; a file's empty
+discharge cells hold the last logged one when it is read, one left empty in a record made in
+memory is refused the same way), or more
 samples than :data:`~gatetwin.ssp.master.MAX_STEPS` or than the scenario FMU holds
 (:data:`~gatetwin.fmu.signal_source.MAX_KNOTS` knots a signal) is refused before anything is
 built.
@@ -59,9 +61,10 @@ if TYPE_CHECKING:
     from gatetwin.plant.model import Plant
     from gatetwin.records import Record
 
-#: Relative difference allowed between a record's nominal sample period and the observer's:
-#: a record without a sidecar gets the median of its time steps, which the logger's jitter
-#: (±0.02 s on 1.2 s in the bundled records) may move off 1.2 s by a millisecond.
+#: Relative difference allowed between a record's nominal sample period and an observer's
+#: built at another (:func:`check_sample_period`; the package builds its observer at the
+#: record's own): a record without a sidecar gets the median of its time steps, which the
+#: logger's jitter (±0.02 s on 1.2 s in the bundled records) may move by a millisecond.
 PERIOD_RTOL = 0.01
 #: Name of the system in the package, and its parameter set's file.
 SYSTEM_NAME = "observed_record"
@@ -75,9 +78,9 @@ def record_tables(record: Record, gauge: str, sample_period_s: float) -> tuple[T
     Raises
     ------
     RecordError
-        No level at ``gauge``, no opening logged, an empty level or discharge (named by its
-        time), a discharge outside the observer's range, more samples than a run takes or
-        more knots than the scenario FMU holds.
+        No level at ``gauge``, no opening logged, an empty level or (in a record made in
+        memory) discharge (named by its time), a discharge outside the observer's range,
+        more samples than a run takes or more knots than the scenario FMU holds.
     """
     from gatetwin.fmu.signal_source import MAX_KNOTS, TableSignal
     from gatetwin.mpc.online import measured_inputs
@@ -129,12 +132,13 @@ def _check_samples(record: Record, level: np.ndarray, flow: np.ndarray, gauge: s
             )
 
 
-def check_sample_period(record: Record, sample_period_s: float) -> None:
-    """:class:`RecordError` unless the record's nominal sample period is the observer's
-    (within :data:`PERIOD_RTOL`) and no logging gap (more than
+def check_sample_period(record: Record, sample_period_s: float | None = None) -> None:
+    """:class:`RecordError` unless no logging gap (more than
     :data:`~gatetwin.records.segments.GAP_FACTOR` nominal periods between two samples) lies
-    in it."""
+    in the record and, for an observer built at another period (``sample_period_s``), the
+    record's nominal period is that one within :data:`PERIOD_RTOL`."""
     period = float(record.sample_period_s)
+    sample_period_s = period if sample_period_s is None else sample_period_s
     if not abs(period - sample_period_s) <= PERIOD_RTOL * sample_period_s:
         raise RecordError(f"{record.path or 'record'}: sample period {period:.6g} s; the "
                           f"observer samples every {sample_period_s:g} s")  # fmt: skip
@@ -242,7 +246,7 @@ def write_observer_ssp(
         raise ExportError(f"gauge {gauge}: the model {model.name} observes gauge {plant.gauge}")
     rec = record if hasattr(record, "levels_mm") else read_record(record)
     period = float(rec.sample_period_s)
-    check_sample_period(rec, period)
+    check_sample_period(rec)
     signals = record_tables(rec, gauge, period)
     name = Path(rec.path).stem if rec.path else "record"
     facts = {"model": model.name, "record_sha256": rec.sha256}

@@ -489,10 +489,12 @@ def _pack(work: Path, package: Path, parts: _Parts) -> None:
                               settings=parts.settings.mpc, model_name=f"{model.name}_mpc",
                               start_opening_mm=parts.start_opening_mm)  # fmt: skip
     if parts.observer:
+        from gatetwin.fmu.controller_settings import sample_period_s
         from gatetwin.fmu.observer_fmu import export_observer
 
         export_observer(parts.covered, package / OBSERVER_SOURCE,
-                        model_name=f"{model.name}_observer")  # fmt: skip
+                        model_name=f"{model.name}_observer",
+                        sample_period_s=sample_period_s(model))  # fmt: skip
     (work / "scenario").mkdir()
     build_signal_source(parts.scenario, work / "scenario", package / SCENARIO_SOURCE)
 
