@@ -4,20 +4,25 @@
 messages (instead of fmpy's default, which prints them) and returns an :class:`Instance`
 with the FMI 2.0 verbs whatever the version (for FMI 3.0: ``setupExperiment`` keeps the
 start time for ``fmi3EnterInitializationMode``, get/set Real are get/set Float64, ``doStep``
-asks for no early return). The validation harness, the SSP master, the observer's reference
-run and the closed loop's FMU plant and controller all open FMUs here.
+asks for no early return). :class:`UnpackedFmu` is an FMU file unpacked into a folder of
+its own, its model description read, its one instance opened, closed and the folder deleted
+there. The validation harness, the SSP master, the observer's reference run and the closed
+loop's FMU plant and controller all open FMUs here.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
+import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from gatetwin.errors import GatetwinError
 
-__all__ = ["Instance", "open_instance"]
+__all__ = ["Instance", "UnpackedFmu", "open_instance"]
 
 
 @dataclass(eq=False)
@@ -133,6 +138,69 @@ def open_instance(md: Any, unzip_dir: str, instance_name: str, *, what: str,
         raise error(f"{what}: {call} failed" + (f"; FMU log: {detail}" if detail else "")
                     ) from None  # fmt: skip
     return instance
+
+
+class UnpackedFmu:
+    """The FMU file ``path`` unpacked into a temporary folder of its own, with its model
+    description (``md``), its variables and their value references by name (``variables``,
+    ``vr``) and at most one open :class:`Instance` (``instance``).
+
+    :meth:`open` (re)instantiates it, :meth:`close` terminates and frees the instance,
+    :meth:`cleanup` also deletes the folder.
+
+    Raises
+    ------
+    GatetwinError
+        (or ``error``) The file is not a zip archive, would unpack to more than
+        :data:`gatetwin.records.limits.DEFAULT_MAX_BYTES`, or holds no model description fmpy
+        reads; nothing is left unpacked.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], *,
+                 error: type[GatetwinError] = GatetwinError) -> None:  # fmt: skip
+        import zipfile
+
+        from fmpy import extract, read_model_description
+
+        from gatetwin.records.limits import check_unpacked_size
+
+        self.path = Path(path)
+        self.error = error
+        self.instance: Instance | None = None
+        try:
+            with zipfile.ZipFile(self.path) as archive:
+                check_unpacked_size(archive, str(self.path), error)
+        except (OSError, zipfile.BadZipFile) as exc:
+            raise error(f"{self.path} is not an FMU: not a readable zip archive ({exc})") from None
+        self.folder = extract(str(self.path))
+        try:
+            self.md = read_model_description(self.folder)
+        except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions on bad FMUs
+            shutil.rmtree(self.folder, ignore_errors=True)
+            raise error(f"{self.path} is not an FMU: no model description fmpy reads "
+                        f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
+        self.variables = {v.name: v for v in self.md.modelVariables}
+        self.vr = {name: v.valueReference for name, v in self.variables.items()}
+
+    def open(self, instance_name: str, *, logging_on: bool = False) -> Instance:
+        """Close the instance open, if any, and instantiate anew (:func:`open_instance`)."""
+        self.close()
+        self.instance = open_instance(self.md, self.folder, instance_name, what=self.path.name,
+                                      error=self.error, logging_on=logging_on)  # fmt: skip
+        return self.instance
+
+    def close(self) -> None:
+        """Terminate and free the open instance (:meth:`Instance.close`), if any."""
+        if self.instance is not None:
+            instance, self.instance = self.instance, None
+            instance.close()
+
+    def cleanup(self) -> None:
+        """:meth:`close`, and delete the unpacked folder."""
+        try:
+            self.close()
+        finally:
+            shutil.rmtree(self.folder, ignore_errors=True)
 
 
 def _fmi2_callbacks(instance: Instance) -> Any:

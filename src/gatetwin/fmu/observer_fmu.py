@@ -55,7 +55,6 @@ import json
 import math
 import os
 import re
-import shutil
 from pathlib import Path
 from typing import Any
 
@@ -555,41 +554,35 @@ def run_observer_fmu(
     parameters by name.
     """
     import numpy as np
-    from fmpy import extract, read_model_description
 
-    from gatetwin.fmi_host import open_instance
+    from gatetwin.fmi_host import UnpackedFmu
     from gatetwin.mpc.online import OUTPUTS
 
     refs = {output_name(g): np.asarray(v, dtype=float)
             for g, v in (reference_levels_mm or {}).items()}  # fmt: skip
-    md = read_model_description(str(fmu_path))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    level_vr = next(v.valueReference for v in md.modelVariables
-                    if v.causality == "input" and v.name.startswith("level_")
-                    and v.name not in refs)  # fmt: skip
-    inputs = [level_vr, vr["opening_mm"], vr["flow_m3h"], *(vr[n] for n in refs)]
-    columns = np.column_stack(
-        [np.asarray(v, dtype=float) for v in (level_mm, opening_mm, flow_m3h, *refs.values())]
-    )
-    unzipped = extract(str(fmu_path))
-    ts = float(md.defaultExperiment.stepSize)
-    names = [*OUTPUTS, *(n for n in ("slow_cusum", *DRIFT_RULE[:2]) if n in vr)]
-    out = np.empty((columns.shape[0], len(names)))
+    fmu = UnpackedFmu(fmu_path, error=ControlError)
     try:
-        slave = open_instance(md, unzipped, "observer", what=str(fmu_path), error=ControlError,
-                              logging_on=False)  # fmt: skip
-        try:
-            given = [([vr[name]], [value]) for name, value in (parameters or {}).items()]
-            slave.initialise(0.0, *given, (inputs, columns[0]))
-            out_vrs = [vr[n] for n in names]
-            for i in range(columns.shape[0]):
-                slave.setReal(inputs, [float(v) for v in columns[i]])
-                slave.doStep(float(i * ts), float(ts))
-                out[i] = slave.getReal(out_vrs)
-        finally:
-            slave.close()
+        vr = fmu.vr
+        level_vr = next(v.valueReference for v in fmu.md.modelVariables
+                        if v.causality == "input" and v.name.startswith("level_")
+                        and v.name not in refs)  # fmt: skip
+        inputs = [level_vr, vr["opening_mm"], vr["flow_m3h"], *(vr[n] for n in refs)]
+        columns = np.column_stack(
+            [np.asarray(v, dtype=float) for v in (level_mm, opening_mm, flow_m3h, *refs.values())]
+        )
+        ts = float(fmu.md.defaultExperiment.stepSize)
+        names = [*OUTPUTS, *(n for n in ("slow_cusum", *DRIFT_RULE[:2]) if n in vr)]
+        out = np.empty((columns.shape[0], len(names)))
+        slave = fmu.open("observer")
+        given = [([vr[name]], [value]) for name, value in (parameters or {}).items()]
+        slave.initialise(0.0, *given, (inputs, columns[0]))
+        out_vrs = [vr[n] for n in names]
+        for i in range(columns.shape[0]):
+            slave.setReal(inputs, [float(v) for v in columns[i]])
+            slave.doStep(float(i * ts), float(ts))
+            out[i] = slave.getReal(out_vrs)
     finally:
-        shutil.rmtree(unzipped, ignore_errors=True)
+        fmu.cleanup()
     return {name: out[:, k] for k, name in enumerate(names)}
 
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 import re
-import shutil
 import time
 from pathlib import Path
 from typing import Any
@@ -63,18 +62,15 @@ class FmuController:
 
     def __init__(self, fmu_path: str | Path, sample_period_s: float | None = None,
                  name: str | None = None) -> None:  # fmt: skip
-        from fmpy import extract, read_model_description
+        from gatetwin.fmi_host import UnpackedFmu
 
         self.path = Path(fmu_path)
-        self._unzipped = extract(str(self.path))
-        md = read_model_description(self._unzipped)
-        self._md = md
-        variables = {v.name: v for v in md.modelVariables}
-        self._vr = {n: v.valueReference for n, v in variables.items()}
+        self._fmu = UnpackedFmu(self.path, error=ControlError)
+        md, variables, self._vr = self._fmu.md, self._fmu.variables, self._fmu.vr
         levels = [n for n, v in variables.items() if v.causality == "input" and _LEVEL.fullmatch(n)]
         needed = {"flow_m3h", "setpoint_mm", "opening_mm", "start_opening_mm"}
         if len(levels) != 1 or not needed <= set(self._vr):
-            shutil.rmtree(self._unzipped, ignore_errors=True)
+            self._fmu.cleanup()
             raise ControlError(
                 f"{self.path.name}: not a controller FMU (expected inputs "
                 "level_<gauge>_mm, flow_m3h, setpoint_mm, output opening_mm)"
@@ -99,13 +95,7 @@ class FmuController:
         """Instantiate at rest at ``opening_mm`` with the set-point at ``level_mm``."""
         from fmpy.fmi1 import FMICallException
 
-        from gatetwin.fmi_host import open_instance
-
-        self.close()
-        slave = open_instance(self._md, self._unzipped, "gatetwin_controller",
-                              what=self.path.name, error=ControlError,
-                              logging_on=False)  # fmt: skip
-        self._slave = slave
+        slave = self._slave = self._fmu.open("gatetwin_controller")
         self.time_s = 0.0
         self.failures = 0
         self.statuses = []
@@ -151,14 +141,13 @@ class FmuController:
 
     def close(self) -> None:
         """Free the instance (terminated first unless a refused call left it in error)."""
-        if self._slave is not None:
-            self._slave.close()
-            self._slave = None
+        self._slave = None
+        self._fmu.close()
 
     def cleanup(self) -> None:
         """Close the instance and delete the extracted FMU."""
-        self.close()
-        shutil.rmtree(self._unzipped, ignore_errors=True)
+        self._slave = None
+        self._fmu.cleanup()
 
 
 def _logged(slave: Any) -> str:

@@ -185,17 +185,16 @@ class FmuCore:
     """An FMI 2.0 co-simulation FMU (inputs ``opening_mm``, ``flow_m3h``) through fmpy."""
 
     def __init__(self, fmu_path: str | Path, sample_period_s: float = SAMPLE_PERIOD_S) -> None:
-        from fmpy import extract, read_model_description
+        from gatetwin.fmi_host import UnpackedFmu
 
         self.path = Path(fmu_path)
         self.sample_period_s = sample_period_s
         self.description = f"FMU {self.path.name} (fmpy co-simulation)"
-        self._unzipped = extract(str(self.path))
-        md = read_model_description(self._unzipped)
-        self._md = md
-        self._vr = {v.name: v.valueReference for v in md.modelVariables}
-        outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+        self._fmu = UnpackedFmu(self.path, error=ControlError)
+        self._vr = self._fmu.vr
+        outputs = [n for n, v in self._fmu.variables.items() if v.causality == "output"]
         if not {"opening_mm", "flow_m3h"} <= set(self._vr) or len(outputs) != 1:
+            self._fmu.cleanup()
             raise ControlError(
                 f"{self.path.name}: expected inputs opening_mm, flow_m3h and one output"
             )
@@ -204,12 +203,7 @@ class FmuCore:
         self.time_s = 0.0
 
     def start(self, opening_mm: float, flow_m3h: float) -> float:
-        from gatetwin.fmi_host import open_instance
-
-        self.close()
-        slave = open_instance(self._md, self._unzipped, "gatetwin_mpc", what=str(self.path),
-                              error=ControlError, logging_on=False)  # fmt: skip
-        self._slave = slave
+        slave = self._slave = self._fmu.open("gatetwin_mpc")
         self.time_s = 0.0
         slave.initialise(0.0, ([self._vr["opening_mm"], self._vr["flow_m3h"]],
                                [opening_mm, flow_m3h]))  # fmt: skip
@@ -238,16 +232,13 @@ class FmuCore:
         return float(self._slave.getReal([self._out])[0])
 
     def close(self) -> None:
-        if self._slave is not None:
-            self._slave.close()
-            self._slave = None
+        self._slave = None
+        self._fmu.close()
 
     def cleanup(self) -> None:
         """Close and delete the extracted FMU."""
-        import shutil
-
-        self.close()
-        shutil.rmtree(self._unzipped, ignore_errors=True)
+        self._slave = None
+        self._fmu.cleanup()
 
 
 class FlumeCore:

@@ -221,11 +221,14 @@ class _Session:
         """The FMU's last logged message of status warning or worse ("" if none)."""
         return self.slave.last_problem()
 
-    def set_inputs(self, opening_mm: float, flow_m3h: float) -> None:
+    def inputs(self, opening_mm: float, flow_m3h: float) -> tuple[list[int], list[float]]:
+        """The inputs' value references and their values in the FMU's units."""
         vrs = [self.info.value_references[name] for name in INPUTS]
         scale = self.info.scale
-        self.slave.setReal(vrs, [float(opening_mm) * scale(INPUTS[0]),
-                                 float(flow_m3h) * scale(INPUTS[1])])  # fmt: skip
+        return vrs, [float(opening_mm) * scale(INPUTS[0]), float(flow_m3h) * scale(INPUTS[1])]
+
+    def set_inputs(self, opening_mm: float, flow_m3h: float) -> None:
+        self.slave.setReal(*self.inputs(opening_mm, flow_m3h))
 
 
 def _open_session(info: FmuInfo, unzip_dir: str, where: Position | None = None) -> _Session:
@@ -273,10 +276,7 @@ def _simulate(
     where[call], where[sample], where[time_s] = INITIALISE, 0, grid.start_time_s
     out = np.empty(opening.size)
     try:
-        slave.setupExperiment(startTime=grid.start_time_s)
-        slave.enterInitializationMode()
-        session.set_inputs(opening[0], flow[0])
-        slave.exitInitializationMode()
+        slave.initialise(grid.start_time_s, session.inputs(opening[0], flow[0]))
         where[call] = GET_REAL
         out[0] = slave.getReal(vr)[0] / per_mm
         t = grid.start_time_s
