@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from gatetwin.cli import main
-from gatetwin.errors import IdentificationError
+from gatetwin.errors import IdentificationError, RecordError
 from gatetwin.fleet.district import GAUGE, district_gates
 from gatetwin.fleet.routine import (
     base_flow_m3h,
@@ -30,7 +30,7 @@ from gatetwin.flume.logger import log_run
 from gatetwin.flume.routine import RoutineSettings, local_fopdt, moves_of, routine_run
 from gatetwin.flume.simulate import run_flume, spin_up
 from gatetwin.identification.routine import RoutineIdentification, identify_routine
-from gatetwin.records import read_record, record_from_arrays
+from gatetwin.records import Record, read_record, record_from_arrays
 
 #: The brief's accuracy band on K and T (relative to the flume's truth).
 BAND = 0.10
@@ -329,3 +329,138 @@ def test_a_long_hold_is_not_segmented_again_at_every_chunk(tmp_path, monkeypatch
     # rows are scanned once more at the end
     assert len(built) <= 2 * len(record.holds) + 1
     assert len(record.holds) < 10 < n_chunks
+
+
+@pytest.fixture(scope="module")
+def quarter_day(tmp_path_factory) -> Path:
+    """A quarter-day routine history of one gate (nine holds), as CSV with its sidecar."""
+    out = tmp_path_factory.mktemp("flow")
+    settings = RoutineSettings(days=0.25, hold_s=(1800.0, 3600.0), gaps=0)
+    return write_routine_gate(district_gates(1, seed=5)[0], out, settings)
+
+
+def _without_flow(csv: Path, out: Path, empty: np.ndarray) -> Path:
+    """The CSV history as Parquet beside its sidecar, its discharge cells empty where
+    ``empty``."""
+    import pyarrow as pa
+    import pyarrow.parquet
+
+    pq = _parquet_history(csv, out)
+    table = pyarrow.parquet.read_table(pq)
+    column = table.schema.get_field_index("flow_m3h")
+    flow = pa.array(table.column(column).to_numpy(), mask=empty)
+    pyarrow.parquet.write_table(table.set_column(column, "flow_m3h", flow), pq)
+    return pq
+
+
+def _rows_held(pq: Path, monkeypatch) -> tuple[list[tuple[int, Record]], RoutineIdentification]:
+    """The chunked identification of ``pq`` in chunks of 500 rows, and each record it made
+    of the rows held, with the history row of its first sample."""
+    from gatetwin.identification import routine_chunks
+
+    built: list[tuple[int, Record]] = []
+    real = routine_chunks._record
+
+    def kept(history, rows, period_s):
+        record = real(history, rows, period_s)
+        built.append((rows.first_row, record))
+        return record
+
+    with monkeypatch.context() as patch:
+        patch.setattr(routine_chunks, "_record", kept)
+        return built, routine_chunks.identify_routine_chunked(pq, chunk_rows=500)
+
+
+def _held_as_read_whole(built: list[tuple[int, Record]], whole: Record) -> None:
+    for first, record in built:
+        rows = slice(first, first + record.n_samples)
+        assert np.array_equal(record.flow_m3h, whole.flow_m3h[rows]), first
+        assert np.array_equal(record.flow_filled, whole.flow_filled[rows]), first
+
+
+def test_rows_held_hold_the_discharge_logged_before_them(quarter_day, tmp_path,
+                                                         monkeypatch) -> None:  # fmt: skip
+    """The record format: an empty discharge cell holds the last logged discharge. Rows held
+    after earlier ones were dropped that begin with empty cells hold the last discharge the
+    dropped rows logged, as the history read whole holds it, not the next one they log."""
+    logged = read_record(quarter_day)
+    empty = np.zeros(logged.n_samples, dtype=bool)
+    for hold in logged.holds:  # where the rows held may begin
+        empty[hold.start : hold.start + 60] = True
+    pq = _without_flow(quarter_day, tmp_path, empty)
+    whole = read_record(pq, test="routine")
+    built, chunked = _rows_held(pq, monkeypatch)
+    later = [(first, r) for first, r in built if first > 0 and r.flow_filled[0]]
+    # the next discharge the rows log differs from the one logged before them
+    assert any(whole.flow_m3h[first] != r.flow_m3h[np.argmin(r.flow_filled)]
+               for first, r in later)  # fmt: skip
+    _held_as_read_whole(built, whole)
+    assert chunked.to_dict() == identify_routine(whole).to_dict()
+
+
+def test_rows_held_without_a_discharge_hold_the_one_logged_before(quarter_day, tmp_path,
+                                                                  monkeypatch) -> None:  # fmt: skip
+    """Rows held that log no discharge, after rows that did, are read holding the last one
+    logged before them, as the history read whole holds it (not refused)."""
+    pq = _parquet_history(quarter_day, tmp_path)
+    built, _ = _rows_held(pq, monkeypatch)
+    first, middle = built[len(built) // 2]
+    assert first > 0
+    empty = np.zeros(read_record(pq).n_samples, dtype=bool)
+    empty[first : first + middle.n_samples] = True
+    pq = _without_flow(quarter_day, tmp_path, empty)
+    whole = read_record(pq, test="routine")
+    rebuilt, chunked = _rows_held(pq, monkeypatch)
+    assert [(f, r.n_samples) for f, r in rebuilt] == [(f, r.n_samples) for f, r in built]
+    _held_as_read_whole(rebuilt, whole)
+    assert chunked.to_dict() == identify_routine(whole).to_dict()
+
+
+def test_a_history_without_a_discharge_is_refused_naming_its_rows(quarter_day,
+                                                                  tmp_path) -> None:  # fmt: skip
+    """A history that logs no discharge is refused in one line, read whole or in chunks; in
+    chunks, at the first rows held, which the line names."""
+    from gatetwin.identification.routine_chunks import identify_routine_chunked
+
+    empty = np.ones(read_record(quarter_day).n_samples, dtype=bool)
+    pq = _without_flow(quarter_day, tmp_path, empty)
+    with pytest.raises(RecordError, match="column 'flow_m3h': every cell is empty"):
+        read_record(pq, test="routine")
+    with pytest.raises(RecordError) as refused:
+        identify_routine_chunked(pq, chunk_rows=500)
+    assert str(refused.value) == (f"{pq}: rows 1-500 of the history: no discharge logged in "
+                                  "these rows or before them; expected m³/h")  # fmt: skip
+
+
+def test_each_chunk_as_a_record_holds_the_discharge_read_whole(quarter_day, tmp_path) -> None:
+    """Each chunk of a folder of day files carries the last discharge logged before it, and
+    as a record holds the discharge the history read whole holds: the chunk that begins a
+    day file with empty cells holds the day before's last."""
+    import pyarrow.parquet
+
+    from gatetwin.records.chunks import (
+        chunk_record,
+        history_sample_period,
+        iter_chunks,
+        open_history,
+    )
+
+    n = read_record(quarter_day).n_samples
+    empty = np.zeros(n, dtype=bool)
+    empty[n // 3 - 100 : n // 3 + 100] = True
+    pq = _without_flow(quarter_day, tmp_path, empty)
+    whole = read_record(pq, test="routine")
+    table = pyarrow.parquet.read_table(pq)
+    folder = tmp_path / "days"
+    folder.mkdir()
+    for k, start in enumerate((0, n // 3, 2 * n // 3)):
+        part = table.slice(start, n // 3 if k < 2 else None)
+        pyarrow.parquet.write_table(part, folder / f"day{k}.parquet")
+    (tmp_path / "days.json").write_text((tmp_path / "routine.json").read_text())
+    history = open_history(folder)
+    period_s = history_sample_period(history, n)
+    chunks = list(iter_chunks(history, n))  # one a day file
+    assert [c.first_row for c in chunks] == [0, n // 3, 2 * n // 3]
+    assert np.isnan(chunks[1].flow_m3h[0])
+    built = [(c.first_row, chunk_record(history, c, period_s, test="routine")) for c in chunks]
+    _held_as_read_whole(built, whole)

@@ -10,6 +10,8 @@ A move event is decided once the hold segment after its last move, and the one a
 are complete (neither can grow with the next chunk): its window is screened and fitted as
 the whole-history path does, on the same samples. Rows before the first undecided event
 are dropped; an event that spans a chunk boundary is carried over into the next record.
+The rows held carry the last discharge logged before them, which their leading empty
+discharge cells hold, as the whole history read at once holds them.
 
 Memory: one chunk, plus the undecided rows, which reach back to the start of the hold
 segment before the earliest undecided move. A gate held still for days keeps that hold's
@@ -38,8 +40,14 @@ from gatetwin.identification.routine import (
     no_window_message,
     tally_event,
 )
-from gatetwin.records import Record, record_from_arrays
-from gatetwin.records.chunks import Chunk, History, history_sample_period, iter_chunks
+from gatetwin.records import Record
+from gatetwin.records.chunks import (
+    Chunk,
+    History,
+    chunk_record,
+    history_sample_period,
+    iter_chunks,
+)
 from gatetwin.records.chunks import open_history as open_history
 from gatetwin.records.segments import RESOLUTION_MM, is_gap
 
@@ -138,21 +146,22 @@ def _concat(chunks: list[Chunk]) -> Chunk:
         np.concatenate([c.hold for c in chunks]),
         np.concatenate([c.flow_m3h for c in chunks]),
         {g: np.concatenate([c.levels_mm[g] for c in chunks]) for g in chunks[0].levels_mm},
+        chunks[0].flow_before_m3h,
     )  # fmt: skip
 
 
 def _tail(rows: Chunk, start: int) -> Chunk:
-    """Rows from ``start`` on (copies, so the dropped rows are freed)."""
+    """Rows from ``start`` on (copies, so the dropped rows are freed), with the last
+    discharge logged before them, which their leading empty discharge cells hold."""
     return Chunk(rows.first_row + start, rows.time_s[start:].copy(),
                  rows.opening_mm[start:].copy(), rows.hold[start:].copy(),
                  rows.flow_m3h[start:].copy(),
-                 {g: v[start:].copy() for g, v in rows.levels_mm.items()})  # fmt: skip
+                 {g: v[start:].copy() for g, v in rows.levels_mm.items()},
+                 rows.last_flow_m3h(start))  # fmt: skip
 
 
 def _record(history: History, rows: Chunk, period_s: float) -> Record:
-    return record_from_arrays(rows.time_s, rows.opening_mm, rows.hold, rows.flow_m3h,
-                              rows.levels_mm, test="routine", sample_period_s=period_s,
-                              metadata=history.sidecar.metadata, path=history.path)  # fmt: skip
+    return chunk_record(history, rows, period_s, test="routine")
 
 
 def _count_pairs(scan: _Scan, record: Record, first_row: int, upto: int) -> None:
@@ -245,7 +254,8 @@ def identify_routine_chunked(
     ------
     RecordError
         A chunk breaks the data-format contract (messages count samples from the start of
-        the rows held, not file rows).
+        the rows held, not file rows), or the rows held log no discharge and none was
+        logged before them (named by the history's rows).
     IdentificationError
         As :func:`~gatetwin.identification.routine.identify_routine`.
     """

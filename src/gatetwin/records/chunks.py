@@ -4,10 +4,11 @@ A *history* is one Parquet record (read ``rows`` at a time with ``iter_batches``
 folder of record files, one per day or any other span, taken in file-name order, each read
 whole in turn (CSV or Parquet). The sidecar is the record's own (``NAME.json``), for a
 folder ``FOLDER.json`` next to it, else that of the folder's first file. Each chunk's
-columns pass the reader's type checks; the values are checked when a chunk becomes a
-record (:func:`~gatetwin.records.record_from_arrays`).
+columns pass the reader's type checks; the values are checked when rows become a record
+(:func:`chunk_record`, which holds empty discharge cells from the rows before them, as
+:func:`~gatetwin.records.read_record` does for the history read whole).
 
-This module only reads: it neither segments nor identifies.
+This module reads and builds records of rows; it identifies nothing.
 """
 
 from __future__ import annotations
@@ -31,13 +32,15 @@ from gatetwin.records.columns import (
 )
 from gatetwin.records.limits import ReadLimits
 from gatetwin.records.parquet import PARQUET_SUFFIXES
-from gatetwin.records.sidecar import Sidecar, read_sidecar
+from gatetwin.records.record import Record, _array_columns, _build_record
+from gatetwin.records.sidecar import Sidecar, read_sidecar, sidecar_from_dict
 from gatetwin.records.table import read_table
 
 __all__ = [
     "HISTORY_SUFFIXES",
     "Chunk",
     "History",
+    "chunk_record",
     "history_sample_period",
     "iter_chunks",
     "open_history",
@@ -51,9 +54,11 @@ HISTORY_SUFFIXES = (".csv", *PARQUET_SUFFIXES)
 class Chunk:
     """Consecutive rows of a history: raw columns, ``hold`` from ``state``.
 
-    ``opening_mm`` is as logged (empty hold openings are still NaN); ``first_row`` is the
-    global row number (from 0) of the chunk's first row. Columns are converted to mm and
-    m³/h from the units their names carry, file by file.
+    ``opening_mm`` and ``flow_m3h`` are as logged (empty cells are still NaN);
+    ``first_row`` is the global row number (from 0) of the chunk's first row;
+    ``flow_before_m3h`` is the last discharge logged in the rows before it, m³/h (NaN:
+    none), which its empty discharge cells before its first logged one hold. Columns are
+    converted to mm and m³/h from the units their names carry, file by file.
     """
 
     first_row: int
@@ -62,10 +67,17 @@ class Chunk:
     hold: np.ndarray
     flow_m3h: np.ndarray
     levels_mm: dict[str, np.ndarray]
+    flow_before_m3h: float = np.nan
 
     @property
     def n_rows(self) -> int:
         return int(self.time_s.size)
+
+    def last_flow_m3h(self, stop: int) -> float:
+        """The last discharge logged before the chunk's row ``stop`` (from 0), in the chunk
+        or before it, m³/h; NaN if none."""
+        logged = np.flatnonzero(~np.isnan(self.flow_m3h[:stop]))
+        return float(self.flow_m3h[logged[-1]]) if logged.size else self.flow_before_m3h
 
 
 @dataclass(frozen=True)
@@ -148,9 +160,17 @@ def _parquet_chunks(path: Path, rows: int, first_row: int) -> Iterator[Chunk]:
 def iter_chunks(history: History, rows: int,
                 limits: ReadLimits | None = None) -> Iterator[Chunk]:  # fmt: skip
     """The history's rows, ``rows`` at a time from a Parquet file, a file at a time from a
-    folder (a day file is read whole)."""
+    folder (a day file is read whole), each with the last discharge logged before it."""
     if not rows >= 1:
         raise RecordError(f"{history.path}: chunk of {rows!r} rows; expected at least 1")
+    before_m3h = np.nan
+    for chunk in _file_chunks(history, rows, limits):
+        chunk = replace(chunk, flow_before_m3h=before_m3h)
+        yield chunk
+        before_m3h = chunk.last_flow_m3h(chunk.n_rows)
+
+
+def _file_chunks(history: History, rows: int, limits: ReadLimits | None) -> Iterator[Chunk]:
     first_row = 0
     for path in history.files:
         if path.suffix.lower() in PARQUET_SUFFIXES:
@@ -163,6 +183,44 @@ def iter_chunks(history: History, rows: int,
         chunk = _chunk(Origin(table.path, first_line=table.first_line), table, first_row)
         first_row += chunk.n_rows
         yield chunk
+
+
+def chunk_record(history: History, rows: Chunk, sample_period_s: float,
+                 test: str | None = None) -> Record:  # fmt: skip
+    """The record of consecutive rows of ``history``, checked and segmented as
+    :func:`~gatetwin.records.record_from_arrays` checks arrays (messages name samples from
+    ``rows``' first), with its discharge held as the history read whole holds it: empty cells
+    before the rows' first logged discharge hold ``rows.flow_before_m3h``.
+
+    Parameters
+    ----------
+    history : History
+        Where the rows come from: its path labels the record and its sidecar's contents are
+        kept on it.
+    rows : Chunk
+        The rows.
+    sample_period_s : float
+        The history's nominal sample period, s.
+    test : {"step", "prbs", "free", "routine"}, optional
+        Test type; else the sidecar's, else detected.
+
+    Raises
+    ------
+    RecordError
+        As :func:`~gatetwin.records.record_from_arrays`; rows that log no discharge, after
+        none logged before them, are refused naming the history's rows.
+    """
+    if np.isnan(rows.flow_before_m3h) and np.isnan(rows.flow_m3h).all():
+        raise RecordError(f"{history.path}: rows {rows.first_row + 1}-"
+                          f"{rows.first_row + rows.n_rows} of the history: no discharge "
+                          "logged in these rows or before them; expected m³/h")  # fmt: skip
+    origin = Origin(history.path)
+    meta = {**history.sidecar.metadata, "sample_period_s": sample_period_s}
+    columns = _array_columns(origin, rows.time_s, rows.opening_mm, rows.hold, rows.flow_m3h,
+                             rows.levels_mm)  # fmt: skip
+    columns = replace(columns, flow_before_m3h=rows.flow_before_m3h)
+    return _build_record(origin, columns, sidecar_from_dict(origin.name, meta), test, "",
+                         history.path)  # fmt: skip
 
 
 def history_sample_period(history: History, rows: int) -> float:

@@ -72,7 +72,9 @@ class Record:
         True where ``state`` is ``hold`` (actuator still), False for ``open``.
     flow_m3h : ndarray
         Inflow discharge, m³/h. An empty cell (a flow meter's dropout) holds the last logged
-        value, the first logged one before it (see ``flow_filled``).
+        value; before the first logged one, the last one logged before the record's rows
+        (a record of some rows of a history, :func:`~gatetwin.records.chunks.chunk_record`),
+        else the first logged one (see ``flow_filled``).
     levels_mm : dict[str, ndarray]
         Upstream level per gauge name (``"3F"`` for column ``level_3F_mm``), mm.
     gauges_m : dict[str, float]
@@ -220,6 +222,9 @@ class _Columns:
     flow_m3h: np.ndarray
     levels_mm: dict[str, np.ndarray]
     sources: HeaderUnits = field(default_factory=HeaderUnits)
+    #: Discharge the rows before sample 0 leave held (their last logged one), m³/h; NaN for
+    #: a file or arrays read whole, which have no rows before.
+    flow_before_m3h: float = np.nan
 
     def in_mm(self, gauge: str) -> bool:
         """Whether the file logged ``gauge``'s level in mm."""
@@ -372,7 +377,8 @@ def record_from_arrays(
     hold : array_like of bool
         True for ``hold`` samples (actuator still), False for ``open``.
     flow_m3h : array_like
-        Inflow discharge, m³/h (no NaN).
+        Inflow discharge, m³/h; NaN where missing (held as :func:`read_record` holds an
+        empty cell).
     levels_mm : dict[str, array_like]
         Upstream level per gauge name, mm; NaN where missing.
     test : {"step", "prbs", "free", "routine"}, optional
@@ -463,7 +469,7 @@ def _build_record(
     origin: Origin, cols: _Columns, sidecar: Sidecar, test: str | None, sha256: str, path: str
 ) -> Record:
     _check_values(origin, cols, sidecar.bounds)
-    flow_m3h, flow_filled = _held_flow(cols.flow_m3h)
+    flow_m3h, flow_filled = _held_flow(cols.flow_m3h, cols.flow_before_m3h)
     period = _sample_period(origin, cols.time_s, sidecar)
     seg = segments.segment_holds(origin, cols.time_s, cols.opening_mm, cols.hold, period)
     holds = tuple(
@@ -504,16 +510,21 @@ def _build_record(
     return record
 
 
-def _held_flow(flow_m3h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The discharge with each empty cell holding the last logged value (the first logged one
-    before any), and where that was done: what a flow meter's dropout leaves is taken as
-    unchanged, as the logger holds every other input between samples."""
+def _held_flow(flow_m3h: np.ndarray, before_m3h: float = np.nan) -> tuple[np.ndarray, np.ndarray]:
+    """The discharge with each empty cell holding the last logged value, and where that was
+    done: what a flow meter's dropout leaves is taken as unchanged, as the logger holds every
+    other input between samples. Empty cells before the first logged one hold
+    ``before_m3h``, the last value of the rows before (NaN: none; they then hold the first
+    logged one)."""
     missing = np.isnan(flow_m3h)
     if not missing.any():
         return flow_m3h, missing
-    logged = np.flatnonzero(~missing)
     last = np.maximum.accumulate(np.where(missing, -1, np.arange(flow_m3h.size)))
-    return flow_m3h[np.where(last < 0, logged[0], last)], missing
+    held = flow_m3h[np.maximum(last, 0)]
+    if np.isnan(before_m3h):
+        before_m3h = flow_m3h[np.flatnonzero(~missing)[0]]
+    held[last < 0] = before_m3h
+    return held, missing
 
 
 def _sample_period(origin: Origin, time_s: np.ndarray, sidecar: Sidecar) -> float:
@@ -542,7 +553,7 @@ def _check_values(origin: Origin, cols: _Columns, bounds: Bounds) -> None:
     checks.check_bounds(origin, "time_s", cols.time_s, TIME_ABS_MAX_S, "s")
     checks.check_time(origin, cols.time_s)
     checks.check_gaps(origin, cols.time_s, bounds.gap_max_s)
-    if np.isnan(cols.flow_m3h).all():
+    if np.isnan(cols.flow_m3h).all() and np.isnan(cols.flow_before_m3h):
         raise origin.error(origin.column("flow_m3h"), "every cell is empty; expected m³/h")
     checks.check_non_negative(origin, "flow_m3h", cols.flow_m3h, "m³/h")
     checks.check_range(origin, "flow_m3h", cols.flow_m3h, bounds.flow_m3h, "m³/h")
