@@ -1,9 +1,9 @@
 """The diagnosis on generated records with a hidden effect: rates, gap reduction, parameter
 errors and time per case.
 
-Runs the cases of tests/test_diagnose_generated.py (63 by default; ``--cases N``) and prints
-the measured rates, the table per effect, then every case that was named wrong or missed a
-threshold; ``--save`` keeps them in ``docs/results/diagnose.json`` for the diagnosis page.
+Runs the cases of tests/diagnosis/test_diagnose_generated.py (63 by default; ``--cases N``)
+and prints the measured rates, the table per effect, then every case that was named wrong or
+missed a threshold; ``--save`` keeps them in ``docs/results/diagnose.json`` for the diagnosis page.
 """
 
 from __future__ import annotations

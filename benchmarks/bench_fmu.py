@@ -57,7 +57,7 @@ FLOW_M3H = 47.0
 
 
 def test_plant() -> FopdtPlant:
-    """The FOPDT plant of tests/test_fmu_*.py."""
+    """The FOPDT plant of tests/fmu/test_fmu_*.py."""
     return FopdtPlant(
         "3F",
         20.0,

@@ -1,6 +1,6 @@
 """The MPC on plants with effect blocks: augmented against blind, side by side.
 
-For every block of tests/test_mpc_effects.py (and the input blocks), the same noise-free
+For every block of tests/mpc/test_mpc_effects.py (and the input blocks), the same noise-free
 closed loop (15 min: a 15 mm set-point step at 60 s, Q 40 → 50 m³/h at 400 s) runs on
 the augmented plant twice: under the MPC built from the augmented model and under the MPC
 built from the plant without the block. Prints the largest error of the water level over

@@ -11,7 +11,7 @@ from those files between two markers::
 ``python benchmarks/results.py collect-run OUT`` keeps the numbers of a ``gatetwin run
 --out OUT`` (its ``mpc.json`` and stage times) in ``docs/results/run.json``;
 ``python benchmarks/results.py render`` rewrites every block from the files, and
-``--check`` only says which blocks differ (``tests/test_generated_numbers.py`` runs it).
+``--check`` only says which blocks differ (``tests/docs/test_generated_numbers.py`` runs it).
 Any other benchmark keeps its numbers with :func:`save`.
 """
 

@@ -1,4 +1,5 @@
-"""Generated records with one hidden effect (or none), for tests/test_diagnose_generated.py.
+"""Generated records with one hidden effect (or none), for
+tests/diagnosis/test_diagnose_generated.py.
 
 The truth plant is an FOPDT (K in [-14, -10] mm/mm, T in [40, 60] s, L in [1, 3] s, a level
 of 400-500 mm mid-range) plus one effect block drawn with physically material parameters.

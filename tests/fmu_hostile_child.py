@@ -2,7 +2,7 @@
 
 usage: python fmu_hostile_child.py EXTRACTED_FMU SCENARIO
 
-Run by tests/test_fmu_python_hostile.py: a crash of the host kills this process, not pytest.
+Run by tests/fmu/test_fmu_python_hostile.py: a crash of the host kills this process, not pytest.
 Prints one JSON object (the scenario's findings) as its last line and exits 0 when the host
 survived every call, including the garbage collections and frees at the end.
 """

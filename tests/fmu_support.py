@@ -1,4 +1,4 @@
-"""Shared helpers of tests/test_fmu_*.py: test plants, an fmpy FMU2Slave driver, runs."""
+"""Shared helpers of tests/fmu/test_fmu_*.py: test plants, an fmpy FMU2Slave driver, runs."""
 
 from __future__ import annotations
 
@@ -275,7 +275,7 @@ def compiler() -> str | None:
 
 
 def compile_host(sources: Path, out: Path, extra: tuple[str, ...] = ()) -> None:
-    """Build tests/fmu_host.c against the FMI headers in an FMU's sources/ folder."""
+    """Build tests/c/fmu_host.c against the FMI headers in an FMU's sources/ folder."""
     subprocess.run(
         [
             compiler(),
@@ -290,7 +290,7 @@ def compile_host(sources: Path, out: Path, extra: tuple[str, ...] = ()) -> None:
             str(sources),
             "-o",
             str(out),
-            str(TESTS / "fmu_host.c"),
+            str(TESTS / "c" / "fmu_host.c"),
             "-ldl",
             "-lm",
         ],
@@ -322,14 +322,15 @@ def sanitizers_work(folder: Path) -> bool:
 
 
 def build_fuzzer(out_dir: Path) -> Path:
-    """tests/fmu_fuzz.c compiled with :data:`SANITIZE` against the FMI 2.0 headers of the
+    """tests/c/fmu_fuzz.c compiled with :data:`SANITIZE` against the FMI 2.0 headers of the
     templates: one fuzzer for every gatetwin C FMU (each described by :func:`fuzz_spec`)."""
     from gatetwin.fmu.c_build import templates_dir
 
     fuzzer = out_dir / "fmu_fuzz"
     subprocess.run(
         [compiler(), "-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", *SANITIZE,
-         "-I", str(templates_dir()), "-o", str(fuzzer), str(TESTS / "fmu_fuzz.c"), "-ldl", "-lm"],
+         "-I", str(templates_dir()), "-o", str(fuzzer), str(TESTS / "c" / "fmu_fuzz.c"), "-ldl",
+         "-lm"],
         check=True, capture_output=True, text=True,
     )  # fmt: skip
     return fuzzer
@@ -356,10 +357,10 @@ def fuzz_spec(
     extracted: Path, out: Path, ranges: dict[str, tuple[float, float]] | None = None,
     sampled: bool = False, warns_on_change: str | None = None,
 ) -> Path:  # fmt: skip
-    """The SPEC file tests/fmu_fuzz.c reads for the extracted FMI 2.0 FMU, written to ``out``:
+    """The SPEC file tests/c/fmu_fuzz.c reads for the extracted FMI 2.0 FMU, written to ``out``:
     GUID, value references, kinds and start values from its modelDescription.xml, the
     plausible values of the inputs named in ``ranges``; the state's size and int fields from
-    tests/fmu_layout.c compiled against its ``sources/``. ``sampled``: the FMU steps whole
+    tests/c/fmu_layout.c compiled against its ``sources/``. ``sampled``: the FMU steps whole
     samples of its default experiment's step size (the MPC controller, the observer).
     ``warns_on_change``: the input each setting of which may bring one more fmi2Warning."""
     md = read_model_description(str(extracted))
@@ -380,7 +381,7 @@ def fuzz_spec(
     probe = out.with_suffix(".layout")
     subprocess.run(
         [compiler(), "-std=c99", "-Wall", "-Wextra", "-Werror", "-I", str(extracted / "sources"),
-         "-o", str(probe), str(TESTS / "fmu_layout.c")],
+         "-o", str(probe), str(TESTS / "c" / "fmu_layout.c")],
         check=True, capture_output=True, text=True,
     )  # fmt: skip
     layout = subprocess.run([str(probe)], check=True, capture_output=True, text=True).stdout

@@ -142,8 +142,8 @@ def open_instance(md: Any, unzip_dir: str, instance_name: str, *, what: str,
 
 class UnpackedFmu:
     """The FMU file ``path`` unpacked into a temporary folder of its own, with its model
-    description (``md``), its variables and their value references by name (``variables``,
-    ``vr``) and at most one open :class:`Instance` (``instance``).
+    description (``description``, fmpy's), its variables and their value references by name
+    (``variables``, ``vr``) and at most one open :class:`Instance` (``instance``).
 
     :meth:`open` (re)instantiates it, :meth:`close` terminates and frees the instance,
     :meth:`cleanup` also deletes the folder.
@@ -174,19 +174,20 @@ class UnpackedFmu:
             raise error(f"{self.path} is not an FMU: not a readable zip archive ({exc})") from None
         self.folder = extract(str(self.path))
         try:
-            self.md = read_model_description(self.folder)
+            self.description = read_model_description(self.folder)
         except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions on bad FMUs
             shutil.rmtree(self.folder, ignore_errors=True)
             raise error(f"{self.path} is not an FMU: no model description fmpy reads "
                         f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
-        self.variables = {v.name: v for v in self.md.modelVariables}
+        self.variables = {v.name: v for v in self.description.modelVariables}
         self.vr = {name: v.valueReference for name, v in self.variables.items()}
 
     def open(self, instance_name: str, *, logging_on: bool = False) -> Instance:
         """Close the instance open, if any, and instantiate anew (:func:`open_instance`)."""
         self.close()
-        self.instance = open_instance(self.md, self.folder, instance_name, what=self.path.name,
-                                      error=self.error, logging_on=logging_on)  # fmt: skip
+        self.instance = open_instance(self.description, self.folder, instance_name,
+                                      what=self.path.name, error=self.error,
+                                      logging_on=logging_on)  # fmt: skip
         return self.instance
 
     def close(self) -> None:

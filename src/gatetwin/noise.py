@@ -21,9 +21,9 @@ expectations are ``trace(M R M S_k)``), and ``sigma^2 = sum r'r / sum trace(M R)
 noise gives ``phi = 0`` or ``w = 1`` and the plain pooled SD back. Residuals whose best
 fit wants a correlation time beyond :data:`MAX_CORRELATION_S` hold structure rather than
 noise (a seiche the model lacks, ringing through the holds): the pool is then left
-uncorrected and the method says so. Checked against the
-virtual flume's noise-free level (``tests/test_noise_correlated.py``): over the 75 bundled
-record × gauge cells the floor's fit is the truth's within -2.8..+0.4 points, mean -0.5
+uncorrected and the method says so. Checked against the virtual flume's noise-free level
+(``tests/validation/test_noise_correlated.py``): over the 75 bundled record × gauge cells
+the floor's fit is the truth's within -2.8..+0.4 points, mean -0.5
 (the plain pool: -1.3..+4.7, and +2.0 on average on the PRBS records C and D).
 
 What it cannot separate is an oscillation still ringing in the second half of a hold (a

@@ -3,7 +3,7 @@
 Run from anywhere: ``python tests/data/make_malformed.py``. Every file starts from one
 small valid step-test record (60 hold samples at 15 mm, 3 ``open`` samples, 60 hold
 samples at 20 mm, gauges 3F and 5H) and breaks it in exactly one way; the file is named
-for its defect. The generated files are committed; ``tests/test_cli_malformed.py`` holds
+for its defect. The generated files are committed; ``tests/cli/test_cli_malformed.py`` holds
 what each refusal must say. Row numbers below are file lines (header = row 1).
 """
 

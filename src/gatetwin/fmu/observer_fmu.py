@@ -563,14 +563,14 @@ def run_observer_fmu(
     fmu = UnpackedFmu(fmu_path, error=ControlError)
     try:
         vr = fmu.vr
-        level_vr = next(v.valueReference for v in fmu.md.modelVariables
+        level_vr = next(v.valueReference for v in fmu.description.modelVariables
                         if v.causality == "input" and v.name.startswith("level_")
                         and v.name not in refs)  # fmt: skip
         inputs = [level_vr, vr["opening_mm"], vr["flow_m3h"], *(vr[n] for n in refs)]
         columns = np.column_stack(
             [np.asarray(v, dtype=float) for v in (level_mm, opening_mm, flow_m3h, *refs.values())]
         )
-        ts = float(fmu.md.defaultExperiment.stepSize)
+        ts = float(fmu.description.defaultExperiment.stepSize)
         names = [*OUTPUTS, *(n for n in ("slow_cusum", *DRIFT_RULE[:2]) if n in vr)]
         out = np.empty((columns.shape[0], len(names)))
         slave = fmu.open("observer")

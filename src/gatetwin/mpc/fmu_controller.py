@@ -66,7 +66,7 @@ class FmuController:
 
         self.path = Path(fmu_path)
         self._fmu = UnpackedFmu(self.path, error=ControlError)
-        md, variables, self._vr = self._fmu.md, self._fmu.variables, self._fmu.vr
+        md, variables, self._vr = self._fmu.description, self._fmu.variables, self._fmu.vr
         levels = [n for n, v in variables.items() if v.causality == "input" and _LEVEL.fullmatch(n)]
         needed = {"flow_m3h", "setpoint_mm", "opening_mm", "start_opening_mm"}
         if len(levels) != 1 or not needed <= set(self._vr):

@@ -105,7 +105,7 @@ def arx_pole_scaled(a1: float, time_constant_ref_s: float, time_constant_s: floa
 
     The ratio's time constants are the kernel's analytic ones (no difference magnifies an ulp
     into them); binaries whose C libraries round ``pow`` differently stay within the 1e-9 mm
-    of ``tests/test_fmu_platforms.py``."""
+    of ``tests/fmu/test_fmu_platforms.py``."""
     return math.pow(a1, time_constant_ref_s / time_constant_s)
 
 
