@@ -259,6 +259,23 @@ def test_the_users_file_is_not_modified(canal: Path, core: SwmmCore) -> None:
     assert sorted(p.name for p in canal.parent.iterdir()) == ["two_pool.inp"]
 
 
+def test_the_base_opening_is_the_rules_else_half_the_gate(canal: Path, core: SwmmCore) -> None:
+    # GATE has no rule: half its 0.7 m; TAIL's rule holds it at 0.4 of its 0.5 m
+    assert core.base_opening_mm() == 1000.0 * HEIGHT_M / 2
+    tail = SwmmCore(SwmmPlantSpec(canal, "TAIL", {"B1": 0.0}, ("A0",)))
+    assert tail.base_opening_mm() == 200.0
+    assert core.base_opening_mm(123.4) == 123.0
+
+
+def test_an_opening_outside_the_gate_is_refused_before_any_record(canal, tmp_path, capsys):
+    out = tmp_path / "out"
+    err = _refused(capsys, ["swmm", "experiment", str(canal), "--gate", "GATE", "--gauges",
+                            "A2=0", "--inflow", "A0", "--design", "step", "--out", str(out),
+                            "--opening", "5000"])  # fmt: skip
+    assert "--opening 5000.0 mm: outside the gate's 0..700 mm" in err
+    assert not out.exists()
+
+
 def test_without_pyswmm_the_plant_names_the_extra(canal, monkeypatch):
     monkeypatch.setitem(sys.modules, "pyswmm", None)  # import pyswmm raises ImportError
     spec = SwmmPlantSpec(canal, "GATE", {"A2": 0.0}, ("A0",))

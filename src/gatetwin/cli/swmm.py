@@ -39,7 +39,8 @@ def add_swmm_arguments(parser: argparse.ArgumentParser) -> None:
     exp.add_argument("--out", metavar="DIR", required=True, help="directory to write into")
     _add_recording_arguments(exp)
     exp.add_argument("--opening", type=float, metavar="MM",
-                     help="base opening, mm (default: half the orifice height)")  # fmt: skip
+                     help="base opening, mm (default: the one the model's rules hold the "
+                     "gate at, else half the orifice height)")  # fmt: skip
 
     _add_demo_arguments(sub)
 
@@ -159,10 +160,10 @@ def run_swmm_experiment(args: argparse.Namespace) -> int:
     if not flow_m3s > 0:
         raise GatetwinError(f"{spec.inp_path.name}: no constant inflow at "
                             f"{', '.join(spec.inflow_nodes)}; give --flow")  # fmt: skip
-    opening = core.height_mm / 2 if args.opening is None else args.opening
     clock = time.perf_counter()
     try:
-        outputs, base = run_design(core, args.design, float(round(opening)), 3600.0 * flow_m3s,
+        opening = core.base_opening_mm(args.opening)
+        outputs, base = run_design(core, args.design, opening, 3600.0 * flow_m3s,
                                    noise_mm=args.noise_mm, seed=args.seed,
                                    progress=_progress)  # fmt: skip
     finally:

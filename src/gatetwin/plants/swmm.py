@@ -198,6 +198,29 @@ class SwmmCore:
     def height_mm(self) -> float:
         return 1000.0 * self.orifice.height_m
 
+    def rule_opening_mm(self) -> float | None:
+        """The opening the model's own rules hold the gate at, mm, when they set it to one
+        value (a model's operating point); ``None`` otherwise."""
+        pattern = rf"\bORIFICE\s+{re.escape(self.spec.gate)}\s+SETTING\s*=\s*([0-9.eE+-]+)"
+        values = {float(v) for v in re.findall(pattern, self.inp.text, flags=re.IGNORECASE)}
+        return self.height_mm * values.pop() if len(values) == 1 else None
+
+    def base_opening_mm(self, opening_mm: float | None = None) -> float:
+        """The experiments' base opening, whole mm: ``opening_mm``, else the one the model's
+        rules hold the gate at (:meth:`rule_opening_mm`), else half the orifice height.
+
+        Raises
+        ------
+        PlantError
+            The opening is not inside the gate's 0..height.
+        """
+        if opening_mm is None:
+            opening_mm = self.rule_opening_mm() or self.height_mm / 2
+        if not 0 < opening_mm < self.height_mm:
+            raise PlantError(f"--opening {opening_mm} mm: outside the gate's "
+                             f"0..{self.height_mm:g} mm")  # fmt: skip
+        return float(round(opening_mm))
+
     # ----------------------------------------------------------------- PlantCore
 
     def start(self, opening_mm: float, flow_m3h: float) -> float:

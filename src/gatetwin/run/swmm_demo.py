@@ -30,7 +30,6 @@ The output is built in a hidden sibling of ``--out`` and renamed at the end
 from __future__ import annotations
 
 import json
-import re
 import shutil
 import time
 from collections.abc import Callable
@@ -179,20 +178,12 @@ def _base_point(req: DemoRequest, core: SwmmCore) -> tuple[float, float]:
     if not (np.isfinite(flow_m3s) and flow_m3s > 0):
         raise GatetwinError(f"{req.spec.inp_path.name}: no constant inflow at "
                             f"{', '.join(req.spec.inflow_nodes)}; give --flow")  # fmt: skip
-    opening = req.opening_mm
-    if opening is None:
-        opening = rule_opening_mm(core) or core.height_mm / 2
-    if not 0 < opening < core.height_mm:
-        raise GatetwinError(f"--opening {opening} mm: outside the gate's 0..{core.height_mm:g} mm")
-    return 3600.0 * float(flow_m3s), float(round(opening))
+    return 3600.0 * float(flow_m3s), core.base_opening_mm(req.opening_mm)
 
 
 def rule_opening_mm(core: SwmmCore) -> float | None:
-    """The opening the model's own rules hold the gate at, mm, when they set it to one
-    value (a model's operating point); ``None`` otherwise."""
-    pattern = rf"\bORIFICE\s+{re.escape(core.spec.gate)}\s+SETTING\s*=\s*([0-9.eE+-]+)"
-    values = {float(v) for v in re.findall(pattern, core.inp.text, flags=re.IGNORECASE)}
-    return core.height_mm * values.pop() if len(values) == 1 else None
+    """:meth:`SwmmCore.rule_opening_mm` (kept for callers of this name)."""
+    return core.rule_opening_mm()
 
 
 def _experiments(req: DemoRequest, core: SwmmCore, flow_m3h: float, opening: float,
