@@ -25,8 +25,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     # the cases of the test (imported here, so that rendering the page's block needs none)
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from diagnose_cases import case_plan
-    from test_diagnose_generated import rates, run_case
+    from diagnose_cases import case_plan, rates, run_case
 
     outcomes, start = [], time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:

@@ -19,7 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+# the blocks and the loop of the MPC's effect tests (tests/mpc/), which import the tests'
+# shared modules (tests/)
+TESTS = Path(__file__).resolve().parents[1] / "tests"
+sys.path[:0] = [str(TESTS / "mpc"), str(TESTS)]
 
 from gatetwin.mpc import loop_metrics  # noqa: E402
 from gatetwin.plant.effects import effect_dict  # noqa: E402

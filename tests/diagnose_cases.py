@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gatetwin.diagnosis import diagnose_record
 from gatetwin.plant.effects import KINDS, effect_dict
 from gatetwin.plant.model import FopdtPlant, Schedule
 from gatetwin.plant.simulate import simulate
@@ -170,3 +171,59 @@ def draw_case(seed: int, effect: str) -> Case:
 def case_plan(n_cases: int, first_seed: int = 1000) -> list[tuple[int, str]]:
     """``(seed, effect)`` of ``n_cases`` cases: about 1/9 none, the rest over the 8 effects."""
     return [(first_seed + i, EFFECTS[i % len(EFFECTS)]) for i in range(n_cases)]
+
+
+#: What the generated cases must reach (tests/diagnosis/test_diagnose_generated.py).
+GAP_REDUCTION = 0.5
+PARAMETER_TOLERANCE = 0.25
+
+
+@dataclass(frozen=True)
+class Outcome:
+    seed: int
+    truth: str
+    named: str
+    gap_reduction: float
+    parameter_errors: dict[str, float]
+
+    @property
+    def right(self) -> bool:
+        return self.named == self.truth
+
+    @property
+    def parameters_ok(self) -> bool:
+        return bool(self.parameter_errors) and all(
+            e <= PARAMETER_TOLERANCE for e in self.parameter_errors.values()
+        )
+
+
+def run_case(seed: int, effect: str, folder: Path) -> Outcome:
+    case = draw_case(seed, effect)
+    result = diagnose_record(case.write(folder))
+    errors: dict[str, float] = {}
+    if result["named_effect"] == effect and effect != "none":
+        fitted = result["effect_fit"]["parameters"]
+        errors = {k: abs(fitted[k]["value"] - v) / abs(v) for k, v in case.params.items()}
+    return Outcome(seed, effect, result["named_effect"], result["gap_reduction"], errors)
+
+
+def rates(outcomes: list[Outcome]) -> dict[str, float]:
+    none = [o for o in outcomes if o.truth == "none"]
+    present = [o for o in outcomes if o.truth != "none"]
+    return {
+        "cases": len(outcomes),
+        "right_name": sum(o.right for o in outcomes) / len(outcomes),
+        "none_flagged": sum(o.named != "none" for o in none) / max(len(none), 1),
+        "false_positive_overall": sum(o.named not in ("none", o.truth) for o in outcomes)
+        / len(outcomes),
+        "missed": sum(o.named == "none" for o in present) / max(len(present), 1),
+        "gap_down_50": sum(o.gap_reduction >= GAP_REDUCTION for o in present)
+        / max(len(present), 1),
+        "parameters_within_25": sum(o.parameters_ok for o in present) / max(len(present), 1),
+        "median_gap_reduction": (
+            sorted(o.gap_reduction for o in present)[len(present) // 2] if present else float("nan")
+        ),
+        "worst_parameter_error": max(
+            (e for o in present for e in o.parameter_errors.values()), default=0.0
+        ),
+    }

@@ -151,34 +151,39 @@ class UnpackedFmu:
     Raises
     ------
     GatetwinError
-        (or ``error``) The file is not a zip archive, would unpack to more than
-        :data:`gatetwin.records.limits.DEFAULT_MAX_BYTES`, or holds no model description fmpy
+        (or ``error``) The file is not a regular file holding a zip archive, would unpack to
+        more than :data:`gatetwin.records.limits.DEFAULT_MAX_BYTES` or outside its folder
+        (:func:`gatetwin.records.limits.check_archive`), or holds no model description fmpy
         reads; nothing is left unpacked.
     """
 
     def __init__(self, path: str | os.PathLike[str], *,
                  error: type[GatetwinError] = GatetwinError) -> None:  # fmt: skip
+        import sys
+        import tempfile
         import zipfile
 
         from fmpy import extract, read_model_description
 
-        from gatetwin.records.limits import check_unpacked_size
+        from gatetwin.records.limits import check_archive, open_regular
 
         self.path = Path(path)
         self.error = error
         self.instance: Instance | None = None
         try:
-            with zipfile.ZipFile(self.path) as archive:
-                check_unpacked_size(archive, str(self.path), error)
+            with open_regular(self.path, sys.maxsize, "an FMU", error) as handle, \
+                    zipfile.ZipFile(handle) as archive:  # fmt: skip
+                check_archive(archive, str(self.path), error)
         except (OSError, zipfile.BadZipFile) as exc:
             raise error(f"{self.path} is not an FMU: not a readable zip archive ({exc})") from None
-        self.folder = extract(str(self.path))
+        self.folder = tempfile.mkdtemp(prefix="gatetwin-fmu-")
         try:
+            extract(str(self.path), self.folder)
             self.description = read_model_description(self.folder)
         except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions on bad FMUs
             shutil.rmtree(self.folder, ignore_errors=True)
-            raise error(f"{self.path} is not an FMU: no model description fmpy reads "
-                        f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
+            raise error(f"{self.path} is not an FMU: not unpacked, or no model description "
+                        f"fmpy reads ({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
         self.variables = {v.name: v for v in self.description.modelVariables}
         self.vr = {name: v.valueReference for name, v in self.variables.items()}
 
@@ -186,7 +191,7 @@ class UnpackedFmu:
         """Close the instance open, if any, and instantiate anew (:func:`open_instance`)."""
         self.close()
         self.instance = open_instance(self.description, self.folder, instance_name,
-                                      what=self.path.name, error=self.error,
+                                      what=str(self.path), error=self.error,
                                       logging_on=logging_on)  # fmt: skip
         return self.instance
 

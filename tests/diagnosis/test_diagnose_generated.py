@@ -16,65 +16,19 @@ The measured rates are attached to the test report (``record_property``) and pri
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
-from diagnose_cases import JUDGED, case_plan, draw_case
-from gatetwin.diagnosis import diagnose_record
-
-GAP_REDUCTION = 0.5
-PARAMETER_TOLERANCE = 0.25
-
-
-@dataclass(frozen=True)
-class Outcome:
-    seed: int
-    truth: str
-    named: str
-    gap_reduction: float
-    parameter_errors: dict[str, float]
-
-    @property
-    def right(self) -> bool:
-        return self.named == self.truth
-
-    @property
-    def parameters_ok(self) -> bool:
-        return bool(self.parameter_errors) and all(
-            e <= PARAMETER_TOLERANCE for e in self.parameter_errors.values()
-        )
-
-
-def run_case(seed: int, effect: str, folder: Path) -> Outcome:
-    case = draw_case(seed, effect)
-    result = diagnose_record(case.write(folder))
-    errors: dict[str, float] = {}
-    if result["named_effect"] == effect and effect != "none":
-        fitted = result["effect_fit"]["parameters"]
-        errors = {k: abs(fitted[k]["value"] - v) / abs(v) for k, v in case.params.items()}
-    return Outcome(seed, effect, result["named_effect"], result["gap_reduction"], errors)
-
-
-def rates(outcomes: list[Outcome]) -> dict[str, float]:
-    none = [o for o in outcomes if o.truth == "none"]
-    present = [o for o in outcomes if o.truth != "none"]
-    return {
-        "cases": len(outcomes),
-        "right_name": sum(o.right for o in outcomes) / len(outcomes),
-        "none_flagged": sum(o.named != "none" for o in none) / max(len(none), 1),
-        "false_positive_overall": sum(o.named not in ("none", o.truth) for o in outcomes)
-        / len(outcomes),
-        "missed": sum(o.named == "none" for o in present) / max(len(present), 1),
-        "gap_down_50": sum(o.gap_reduction >= GAP_REDUCTION for o in present)
-        / max(len(present), 1),
-        "parameters_within_25": sum(o.parameters_ok for o in present) / max(len(present), 1),
-        "median_gap_reduction": sorted(o.gap_reduction for o in present)[len(present) // 2],
-        "worst_parameter_error": max(
-            (e for o in present for e in o.parameter_errors.values()), default=0.0
-        ),
-    }
+from diagnose_cases import (
+    GAP_REDUCTION,
+    JUDGED,
+    Outcome,
+    case_plan,
+    draw_case,
+    rates,
+    run_case,
+)
 
 
 def check(outcomes: list[Outcome]) -> dict[str, float]:

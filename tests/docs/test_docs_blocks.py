@@ -106,8 +106,8 @@ def test_the_record_format_page_sidecar_is_read(tmp_path):
 
 def test_the_validation_page_recipe_runs_as_written(tmp_path, monkeypatch):
     """The map and the command of the page, on a stranger's FMU and record placed where
-    the command names them (tests/validation/test_validate_foreign.py builds both)."""
-    from test_validate_foreign import _record, foreign_gate_fmu
+    the command names them (tests/foreign_fmus.py builds both)."""
+    from foreign_fmus import foreign_gate_fmu, foreign_gate_record
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "plant_map.toml").write_text(blocks("docs/validation.md", "toml")[0],
@@ -116,7 +116,7 @@ def test_the_validation_page_recipe_runs_as_written(tmp_path, monkeypatch):
     (tmp_path / "build").mkdir()
     shutil.copyfile(foreign_gate_fmu(tmp_path / "fmu"), tmp_path / "build" / "plant.fmu")
     (tmp_path / "measurements").mkdir()
-    _record(tmp_path / "measurements")
+    foreign_gate_record(tmp_path / "measurements")
     (argv,) = commands(blocks("docs/validation.md", "bash")[0])
     argv = [a for pattern in argv for a in (sorted(glob.glob(pattern)) or [pattern])]
     assert main(argv) == 0

@@ -18,7 +18,6 @@ unless ``GATETWIN_REQUIRE_ECOS`` is set (as CI sets it), where that is a failure
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +26,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 
+from ecos_support import load_ecospy
 from fmu_support import compiler
 
 pytestmark = pytest.mark.slow  # ~1 min: fourteen FMUs built (the MPC and observers by casadi)
@@ -38,24 +38,13 @@ STEP_S, STEPS = 1.2, 150
 TOLERANCE = 1e-9
 
 
-def _ecospy():
-    try:
-        import ecospy
-    except (ImportError, OSError) as exc:  # OSError: libecosc.so without libtbb12
-        if os.environ.get("GATETWIN_REQUIRE_ECOS"):
-            pytest.fail(f"ecos cannot be loaded here: {exc}")
-        pytest.skip(f"ecos cannot be loaded here ({exc}); pip install ecospy, apt install "
-                    "libtbb12")  # fmt: skip
-    return ecospy
-
-
 @pytest.fixture(scope="module")
 def run_fmus(tmp_path_factory) -> dict[str, Path]:
     """``{name: path}``: what ``gatetwin run`` writes under fmus/ for fopdt_3F, arx_3F and
     physical_3F, and under controllers/ and observers/."""
     if compiler() is None:
         pytest.skip("no C compiler (cc/gcc) on PATH")
-    _ecospy()
+    load_ecospy()
     from gatetwin.run.pipeline import export_model_fmus
     from gatetwin.run.stages import closed_loop_fmu_task
 
@@ -135,7 +124,7 @@ def _fmpy_run(fmu: Path, folder: Path) -> np.ndarray:
 
 
 def _ecos_run(fmu: Path) -> np.ndarray:
-    ecospy = _ecospy()
+    ecospy = load_ecospy()
     inputs, outputs = _variables(fmu)
     with ecospy.EcosSimulationStructure() as structure:
         structure.add_model("m", str(fmu))

@@ -14,20 +14,17 @@ at its channel's flow depth).
 from __future__ import annotations
 
 import dataclasses
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from fmu_support import compiler, extract_all, fmu_run, open_fmu, reference_run  # noqa: E402
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.fmu import export_fmu
 from gatetwin.identification.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
 from gatetwin.records import read_record
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from fmu_support import compiler, extract_all, fmu_run, open_fmu, reference_run  # noqa: E402
 
 MODELS = Path(__file__).resolve().parents[2] / "models"
 RECORDS = sorted(p for p in bundled_records_dir().glob("*.csv") if p.stem != "static")

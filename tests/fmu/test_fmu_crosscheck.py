@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 from fmpy import simulate_fmu
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from fmu_support import compiler  # noqa: E402
 
 MODELS = Path(__file__).resolve().parents[2] / "models"

@@ -19,15 +19,13 @@ import numpy as np
 import pytest
 from fmpy import read_model_description
 
+from fmu_support import compiler  # noqa: E402
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.fmu import export_fmu
 from gatetwin.fmu.platforms import platforms_of, zig_available
 from gatetwin.identification.preprocess import reconstructed_opening
 from gatetwin.modelfile import read_model_file
 from gatetwin.records import read_record
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from fmu_support import compiler  # noqa: E402
 
 TESTS = Path(__file__).resolve().parents[1]
 MODEL = TESTS.parent / "models" / "fopdt_3F.json"

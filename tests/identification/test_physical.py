@@ -469,10 +469,8 @@ def test_c_fmu_refuses_impossible_parameters_with_an_error_status(plant, tmp_pat
     from fmpy import extract
     from fmpy.fmi1 import FMICallException
 
-    from gatetwin.fmu import export_fmu
-
-    sys.path.insert(0, str(Path(__file__).parents[1]))
     from fmu_support import open_fmu
+    from gatetwin.fmu import export_fmu
 
     try:
         find_compiler()
@@ -506,12 +504,10 @@ def test_envelope_c_fmus_refuse_a_storage_area_at_its_floor_where_they_run(name,
     from fmpy import extract
     from fmpy.fmi1 import FMICallException
 
+    from fmu_support import open_fmu
     from gatetwin.errors import ExportError
     from gatetwin.fmu import export_fmu
     from gatetwin.fmu.provenance import fmu_provenance
-
-    sys.path.insert(0, str(Path(__file__).parents[1]))
-    from fmu_support import open_fmu
 
     try:
         find_compiler()

@@ -416,6 +416,21 @@ def test_rows_held_without_a_discharge_hold_the_one_logged_before(quarter_day, t
     assert chunked.to_dict() == identify_routine(whole).to_dict()
 
 
+def test_a_meter_that_starts_late_holds_its_first_discharge(quarter_day, tmp_path,
+                                                            monkeypatch) -> None:  # fmt: skip
+    """A history whose discharge is empty for its first 700 rows (longer than a chunk of 500)
+    holds its first logged discharge there, as the history read whole does (not refused)."""
+    n = read_record(quarter_day).n_samples
+    empty = np.zeros(n, dtype=bool)
+    empty[:700] = True
+    pq = _without_flow(quarter_day, tmp_path, empty)
+    whole = read_record(pq, test="routine")
+    rebuilt, chunked = _rows_held(pq, monkeypatch)
+    assert rebuilt and rebuilt[0][0] == 0
+    _held_as_read_whole(rebuilt, whole)
+    assert chunked.to_dict() == identify_routine(whole).to_dict()
+
+
 def test_a_history_without_a_discharge_is_refused_naming_its_rows(quarter_day,
                                                                   tmp_path) -> None:  # fmt: skip
     """A history that logs no discharge is refused in one line, read whole or in chunks; in

@@ -20,8 +20,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).parents[1]))
-
 import field_scale as field  # noqa: E402
 from gatetwin.fmu.controller import rest_level_mm  # noqa: E402
 from gatetwin.fmu.controller_settings import HORIZON_MAX, controller_plant, horizon  # noqa: E402

@@ -152,9 +152,9 @@ def test_ecos_runs_the_package_as_the_jacobi_master(package, jacobi_run):
 
 
 def _compare_ecos(package: Path, run) -> None:
-    from test_ecos import _ecospy
+    from ecos_support import load_ecospy
 
-    ecospy = _ecospy()
+    ecospy = load_ecospy()
     kinds = _connector_kinds(package)
     names = list(run.columns)
     with ecospy.EcosSimulation(step_size=run.step_s, ssp_path=str(package)) as sim:

@@ -552,6 +552,12 @@ def run_observer_fmu(
     observer's; ``gauge_slope_mm_per_s`` and ``gauge_drift`` where it has reference gauges,
     whose levels ``reference_levels_mm`` gives by gauge). ``parameters`` overrides fixed
     parameters by name.
+
+    Raises
+    ------
+    ControlError
+        ``fmu_path`` is not an FMU (:class:`gatetwin.fmi_host.UnpackedFmu`), or the FMU
+        cannot be instantiated.
     """
     import numpy as np
 

@@ -10,8 +10,9 @@ A move event is decided once the hold segment after its last move, and the one a
 are complete (neither can grow with the next chunk): its window is screened and fitted as
 the whole-history path does, on the same samples. Rows before the first undecided event
 are dropped; an event that spans a chunk boundary is carried over into the next record.
-The rows held carry the last discharge logged before them, which their leading empty
-discharge cells hold, as the whole history read at once holds them.
+The rows held carry the last discharge logged before them (before the history's first
+logged discharge, that one), which their leading empty discharge cells hold, as the whole
+history read at once holds them.
 
 Memory: one chunk, plus the undecided rows, which reach back to the start of the hold
 segment before the earliest undecided move. A gate held still for days keeps that hold's
@@ -254,8 +255,8 @@ def identify_routine_chunked(
     ------
     RecordError
         A chunk breaks the data-format contract (messages count samples from the start of
-        the rows held, not file rows), or the rows held log no discharge and none was
-        logged before them (named by the history's rows).
+        the rows held, not file rows), or the history logs no discharge at all (named by
+        the first rows held).
     IdentificationError
         As :func:`~gatetwin.identification.routine.identify_routine`.
     """

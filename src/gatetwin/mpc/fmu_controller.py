@@ -84,18 +84,22 @@ class FmuController:
         self.sample_period_s = sample_period_s or default or (step and float(step)) \
             or SAMPLE_PERIOD_S  # fmt: skip
         self.name = name or ("mpc_fmu" if "solver_status" in self._vr else "pi_fmu")
-        self._slave: Any = None
         self.time_s = 0.0
         self.last_solve_s = 0.0
         self.failures = 0
         self.statuses: list[float] = []
         self.diagnostics: dict[str, float] = {}
 
+    @property
+    def _slave(self) -> Any:
+        """The open instance (``None`` before the first start or after a refused one)."""
+        return self._fmu.instance
+
     def reset(self, opening_mm: float, level_mm: float, flow_m3h: float) -> None:
         """Instantiate at rest at ``opening_mm`` with the set-point at ``level_mm``."""
         from fmpy.fmi1 import FMICallException
 
-        slave = self._slave = self._fmu.open("gatetwin_controller")
+        slave = self._fmu.open("gatetwin_controller")
         self.time_s = 0.0
         self.failures = 0
         self.statuses = []
@@ -141,12 +145,10 @@ class FmuController:
 
     def close(self) -> None:
         """Free the instance (terminated first unless a refused call left it in error)."""
-        self._slave = None
         self._fmu.close()
 
     def cleanup(self) -> None:
         """Close the instance and delete the extracted FMU."""
-        self._slave = None
         self._fmu.cleanup()
 
 

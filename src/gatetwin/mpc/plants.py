@@ -19,7 +19,7 @@ import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -199,11 +199,15 @@ class FmuCore:
                 f"{self.path.name}: expected inputs opening_mm, flow_m3h and one output"
             )
         self._out = self._vr[outputs[0]]
-        self._slave = None
         self.time_s = 0.0
 
+    @property
+    def _slave(self) -> Any:
+        """The open instance (``None`` before the first start or after a refused one)."""
+        return self._fmu.instance
+
     def start(self, opening_mm: float, flow_m3h: float) -> float:
-        slave = self._slave = self._fmu.open("gatetwin_mpc")
+        slave = self._fmu.open("gatetwin_mpc")
         self.time_s = 0.0
         slave.initialise(0.0, ([self._vr["opening_mm"], self._vr["flow_m3h"]],
                                [opening_mm, flow_m3h]))  # fmt: skip
@@ -232,12 +236,10 @@ class FmuCore:
         return float(self._slave.getReal([self._out])[0])
 
     def close(self) -> None:
-        self._slave = None
         self._fmu.close()
 
     def cleanup(self) -> None:
         """Close and delete the extracted FMU."""
-        self._slave = None
         self._fmu.cleanup()
 
 

@@ -160,14 +160,26 @@ def _parquet_chunks(path: Path, rows: int, first_row: int) -> Iterator[Chunk]:
 def iter_chunks(history: History, rows: int,
                 limits: ReadLimits | None = None) -> Iterator[Chunk]:  # fmt: skip
     """The history's rows, ``rows`` at a time from a Parquet file, a file at a time from a
-    folder (a day file is read whole), each with the last discharge logged before it."""
+    folder (a day file is read whole), each with the last discharge logged before it (for
+    the rows before the history's first logged discharge, that one, as the history read
+    whole holds them)."""
     if not rows >= 1:
         raise RecordError(f"{history.path}: chunk of {rows!r} rows; expected at least 1")
-    before_m3h = np.nan
+    before_m3h = _first_flow_m3h(history, rows, limits)
     for chunk in _file_chunks(history, rows, limits):
         chunk = replace(chunk, flow_before_m3h=before_m3h)
         yield chunk
         before_m3h = chunk.last_flow_m3h(chunk.n_rows)
+
+
+def _first_flow_m3h(history: History, rows: int, limits: ReadLimits | None) -> float:
+    """The history's first logged discharge, m³/h (NaN: none): its chunks read until one logs
+    a discharge, the first one in a history whose meter logs from the start."""
+    for chunk in _file_chunks(history, rows, limits):
+        logged = chunk.flow_m3h[~np.isnan(chunk.flow_m3h)]
+        if logged.size:
+            return float(logged[0])
+    return np.nan
 
 
 def _file_chunks(history: History, rows: int, limits: ReadLimits | None) -> Iterator[Chunk]:
@@ -207,8 +219,8 @@ def chunk_record(history: History, rows: Chunk, sample_period_s: float,
     Raises
     ------
     RecordError
-        As :func:`~gatetwin.records.record_from_arrays`; rows that log no discharge, after
-        none logged before them, are refused naming the history's rows.
+        As :func:`~gatetwin.records.record_from_arrays`; rows that log no discharge and carry
+        none (a history that logs none at all) are refused naming the history's rows.
     """
     if np.isnan(rows.flow_before_m3h) and np.isnan(rows.flow_m3h).all():
         raise RecordError(f"{history.path}: rows {rows.first_row + 1}-"

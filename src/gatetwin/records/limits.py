@@ -28,9 +28,11 @@ __all__ = [
     "ENV_MAX_LINE_BYTES",
     "MAX_SIDECAR_BYTES",
     "ReadLimits",
+    "check_archive",
     "check_unpacked_size",
     "open_regular",
     "resolve_limits",
+    "unsafe_member",
 ]
 
 #: Default largest record file, bytes (512 MiB: about 10 million rows of 9 columns).
@@ -104,6 +106,35 @@ def check_unpacked_size(archive: zipfile.ZipFile, where: str,
     if total > max_bytes:
         raise error(f"{where}: its members unpack to {total} bytes, more than the limit of "
                     f"{max_bytes} bytes")  # fmt: skip
+
+
+def unsafe_member(name: str) -> str:
+    """Why an archive member name could land outside the folder it is extracted to ("" when
+    it cannot): an absolute path, a drive letter, a ``..`` part, a NUL byte."""
+    parts = name.replace("\\", "/").split("/")
+    if name.startswith(("/", "\\")) or (len(name) > 1 and name[1] == ":"):
+        return "is an absolute path"
+    if ".." in parts:
+        return "climbs out of the FMU's folder ('..')"
+    if "\0" in name:
+        return "holds a NUL byte"
+    return ""
+
+
+def check_archive(archive: zipfile.ZipFile, where: str,
+                  error: type[GatetwinError] = RecordError) -> list[str]:  # fmt: skip
+    """The member names of an FMU's zip archive, refused when it would unpack to more than
+    :data:`DEFAULT_MAX_BYTES` (:func:`check_unpacked_size`) or a member would land outside
+    the folder it is unpacked into (:func:`unsafe_member`)."""
+    check_unpacked_size(archive, where, error)
+    names = archive.namelist()
+    for name in names:
+        why = unsafe_member(name)
+        if why:
+            shown = name[:60].encode("unicode_escape", "backslashreplace").decode("ascii")
+            raise error(f"{where}: refused: the archive member '{shown}' {why}; "
+                        "an FMU's files stay inside its folder")  # fmt: skip
+    return names
 
 
 def open_regular(path: str | Path, max_bytes: int, what: str = "a CSV record",
