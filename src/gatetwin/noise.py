@@ -212,7 +212,10 @@ def _stretch(time_s: np.ndarray, level_mm: np.ndarray, start: int, stop: int) ->
     idx = idx[np.isfinite(level_mm[idx])]
     if idx.size < 8:
         return None
-    x = np.vander(time_s[idx] - time_s[idx].mean(), 3)
+    # time centred and scaled to [-1, 1]: the quadratic's columns are then of one size, and
+    # the normal matrix of a hold of hours (t^4 ~ 1e16 s^4 in seconds) keeps its rank
+    t = time_s[idx] - time_s[idx].mean()
+    x = np.vander(t / max(float(np.max(np.abs(t))), 1e-300), 3)
     q = x @ np.linalg.pinv(x.T @ x)
     y = level_mm[idx]
     return _Stretch(y - q @ (x.T @ y), x, q)

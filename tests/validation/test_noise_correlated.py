@@ -142,3 +142,17 @@ def test_a_ringing_seiche_is_not_taken_for_noise(tmp_path) -> None:
         plain_pooled_sd(t, np.asarray(record.levels_mm["3F"]), stretches), rel=1e-12
     )
     assert floor.to_dict()["ar1_coefficient"] is None
+
+
+def test_the_floor_of_a_field_gates_long_hold_is_its_gauge_noise() -> None:
+    """A hold of 9.6 h logged every 30 s from 2.8 h on (a field pool's step test), white gauge
+    noise of 3 mm on a level that still settles by 40 mm: the floor is the noise, within five
+    standard errors of an SD from the 576 samples of the hold's last half
+    (5 / sqrt(2 x 576) = 15 %). The quadratic the stretch is fitted to once lost its rank to
+    the size of t^4 in seconds and left the level itself (1 m) as the noise."""
+    sigma, n = 3.0, 1152
+    t = 10_000.0 + 30.0 * np.arange(n)
+    rng = np.random.default_rng(7)
+    level = 1800.0 + 40.0 * np.exp(-(t - t[0]) / 9000.0) + sigma * rng.standard_normal(n)
+    floor = noise_floor(t, level, np.ones(n, bool), [(0, n)])
+    assert abs(floor.sigma_mm / sigma - 1.0) <= 5.0 / np.sqrt(2.0 * n / 2), floor
