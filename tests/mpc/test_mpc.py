@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from gatetwin.cli import main
+from gatetwin.errors import ControlError
 from gatetwin.flume import FlumeConfig
 from gatetwin.mpc import (
     DemoSettings,
@@ -96,6 +97,25 @@ def test_cli_mpc_demo(tmp_path, capsys):
                  "nan"]) == 2  # fmt: skip
     err = capsys.readouterr().err
     assert err.startswith("gatetwin: error:") and err.count("\n") == 1
+
+
+def test_a_demo_refused_half_way_leaves_no_plots(tmp_path, capsys, monkeypatch):
+    """A scenario refused after another's plot was written: exit 2, one line, and neither
+    the plots folder nor the JSON is left."""
+    import gatetwin.mpc.demo as demo
+
+    def refused_after_one_plot(*_args, out_plots_dir, **_kwargs):
+        Path(out_plots_dir).mkdir(parents=True, exist_ok=True)
+        (Path(out_plots_dir) / "setpoint_steps.png").write_bytes(b"\x89PNG")
+        raise ControlError("observer: no steady-state Kalman filter (at the second scenario)")
+
+    monkeypatch.setattr(demo, "run_mpc_demo", refused_after_one_plot)
+    out, plots = tmp_path / "demo.json", tmp_path / "plots"
+    model = Path(__file__).resolve().parents[2] / "models" / "fopdt_3F.json"
+    code = main(["mpc-demo", "--model", str(model), "--json", str(out), "--plots", str(plots)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("gatetwin: error:") and err.count("\n") == 1
+    assert not plots.exists() and not out.exists()
 
 
 @pytest.mark.slow

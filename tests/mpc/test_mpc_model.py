@@ -225,3 +225,26 @@ def test_bad_settings_and_models_are_refused():
         controller.step(math.nan, 40.0, 180.0)  # a level that is not a number
     with pytest.raises(ControlError):
         controller.reset(200.0, 180.0, 40.0)  # opening outside the range
+
+
+def test_the_observer_starts_where_the_gate_has_no_hold_on_the_level():
+    """An envelope's tangent at the critical-flow cap: the opening (through the register)
+    never reaches the level, so the input disturbance is unobservable. The filter starts
+    with a steady covariance for the level and none for ``d`` (the Riccati equation has no
+    finite solution with an integrator nothing observes: the MPC demo stopped there)."""
+    from gatetwin.mpc.observer import DisturbanceObserver, steady_prior_covariance
+    from gatetwin.mpc.settings import ObserverSettings
+    from gatetwin.mpc.statespace import DiscreteModel
+
+    model = DiscreteModel(a=np.diag([0.945, 0.0]), b=np.array([0.0, 1.0]), c=np.array([1.0, 0.0]),
+                          b_dist=np.zeros(2), level_ref_mm=1800.0, opening_ref_mm=555.0,
+                          flow_m3h=14400.0, sample_period_s=30.0, n_dynamic=1)  # fmt: skip
+    settings = ObserverSettings(measurement_sd_mm=3.0, level_sd_mm=3.0, disturbance_sd_mm=4.1)
+    p = steady_prior_covariance(model, settings)
+    assert np.all(np.isfinite(p)) and p[2, 2] == 0.0 and p[0, 0] > 0.0
+    # the level's variance is the scalar Riccati equation's: a^2 P R / (P + R) + Q = P
+    a, q, r = 0.945, settings.level_sd_mm**2, settings.measurement_sd_mm**2
+    assert math.isclose(p[0, 0], a * a * p[0, 0] * r / (p[0, 0] + r) + q, rel_tol=1e-9)
+    observer = DisturbanceObserver(settings)
+    observer.reset(model, 555.0, 1795.0)
+    assert observer.disturbance_mm == 0.0

@@ -405,11 +405,12 @@ def _run_mpc_demo(args: argparse.Namespace) -> int:
 
         sized = args.model is not None and args.plant != "swmm"
         minutes = demo_minutes(extra["settings"]) if sized else DEMO_MINUTES
-    result = run_mpc_demo(
-        plant, plant_kind=args.plant, minutes=minutes,
-        out_plots_dir=args.plots, progress=print_to_stderr, **extra,
-    )  # fmt: skip
-    _write_json(args.json, result)
+    with undone_on_failure(args.plots):  # a run refused half-way leaves no plots behind
+        result = run_mpc_demo(
+            plant, plant_kind=args.plant, minutes=minutes,
+            out_plots_dir=args.plots, progress=print_to_stderr, **extra,
+        )  # fmt: skip
+        _write_json(args.json, result)
     print(f"wrote {args.json} and the plots in {args.plots}")
     return 0
 

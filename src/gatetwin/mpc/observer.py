@@ -67,10 +67,16 @@ def steady_prior_covariance(model: DiscreteModel, settings: ObserverSettings) ->
     """Steady-state prior covariance of ``[z, d]`` for the model held constant.
 
     The model's ``fixed_states`` (a sensor drift: known from the start, no process noise,
-    no equilibrium) keep zero covariance; the Riccati equation is solved for the rest.
+    no equilibrium) keep zero covariance; the Riccati equation is solved for the rest. So
+    does ``d`` where the reading cannot see it (the gate has no hold on the level at this
+    point, an envelope's tangent at the critical-flow cap: ``c A^k b_d = 0`` for every
+    ``k``): an integrator nothing observes has no steady covariance, and the filter then
+    starts from the disturbance it has.
     """
     a_aug, c_aug = _augmented(model)
-    keep = np.append(model.free_states, model.n_states)
+    keep = model.free_states
+    if _disturbance_observable(model):
+        keep = np.append(keep, model.n_states)
     sub = np.ix_(keep, keep)
     r = np.array([[settings.measurement_sd_mm**2]])
     try:
@@ -82,6 +88,20 @@ def steady_prior_covariance(model: DiscreteModel, settings: ObserverSettings) ->
     p = np.zeros_like(a_aug)
     p[sub] = p_sub
     return p
+
+
+def _disturbance_observable(model: DiscreteModel) -> bool:
+    """Whether the reading sees the input disturbance: ``c A^k b_d`` is not zero for some
+    ``k`` below the number of states (relative to the largest such term a path could give,
+    round-off is zero)."""
+    a, c = np.asarray(model.a, dtype=float), np.asarray(model.c, dtype=float)
+    column = np.asarray(model.b_dist, dtype=float)
+    scale = np.max(np.abs(column)) if column.size else 0.0
+    seen = 0.0
+    for _ in range(model.n_states):
+        seen = max(seen, abs(float(c @ column)))
+        column = a @ column
+    return scale > 0.0 and seen > 1e-12 * scale
 
 
 def kalman_gain(model: DiscreteModel, settings: ObserverSettings) -> np.ndarray:
