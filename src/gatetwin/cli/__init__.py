@@ -11,6 +11,7 @@ line ``gatetwin: error: <message>`` on stderr and exit code 2, never a traceback
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -27,10 +28,13 @@ from gatetwin.records.sidecar import TEST_TYPES
 from gatetwin.records.summary import format_record_summary, format_static_summary
 from gatetwin.version import __version__
 
-__all__ = ["EXIT_ERROR", "Command", "build_parser", "main", "print_to_stderr"]
+__all__ = ["EXIT_BROKEN_PIPE", "EXIT_ERROR", "Command", "build_parser", "main", "print_to_stderr"]
 
 #: Exit code for a refused input or a failed command.
 EXIT_ERROR = 2
+#: Exit code when the output's reader closed the pipe (``| head``): a shell's for a command
+#: ended by SIGPIPE, 128 + 13, without a message.
+EXIT_BROKEN_PIPE = 141
 
 
 @dataclass(frozen=True)
@@ -566,6 +570,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.run(args))
     except GatetwinError as exc:
         print(f"gatetwin: error: {_one_line(str(exc))}", file=sys.stderr)
+    except BrokenPipeError:  # the reader of the output stopped early (| head): nothing to say
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # the interpreter's last flush goes nowhere
+        return EXIT_BROKEN_PIPE
     except OSError as exc:  # an output or input the system refuses (read-only, disk full)
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"gatetwin: error: {_one_line(where + (exc.strerror or str(exc)))}",

@@ -255,6 +255,9 @@ def run_models(args: argparse.Namespace) -> int:
         return _run_fleet(args)
     folder = Path(args.records[0]) if args.records else bundled_records_dir()
     ident = identify_folder(folder)
+    for name, why in ident.not_identified.items():
+        print(f"gatetwin: warning: {name} not identified ({' '.join(why.split())}); the "
+              "others are written", file=sys.stderr)  # fmt: skip
     with undone_on_failure(args.out):
         paths = write_model_files(ident.models, Path(args.out))
     for path in paths:

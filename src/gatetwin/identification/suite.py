@@ -80,6 +80,9 @@ class Identified:
     models: dict[str, dict[str, Any]] = field(default_factory=dict)
     held_out: dict[str, dict[str, Any]] = field(default_factory=dict)
     arx_gauge: str = ""
+    #: Models that could not be identified (name: why): a gauge whose physical fit fails
+    #: keeps its FOPDT on the step conditions alone (:func:`gauge_models`).
+    not_identified: dict[str, str] = field(default_factory=dict)
 
 
 def signal_to_noise(level_mm: np.ndarray) -> float:
@@ -460,10 +463,13 @@ def identify_records(paths: list[Path], where: str, progress: Any = None,
                       lambda job: f"{where}: gauge {job[1]}'s models")  # fmt: skip
     docs = {name: doc for found_docs in found for name, doc in found_docs.items()}
     for gauge in sorted(gauges):
-        for name in (f"fopdt_{gauge}", f"physical_{gauge}"):
-            ident.models[name] = docs.pop(name)
-        ident.held_out[gauge] = ident.models[f"fopdt_{gauge}"]["provenance"]["metrics"][
-            "held_out"]  # fmt: skip
+        fopdt = ident.models[f"fopdt_{gauge}"] = docs.pop(f"fopdt_{gauge}")
+        metrics = fopdt["provenance"]["metrics"]
+        if "physical_not_identified" in metrics:
+            ident.not_identified[f"physical_{gauge}"] = metrics["physical_not_identified"]
+        else:
+            ident.models[f"physical_{gauge}"] = docs.pop(f"physical_{gauge}")
+        ident.held_out[gauge] = metrics["held_out"]
     ident.models.update(docs)  # the discrete model
     if ident.prbs and ident.arx_gauge not in gauges:
         doc = arx_model(ident)
@@ -480,11 +486,21 @@ def gauge_fopdt(job: tuple[Identified, str]) -> dict[str, Any]:
 
 def gauge_models(job: tuple[Identified, str]) -> dict[str, dict[str, Any]]:
     """The model files of one gauge (a task): its physical model, the FOPDT across its
-    envelope and, at the discrete model's gauge, the discrete model."""
+    envelope and, at the discrete model's gauge, the discrete model. Where the physical fit
+    fails (:class:`~gatetwin.errors.IdentificationError`), the FOPDT on its step conditions
+    alone, the reason in its ``provenance.metrics.physical_not_identified``
+    (:func:`identify_records` lists it in ``Identified.not_identified``)."""
     ident, gauge = job
-    physical = physical_model(ident, gauge)
+    try:
+        physical: dict[str, Any] | None = physical_model(ident, gauge)
+    except IdentificationError as exc:  # the FOPDT then holds on its step conditions alone
+        physical, why = None, str(exc)
     fopdt = fopdt_model(ident, gauge, physical)
-    docs = {physical["name"]: physical, fopdt["name"]: fopdt}
+    docs = {fopdt["name"]: fopdt}
+    if physical is None:
+        fopdt["provenance"]["metrics"]["physical_not_identified"] = why
+    else:
+        docs[physical["name"]] = physical
     if ident.prbs and gauge == ident.arx_gauge:
         arx = arx_model(ident, physical=physical)
         docs[arx["name"]] = arx
