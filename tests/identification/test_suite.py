@@ -72,3 +72,24 @@ def test_a_fleets_gate_summary_names_the_missing_model():
         "a warning of the identification",
         f"physical_N2_2 not identified ({WHY}); the others are written",
     ]
+
+
+def test_a_gauge_no_model_can_name_is_refused_before_any_fit(tmp_path, capsys, monkeypatch):
+    """A column ``level_N2.1(ds)_mm`` is a record's gauge, but no model file, FMU variable or
+    C identifier can carry its name: refused in one line naming the file and the column,
+    before a fit (none is run) and with no output."""
+    import shutil
+
+    monkeypatch.setattr(suite, "gauge_models", lambda _job: pytest.fail("a fit was started"))
+    folder = tmp_path / "records"
+    shutil.copytree(bundled_records_dir(), folder)
+    record = folder / "A.csv"
+    text = record.read_text(encoding="utf-8")
+    record.write_text(text.replace("level_1D_mm", "level_N2.1(ds)_mm", 1), encoding="utf-8")
+    out = tmp_path / "models"
+    assert main(["models", "--records", str(folder), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"gatetwin: error: {record}: column level_N2.1(ds)_mm: gauge name "
+                   "'N2.1(ds)' does not match ^[A-Za-z0-9_]{1,32}$ (a model names its FMU "
+                   "variables after it); rename the column\n")  # fmt: skip
+    assert not out.exists()

@@ -11,6 +11,7 @@ and only the run's validation matrix uses them.
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -118,6 +119,20 @@ def load_folder(folder: Path, progress: Any = None) -> Identified:
     return load_records(sorted(folder.glob("*.csv")), str(folder), progress)
 
 
+def _check_gauge_names(path: Path, gauges: Any) -> None:
+    """Refuse a gauge no model file can name (the model schema's pattern: FMU variables and
+    C identifiers are made of it) before anything is fitted."""
+    from gatetwin.modelschema import model_schema
+
+    pattern = model_schema()["$defs"]["gauge"]["pattern"]
+    for gauge in gauges:
+        if not re.fullmatch(pattern, gauge):
+            raise IdentificationError(
+                f"{path}: column level_{gauge}_mm: gauge name {gauge!r} does not match "
+                f"{pattern} (a model names its FMU variables after it); rename the column"
+            )
+
+
 def load_records(paths: list[Path], where: str, progress: Any = None) -> Identified:
     """Like :func:`load_folder` on the CSV files ``paths`` (``where`` names them in errors)."""
     out = Identified()
@@ -125,10 +140,12 @@ def load_records(paths: list[Path], where: str, progress: Any = None) -> Identif
     for path in paths:
         if detect_table_kind(path) == "static":
             table = read_static_table(path)
+            _check_gauge_names(path, table.gauges)
             out.static_sha256 = table.sha256
             out.static = table
             continue
         rec = read_record(path)
+        _check_gauge_names(path, rec.levels_mm)
         out.records[path.stem] = rec
         if role_of(rec) == VALIDATION_ROLE:
             if progress:
