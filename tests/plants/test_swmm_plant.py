@@ -329,3 +329,17 @@ def test_each_step_test_holds_the_step_methods_window_at_any_sample_period(
         (_, _), (step_s, _) = sch.opening_mm
         assert step_s / sample_period_s >= STEP_WINDOW_SAMPLES + 1, sch.name
         assert (sch.duration_s - step_s) / sample_period_s >= STEP_WINDOW_SAMPLES + 1, sch.name
+
+
+def test_the_spin_up_sees_what_is_left_of_a_slow_approach() -> None:
+    """A pool at T = 9000 s logged every 10 s, 20 mm from its end: over ten samples it moves
+    0.22 mm, under a 0.3 mm tolerance, yet an exponential has all 20 mm left to go, which
+    the three windows' moves give back exactly; a level still speeding up has no end in
+    sight, and a still one none left."""
+    from gatetwin.plants.swmm import _left_to_go_mm
+
+    t = 10.0 * np.arange(200)
+    level = 1800.0 - 20.0 * np.exp(-(t - t[-1]) / 9000.0)
+    assert math.isclose(_left_to_go_mm(list(level), 10), 20.0, rel_tol=1e-6)
+    assert _left_to_go_mm(list(1800.0 + 0.001 * t**2), 10) == math.inf
+    assert _left_to_go_mm([1800.0] * 40, 10) == 0.0

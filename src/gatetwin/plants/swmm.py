@@ -350,9 +350,15 @@ class SwmmCore:
 
     def _spin_up(self) -> None:
         """Run with the inputs held until the level is steady: it moved less than the
-        tolerance over the last pool time constant (at least ten samples). The time
-        constant is estimated as the level's total change over its fastest rate of change
-        (for h∞ − Δ·exp(−t/T) both are Δ and Δ/T), so no length of time is assumed."""
+        tolerance over the last pool time constant (at least ten samples, and at least the
+        last quarter of the spin-up), and what is left of its approach is less than the
+        tolerance too. The time constant is estimated as the level's total change over its
+        fastest rate of change (for h∞ − Δ·exp(−t/T) both are Δ and Δ/T), so no length of
+        time is assumed. SWMM's first filling can make that rate fast and the estimate
+        short, and a pool that overshoots is still for a while at its turn: the quarter of
+        the spin-up so far keeps the window growing with the approach, and over three equal
+        windows an exponential approach moves by d, d·r, d·r² and has d·r³/(1 − r) left to
+        go (:func:`_left_to_go_mm`)."""
         spec, step = self.spec, self.spec.sample_period_s
         first = self.level_mm()
         history, fastest = [first], 0.0
@@ -362,9 +368,10 @@ class SwmmCore:
             fastest = max(fastest, abs(history[-1] - history[-2]) / step)
             change = abs(history[-1] - first)
             tau = change / fastest if fastest > 0 else 0.0
-            n = max(10, math.ceil(tau / step))
+            n = max(10, math.ceil(tau / step), len(history) // 4)
             window = history[-n - 1 :]
-            if len(history) > 2 * n and max(window) - min(window) < spec.steady_tolerance_mm:
+            if (len(history) > 3 * n and max(window) - min(window) < spec.steady_tolerance_mm
+                    and _left_to_go_mm(history, n) < spec.steady_tolerance_mm):  # fmt: skip
                 self.spin_up_s = self.time_s
                 return
         raise PlantError(
@@ -372,6 +379,21 @@ class SwmmCore:
             f"(level at {spec.output_node} still moves {max(window) - min(window):.2f} mm over "
             f"{n * step:g} s; tolerance {spec.steady_tolerance_mm:g} mm)"
         )
+
+
+def _left_to_go_mm(history: list[float], n: int) -> float:
+    """How far the level has still to go, mm, if it approaches its end exponentially: from
+    its moves over the last three windows of ``n`` samples, ``d₁, d₂, d₃``, the ratio
+    ``r = d₃/d₂`` and ``d₃·r/(1 − r)``; infinite when the moves do not shrink (a level
+    still speeding up, or holding its pace)."""
+    y0, y1, y2, y3 = history[-3 * n - 1], history[-2 * n - 1], history[-n - 1], history[-1]
+    d2, d3 = y2 - y1, y3 - y2
+    if d3 == 0.0:
+        return 0.0
+    ratio = d3 / d2 if d2 != 0.0 else math.inf
+    if ratio <= 0.0:  # turning round (a wave in the pool): what is left is of its size
+        return max(abs(d3), abs(y1 - y0))
+    return abs(d3) * ratio / (1.0 - ratio) if ratio < 1.0 else math.inf
 
 
 def _routing_step_s(inp: InpFile) -> float:
