@@ -489,3 +489,27 @@ def test_identify_prbs_survives_spikes_nans_and_gaps() -> None:
     assert np.all(np.abs(np.array(ident.fit.b) - B_TRUE) < 4 * np.array(ident.fit.b_se))
     assert ident.one_step.rmse_mm < 0.6
     assert ident.whiteness.ljung_box_p > 1e-3
+
+
+def test_a_prbs_record_without_the_flumes_gauge_names_is_identified(tmp_path, capsys):
+    """A field logger's gauges (no ``3F``): ``gatetwin identify`` and ``gatetwin.identify``
+    take the gauge ``gatetwin models`` would (the highest signal-to-noise ratio: the one the
+    flume calls 3F), where the command asked for a gauge 3F."""
+    from gatetwin import identify
+    from gatetwin.bundled import bundled_records_dir
+    from gatetwin.cli import main
+
+    names = {"1D": "U1", "2E": "U2", "3F": "U3", "4G": "U4", "5H": "U5"}
+    source = bundled_records_dir() / "C.csv"
+    text = source.read_text(encoding="utf-8")
+    sidecar = json.loads(source.with_suffix(".json").read_text(encoding="utf-8"))
+    for old, new in names.items():
+        text = text.replace(f"level_{old}_mm", f"level_{new}_mm")
+    sidecar["gauges"] = {names[g]: d for g, d in sidecar["gauges"].items()}
+    record = tmp_path / "C.csv"
+    record.write_text(text, encoding="utf-8")
+    record.with_suffix(".json").write_text(json.dumps(sidecar), encoding="utf-8")
+    assert main(["identify", str(record), "--json", str(tmp_path / "c.json")]) == 0
+    assert json.loads((tmp_path / "c.json").read_text())["gauge"] == "U3"
+    assert "ARX(2,2,1) at U3" in capsys.readouterr().out
+    assert identify(record).plant.gauge == "U3"

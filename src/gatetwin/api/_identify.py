@@ -211,7 +211,9 @@ def identify(record: Record | str | os.PathLike[str], family: str = "auto",
         ``fopdt`` needs a step test, ``arx`` a PRBS test; ``physical`` takes any record
         plus a static rating table. ``auto``: ``fopdt`` for a step test, ``arx`` for PRBS.
     gauge : str, optional
-        Gauge to model; default ``3F`` if the record has it, else its first gauge.
+        Gauge to model; default for an ARX model the gauge with the highest signal-to-noise
+        ratio (as :func:`identify_folder` picks the discrete model's), else ``3F`` if the
+        record has it, else its first gauge.
     name : str, optional
         Model name (a C identifier: it names the FMU); default ``<family>_<gauge>``.
     orders : (na, nb, nk)
@@ -242,6 +244,10 @@ def identify(record: Record | str | os.PathLike[str], family: str = "auto",
     """
     rec = _record(record)
     kind = _family(rec, family)
+    if gauge is None and kind == "arx":
+        from gatetwin.identification.suite import arx_gauge_of
+
+        gauge = arx_gauge_of([rec])
     g = gauge or ("3F" if "3F" in rec.levels_mm else rec.gauges[0])
     if g not in rec.levels_mm:
         raise IdentificationError(f"{_where(rec)}: no gauge {g}; it has {', '.join(rec.gauges)}")

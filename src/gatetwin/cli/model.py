@@ -36,7 +36,9 @@ TEST_CHOICES = ("step", "prbs")
 def add_identify_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("path", metavar="RECORD.csv")
     parser.add_argument("--test", choices=TEST_CHOICES, help="override the sidecar/detection")
-    parser.add_argument("--gauge", help="gauge (default: every gauge for step, 3F for prbs)")
+    parser.add_argument("--gauge", help="gauge (default: every gauge for step; for prbs, the "
+                        "gauge with the highest signal-to-noise ratio, as gatetwin models "
+                        "picks the discrete model's)")  # fmt: skip
     parser.add_argument(
         "--orders", nargs="+", metavar="N",
         help="ARX orders NA NB NK (default the paper's 2 2 1) or 'auto' (order search)",
@@ -78,7 +80,10 @@ def run_identify(args: argparse.Namespace) -> int:
                   f"fit K {f['K']:.2f}±{f['K_se']:.2f} L {f['L_s']:.2f}±{f['L_se']:.2f} s "
                   f"T {f['T_s']:.1f}±{f['T_se']:.1f} s")  # fmt: skip
     elif record.test == "prbs":
-        res = identify_prbs(record, gauge=args.gauge or "3F", orders=_orders(args.orders),
+        from gatetwin.identification.suite import arx_gauge_of
+
+        gauge = args.gauge or arx_gauge_of([record])
+        res = identify_prbs(record, gauge=gauge, orders=_orders(args.orders),
                             criterion=args.criterion)  # fmt: skip
         result = res.to_dict()
         print(f"ARX({result['na']},{result['nb']},{result['nk']}) at {result['gauge']}: "
