@@ -323,3 +323,12 @@ def test_sidecar_period_far_from_the_data_is_refused(tmp_path: Path) -> None:
     path = _write(tmp_path, _rows(STEP, period=5.0), sidecar={"sample_period_s": 1.2})
     with pytest.raises(RecordError, match="median time step is 5 s"):
         read_record(path)
+
+
+def test_sidecar_period_twice_the_datas_is_refused(tmp_path: Path) -> None:
+    """A logger at 30 s whose sidecar says 60 s: read as 60 s, every time constant and
+    horizon sized from the period would be off by two."""
+    path = _write(tmp_path, _rows(STEP, period=30.0), sidecar={"sample_period_s": 60.0})
+    with pytest.raises(RecordError, match=r"sample period 60 s \(sidecar field "
+                       r"'sample_period_s'\) but the median time step is 30 s"):  # fmt: skip
+        read_record(path)

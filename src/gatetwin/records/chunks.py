@@ -264,11 +264,7 @@ def history_sample_period(history: History, rows: int) -> float:
         checks.check_sample_period(history.path, median_s, "the median time step", limits)
         return median_s
     checks.check_sample_period(history.path, given, "sidecar field 'sample_period_s'", limits)
-    if median_s > segments.GAP_FACTOR * given:
-        raise RecordError(
-            f"{history.path}: sample period {given:g} s (sidecar field 'sample_period_s') but "
-            f"the median time step is {median_s:g} s; expected the nominal sample period"
-        )
+    segments.check_median_step(str(history.path), given, median_s)
     return given
 
 

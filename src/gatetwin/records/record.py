@@ -535,11 +535,7 @@ def _sample_period(origin: Origin, time_s: np.ndarray, sidecar: Sidecar) -> floa
         checks.check_sample_period(origin.name, median_s, "the median time step", limits)
         return median_s
     checks.check_sample_period(origin.name, given_s, "sidecar field 'sample_period_s'", limits)
-    if median_s > segments.GAP_FACTOR * given_s:
-        raise origin.error(
-            f"sample period {given_s:g} s (sidecar field 'sample_period_s') but the median "
-            f"time step is {median_s:g} s; expected the nominal sample period"
-        )
+    segments.check_median_step(origin.name, given_s, median_s)
     return given_s
 
 

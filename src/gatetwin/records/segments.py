@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gatetwin.errors import RecordError
 from gatetwin.records.checks import Origin
 from gatetwin.records.sidecar import TEST_TYPES
 
@@ -34,6 +35,7 @@ __all__ = [
     "Segmentation",
     "Segmented",
     "StepOnset",
+    "check_median_step",
     "check_method",
     "choose_test",
     "detect_test",
@@ -169,6 +171,18 @@ class Segmentation:
     openings_mm: np.ndarray
     opening_mm: np.ndarray
     filled: np.ndarray
+
+
+def check_median_step(name: str, period_s: float, median_s: float) -> None:
+    """Refuse a sidecar's ``sample_period_s`` the time steps do not keep: their median more
+    than :data:`GAP_FACTOR` times longer (a record of gaps) or shorter (a logger twice as
+    fast as its sidecar says: every time constant and horizon sized from the period would be
+    off by as much). ``name`` labels the message."""
+    if not period_s / GAP_FACTOR <= median_s <= GAP_FACTOR * period_s:
+        raise RecordError(
+            f"{name}: sample period {period_s:g} s (sidecar field 'sample_period_s') but the "
+            f"median time step is {median_s:g} s; expected the nominal sample period"
+        )
 
 
 def is_gap(time_s: np.ndarray, period_s: float) -> np.ndarray:
