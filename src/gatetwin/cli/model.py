@@ -259,7 +259,7 @@ def run_models(args: argparse.Namespace) -> int:
     if _is_fleet(args):
         return _run_fleet(args)
     folder = Path(args.records[0]) if args.records else bundled_records_dir()
-    ident = identify_folder(folder)
+    ident = identify_folder(folder, progress=lambda line: _print_to_stderr(line.strip()))
     for name, why in ident.not_identified.items():
         print(f"gatetwin: warning: {name} not identified ({' '.join(why.split())}); the "
               "others are written", file=sys.stderr)  # fmt: skip
