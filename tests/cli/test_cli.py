@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -83,8 +84,9 @@ def test_python_dash_m_runs(good_record: Path) -> None:
 def test_a_reader_that_stops_early_ends_the_command_without_a_message(good_record: Path) -> None:
     """``gatetwin check … | head -0``: the pipe is closed before the command writes; it stops
     as a shell's command ended by SIGPIPE does (status 141), with nothing on stderr."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}  # buffered output
     child = subprocess.Popen([sys.executable, "-m", "gatetwin", "check", str(good_record)],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)  # fmt: skip
     child.stdout.close()  # long before the interpreter has imported gatetwin
     _, err = child.communicate(timeout=120)
     assert (child.returncode, err.decode()) == (141, "")

@@ -265,6 +265,10 @@ def test_the_base_opening_is_the_rules_else_half_the_gate(canal: Path, core: Swm
     tail = SwmmCore(SwmmPlantSpec(canal, "TAIL", {"B1": 0.0}, ("A0",)))
     assert tail.base_opening_mm() == 200.0
     assert core.base_opening_mm(123.4) == 123.0
+    # a rule that opens the gate fully holds no operating point: half the gate
+    full = canal.parent / "full.inp"
+    full.write_text(TWO_POOL.replace("TAIL SETTING = 0.4", "TAIL SETTING = 1"), encoding="utf-8")
+    assert SwmmCore(SwmmPlantSpec(full, "TAIL", {"B1": 0.0}, ("A0",))).base_opening_mm() == 250.0
 
 
 def test_an_opening_outside_the_gate_is_refused_before_any_record(canal, tmp_path, capsys):

@@ -275,12 +275,16 @@ def identify_folder(path: str | os.PathLike[str], progress: Any = None) -> Model
     -------
     ModelSet
         ``fopdt_<G>`` (envelope FOPDT) and ``physical_<G>`` per gauge of the step tests,
-        ``arx_3F`` when there are PRBS tests.
+        ``arx_<G>`` at the PRBS tests' gauge of the highest signal-to-noise ratio when there
+        are PRBS tests. A gauge whose physical fit fails has no ``physical_<G>``; its FOPDT
+        holds on the step conditions alone and says why in
+        ``provenance.metrics.physical_not_identified``.
 
     Raises
     ------
     RecordError, IdentificationError
-        A bad record, no static table, too little data.
+        A bad record, a gauge name no model can carry, no static table, too little data
+        for the step tests.
 
     Examples
     --------

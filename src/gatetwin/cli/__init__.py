@@ -11,6 +11,7 @@ line ``gatetwin: error: <message>`` on stderr and exit code 2, never a traceback
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -567,12 +568,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     _tolerant_streams()
     args = build_parser().parse_args(argv)
     try:
-        return int(args.run(args))
+        code = int(args.run(args))
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's last flush
+        return code
     except GatetwinError as exc:
         print(f"gatetwin: error: {_one_line(str(exc))}", file=sys.stderr)
     except BrokenPipeError:  # the reader of the output stopped early (| head): nothing to say
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())  # the interpreter's last flush goes nowhere
+        with contextlib.suppress(OSError, ValueError):  # stdout may be no file (captured)
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())  # what is left to flush goes nowhere
         return EXIT_BROKEN_PIPE
     except OSError as exc:  # an output or input the system refuses (read-only, disk full)
         where = f"{exc.filename}: " if exc.filename else ""

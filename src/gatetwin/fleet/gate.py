@@ -257,7 +257,7 @@ def gate_summary(gate: str, ident: Any, messages: list[str]) -> dict[str, Any]:
     samples += int(ident.static.n_points) if ident.static is not None else 0
     held = {name: _held_out(name, doc) for name, doc in sorted(models.items())}
     warns = list(messages)
-    warns += [f"{name} not identified ({why}); the others are written"
+    warns += [f"{name} not identified ({' '.join(why.split())}); the others are written"
               for name, why in sorted(ident.not_identified.items())]  # fmt: skip
     if not any(held.values()):
         warns.append("no held-out record: the model set is not checked on unseen data")

@@ -495,8 +495,9 @@ def identify_records(paths: list[Path], where: str, progress: Any = None,
 
 
 def gauge_fopdt(job: tuple[Identified, str]) -> dict[str, Any]:
-    """The FOPDT model file of one gauge (a task), as :func:`gauge_models` fits it: on the
-    gauge's physical model."""
+    """The FOPDT model file of one gauge (a task), as :func:`gauge_models` fits it where the
+    physical fit succeeds: on the gauge's physical model (the fit's
+    :class:`~gatetwin.errors.IdentificationError` propagates)."""
     ident, gauge = job
     return fopdt_model(ident, gauge, physical_model(ident, gauge))
 

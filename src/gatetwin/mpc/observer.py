@@ -90,18 +90,22 @@ def steady_prior_covariance(model: DiscreteModel, settings: ObserverSettings) ->
     return p
 
 
+#: Below this reach of the input disturbance on the reading, mm of level per mm of opening
+#: (``max_k |c A^k b_d|``), the reading does not see it: a metre of disturbance would move
+#: the level by a micrometre, far under any gauge's noise.
+UNSEEN_DISTURBANCE_MM_PER_MM = 1e-9
+
+
 def _disturbance_observable(model: DiscreteModel) -> bool:
-    """Whether the reading sees the input disturbance: ``c A^k b_d`` is not zero for some
-    ``k`` below the number of states (relative to the largest such term a path could give,
-    round-off is zero)."""
+    """Whether the reading sees the input disturbance: ``|c A^k b_d|`` reaches
+    :data:`UNSEEN_DISTURBANCE_MM_PER_MM` for some ``k`` below the number of states."""
     a, c = np.asarray(model.a, dtype=float), np.asarray(model.c, dtype=float)
     column = np.asarray(model.b_dist, dtype=float)
-    scale = np.max(np.abs(column)) if column.size else 0.0
     seen = 0.0
     for _ in range(model.n_states):
         seen = max(seen, abs(float(c @ column)))
         column = a @ column
-    return scale > 0.0 and seen > 1e-12 * scale
+    return seen >= UNSEEN_DISTURBANCE_MM_PER_MM
 
 
 def kalman_gain(model: DiscreteModel, settings: ObserverSettings) -> np.ndarray:
@@ -134,10 +138,12 @@ class DisturbanceObserver:
         """:meth:`reset` without the covariance (which the caller sets)."""
         dc = model.dc_gain_mm_per_mm()
         steady = model.level_mm(model.steady_state(opening_mm))
+        # a gain the reading cannot see (UNSEEN_DISTURBANCE_MM_PER_MM) explains no offset
+        seen = dc * dc >= UNSEEN_DISTURBANCE_MM_PER_MM**2
         if sym.is_symbolic(dc, steady, level_mm):  # both branches are formed, one is taken
-            self.disturbance_mm = sym.where(dc != 0.0, (level_mm - steady) / dc, 0.0)
+            self.disturbance_mm = sym.where(seen, (level_mm - steady) / dc, 0.0)
         else:
-            self.disturbance_mm = (level_mm - steady) / dc if dc != 0.0 else 0.0
+            self.disturbance_mm = (level_mm - steady) / dc if seen else 0.0
         self.state = model.steady_state(opening_mm, self.disturbance_mm)
         self._level_ref_mm = model.level_ref_mm
 
@@ -196,4 +202,9 @@ class DisturbanceObserver:
         self._level_ref_mm = model.level_ref_mm
 
 
-__all__ = ["DisturbanceObserver", "kalman_gain", "steady_prior_covariance"]
+__all__ = [
+    "UNSEEN_DISTURBANCE_MM_PER_MM",
+    "DisturbanceObserver",
+    "kalman_gain",
+    "steady_prior_covariance",
+]

@@ -159,6 +159,10 @@ def identify_models(ctx: PipelineContext) -> None:
     from gatetwin.modelfile import write_model_files
 
     ident = identify_folder(ctx.records_dir, ctx.progress, ctx.fleet)
+    if ident.not_identified:  # the later stages compare and control every family
+        name, why = next(iter(sorted(ident.not_identified.items())))
+        raise PipelineError(f"{ctx.records_dir}: {name} not identified ({' '.join(why.split())})"
+                            "; gatetwin run needs every model family")  # fmt: skip
     ctx.results["ident"] = ident
     written = write_model_files(ident.models, ctx.out_dir / "models")
     ctx.results["model_paths"] = [p for p in written if p.name != "schema.json"]

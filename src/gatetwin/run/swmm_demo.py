@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from gatetwin._io import write_json_atomic, write_text_atomic
-from gatetwin.errors import GatetwinError, IdentificationError
+from gatetwin.errors import GatetwinError
 from gatetwin.plants.swmm import SwmmCore, SwmmPlantSpec, swmm_versions
 from gatetwin.plants.swmm_loop import (
     INFLOW_DOWN,
@@ -202,24 +202,14 @@ def _experiments(req: DemoRequest, core: SwmmCore, flow_m3h: float, opening: flo
 
 def identify_twins(records: Path, models: Path) -> dict[str, Any]:
     """The models of ``gatetwin models --records`` (physical, FOPDT and ARX), written into
-    ``models``; a failed physical fit leaves that gauge its step-only FOPDT (reported)."""
-    from gatetwin.identification.suite import arx_model, fopdt_model, load_folder, physical_model
+    ``models``; a failed physical fit leaves that gauge its step-only FOPDT (reported by
+    gauge in ``physical_failures``, :attr:`Identified.not_identified`)."""
+    from gatetwin.identification.suite import identify_folder
     from gatetwin.modelfile import write_model_files
 
-    ident = load_folder(records)
+    ident = identify_folder(records)
     gauges = sorted({g for s in ident.steps.values() for g in s.gauges})
-    failures: dict[str, str] = {}
-    for gauge in gauges:
-        try:
-            physical = physical_model(ident, gauge)
-            ident.models[physical["name"]] = physical
-        except IdentificationError as exc:
-            physical, failures[gauge] = None, str(exc)
-        doc = fopdt_model(ident, gauge, physical)
-        ident.models[doc["name"]] = doc
-    if ident.prbs:
-        doc = arx_model(ident, physical=ident.models.get(f"physical_{ident.arx_gauge}"))
-        ident.models[doc["name"]] = doc
+    failures = {name.removeprefix("physical_"): why for name, why in ident.not_identified.items()}
     write_model_files(ident.models, models)
     return {"models": sorted(ident.models), "gauges": gauges, "physical_failures": failures}
 
