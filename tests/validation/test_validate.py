@@ -187,6 +187,29 @@ def test_fmu_across_a_logging_gap_equals_the_reference_on_the_grid(
         assert np.max(np.abs(result.trace.simulated_mm - expected[index])) <= 1e-9
 
 
+def test_a_gate_move_inside_a_logging_gap_is_counted_and_warned(
+    fmus: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A's step falls inside ten unlogged samples (a free record then: a step test must log
+    its step): the result counts the move the logger missed (A read whole has none), the
+    JSON says so, and the command warns in one line."""
+    step = read_record(A).steps[0].before.stop  # the first sample of the move
+    lines = A.read_text(encoding="utf-8").splitlines(keepends=True)
+    gap = tmp_path / "A.csv"  # the header is line 0: sample k is line k + 1
+    gap.write_text("".join(lines[: step - 3] + lines[step + 7 :]), encoding="utf-8")
+    sidecar = json.loads(A.with_suffix(".json").read_text(encoding="utf-8"))
+    gap.with_suffix(".json").write_text(json.dumps({**sidecar, "test": "free"}), encoding="utf-8")
+    assert read_record(A).unobserved_steps == 0 and read_record(gap).unobserved_steps == 1
+    result = validate_fmu(fmus["right"], [gap]).records[0]
+    assert result.unobserved_steps == 1 and result.to_dict()["unobserved_steps"] == 1
+    capsys.readouterr()
+    assert main(["validate", str(fmus["right"]), str(gap), "--json", str(tmp_path / "v.json")]) == 0
+    warned = [line for line in capsys.readouterr().err.splitlines() if "logging gaps" in line]
+    assert warned == ["gatetwin: warning: A.csv: the gate moved inside logging gaps (1 opening "
+                      "change(s)); the FMU holds the last logged opening through them, and the "
+                      "metrics include the settling after them"]  # fmt: skip
+
+
 def test_both_backends_give_the_same_metrics(fmus: dict[str, Path]) -> None:
     if "right_c" not in fmus:
         pytest.skip("no C compiler (cc/gcc) on PATH")

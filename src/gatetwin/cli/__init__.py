@@ -349,6 +349,11 @@ def _run_validate(args: argparse.Namespace) -> int:
         if rec.inside_validity is False:
             print_to_stderr(f"gatetwin: warning: {rec.record} lies outside {result.fmu.name}'s "
                             f"validity: {outside_message(rec)}")  # fmt: skip
+        if rec.unobserved_steps:
+            print_to_stderr(f"gatetwin: warning: {rec.record}: the gate moved inside logging "
+                            f"gaps ({rec.unobserved_steps} opening change(s)); the FMU holds "
+                            "the last logged opening through them, and the metrics include "
+                            "the settling after them")  # fmt: skip
     print(matrix_markdown(matrix_cells(result)), end="")
     for finding in result.static_findings:
         print(f"fmpy static validation: {finding}")

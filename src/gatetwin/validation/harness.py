@@ -225,6 +225,7 @@ def _validate_record(
         fail_outside_validity=settings.fail_outside_validity,
         failure_cause=cause,
         run_time_s=run.seconds,
+        unobserved_steps=int(record.unobserved_steps),
     )
 
 

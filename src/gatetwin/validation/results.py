@@ -102,6 +102,11 @@ class RecordValidation:
         no result in time, or the output is not finite. Such a record fails.
     run_time_s : float
         Wall-clock time of the FMU run, s (NaN when unknown).
+    unobserved_steps : int
+        Opening changes the record's logger missed, inside logging gaps
+        (:attr:`gatetwin.records.Record.unobserved_steps`): the FMU holds the last logged
+        opening through each gap, so the gap's moves reach it late and the metrics include
+        the settling after them.
     """
 
     record: str
@@ -124,6 +129,7 @@ class RecordValidation:
     fail_outside_validity: bool = False
     failure_cause: str = ""
     run_time_s: float = math.nan
+    unobserved_steps: int = 0
 
     @property
     def inside_validity(self) -> bool | None:
@@ -179,6 +185,7 @@ class RecordValidation:
             "n_samples": self.n_samples,
             "n_fmu_steps": self.n_fmu_steps,
             "communication_step_s": self.step_s,
+            "unobserved_steps": self.unobserved_steps,
             "metrics": self.metrics.to_dict(),
             "step_comparison": [s.to_dict() for s in self.steps],
             "whiteness": _whiteness_dict(self.whiteness, self.whiteness_note),
