@@ -32,8 +32,8 @@ from gatetwin.records.columns import (
 )
 from gatetwin.records.limits import ReadLimits
 from gatetwin.records.parquet import PARQUET_SUFFIXES
-from gatetwin.records.record import Record, _array_columns, _build_record
-from gatetwin.records.sidecar import Sidecar, read_sidecar, sidecar_from_dict
+from gatetwin.records.record import Record, record_from_arrays
+from gatetwin.records.sidecar import Sidecar, read_sidecar
 from gatetwin.records.table import read_table
 
 __all__ = [
@@ -226,13 +226,10 @@ def chunk_record(history: History, rows: Chunk, sample_period_s: float,
         raise RecordError(f"{history.path}: rows {rows.first_row + 1}-"
                           f"{rows.first_row + rows.n_rows} of the history: no discharge "
                           "logged in these rows or before them; expected m³/h")  # fmt: skip
-    origin = Origin(history.path)
-    meta = {**history.sidecar.metadata, "sample_period_s": sample_period_s}
-    columns = _array_columns(origin, rows.time_s, rows.opening_mm, rows.hold, rows.flow_m3h,
-                             rows.levels_mm)  # fmt: skip
-    columns = replace(columns, flow_before_m3h=rows.flow_before_m3h)
-    return _build_record(origin, columns, sidecar_from_dict(origin.name, meta), test, "",
-                         history.path)  # fmt: skip
+    return record_from_arrays(rows.time_s, rows.opening_mm, rows.hold, rows.flow_m3h,
+                              rows.levels_mm, test=test, sample_period_s=sample_period_s,
+                              metadata=history.sidecar.metadata, path=history.path,
+                              flow_before_m3h=rows.flow_before_m3h)  # fmt: skip
 
 
 def history_sample_period(history: History, rows: int) -> float:

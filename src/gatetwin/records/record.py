@@ -362,6 +362,7 @@ def record_from_arrays(
     gauges_m: dict[str, float] | None = None,
     metadata: dict[str, Any] | None = None,
     path: str = "",
+    flow_before_m3h: float = np.nan,
 ) -> Record:
     """Build a checked, segmented :class:`Record` from in-memory arrays.
 
@@ -391,6 +392,10 @@ def record_from_arrays(
         Sidecar-like contents kept on the record.
     path : str, optional
         Label for error messages and ``Record.path``.
+    flow_before_m3h : float, optional
+        The last discharge logged before these rows (some rows of a longer history), m³/h:
+        the empty discharge cells before the rows' first logged one hold it (NaN, the
+        default: they hold that first logged one).
 
     Raises
     ------
@@ -405,6 +410,7 @@ def record_from_arrays(
         meta["gauges"] = dict(gauges_m)
     sidecar = sidecar_from_dict(origin.name, meta)
     columns = _array_columns(origin, time_s, opening_mm, hold, flow_m3h, levels_mm)
+    columns = dataclasses.replace(columns, flow_before_m3h=float(flow_before_m3h))
     return _build_record(origin, columns, sidecar, test, "", path)
 
 
