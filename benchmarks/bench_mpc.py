@@ -6,12 +6,12 @@ by the QP MPC. At every sample the very same :class:`~gatetwin.mpc.qp.MpcProblem
 handed to the other solvers ("shadow" solves), so all of them are timed on identical
 problems, side by side:
 
-1. QP (qpOASES, hot-started) against Opti + IPOPT at horizons 50, 100 (the demo's) and 200:
+1. QP (DAQP, warm-started: the default) against Opti + IPOPT at horizons 50, 100 and 200:
    median and p99 solve time, their ratio (target: QP >= 10x faster), p99 < 20 ms at a
    horizon >= 100, and the largest first-move difference (target < 1e-3 mm).
-2. The QP solvers casadi ships (qpOASES, DAQP, OSQP) at the demo's horizon: which is
-   fastest, and how far each one's first move is from qpOASES's. OSQP is shadowed only
-   every ``--osqp-every`` samples: at these tolerances it takes ~1 s per solve.
+2. The QP solvers (DAQP through its package; qpOASES and OSQP through casadi) at the demo's
+   horizon: which is fastest, and how far each one's first move is from qpOASES's. OSQP is
+   shadowed only every ``--osqp-every`` samples: at these tolerances it takes ~1 s a solve.
 
 3. The MPC re-linearised on the envelope at every sample against the single-point MPC,
    both driving the Python reference of the envelope FOPDT ``models/fopdt_3F.json``
@@ -131,7 +131,7 @@ def ms(values) -> tuple[float, float]:
 
 
 def qp_against_ipopt(horizons: list[int], minutes: float) -> list[dict]:
-    print("1. condensed QP (qpOASES, hot start) vs Opti + IPOPT, same problems, one run")
+    print("1. condensed QP (DAQP, warm start) vs Opti + IPOPT, same problems, one run")
     print(f"   inflow step, {minutes:g} min at 1.2 s, Python FOPDT plant, noise 0.7 mm")
     head = (
         f"{'N':>5} {'QP med':>8} {'QP p99':>8} {'QP max':>8} {'at t s':>7} {'step p99':>9} "
@@ -159,7 +159,7 @@ def qp_against_ipopt(horizons: list[int], minutes: float) -> list[dict]:
                      "ipopt_failures": ipopt.failures})  # fmt: skip
     print(
         f"   (ms; 'step' = the MPC's whole step: observer, condensing and solve; the inflow\n"
-        f"   steps at t = {minutes * 10:g} s: the Hessian changes and qpOASES starts over)"
+        f"   steps at t = {minutes * 10:g} s: the Hessian changes and the solver starts over)"
     )
     for n, ratio, p99, diff, fails in verdicts:
         p99_note = f"p99 {p99:.1f} ms < {TARGET_P99_MS:g} ms: {p99 < TARGET_P99_MS}"
@@ -173,8 +173,8 @@ def qp_against_ipopt(horizons: list[int], minutes: float) -> list[dict]:
 
 
 def qp_solvers(horizon: int, minutes: float, osqp_every: int) -> None:
-    print(f"\n2. casadi QP plugins at N={horizon} on the same problems (first move vs qpOASES)")
-    settings = MpcSettings(horizon=horizon)
+    print(f"\n2. QP solvers at N={horizon} on the same problems (first move vs qpOASES)")
+    settings = MpcSettings(horizon=horizon, qp_solver="qpoases")
     shadows = [
         Shadow("daqp", QpBackend(replace(settings, qp_solver="daqp"))),
         Shadow("osqp", QpBackend(replace(settings, qp_solver="osqp")), every=osqp_every),

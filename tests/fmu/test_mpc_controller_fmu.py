@@ -34,7 +34,7 @@ pytestmark = pytest.mark.skipif(
 )
 
 #: Equality of the two loops, mm. Both solve the same strictly convex QP from the same data
-#: to its unique solution (the FMU with its dense active-set solver, Python with qpOASES), so
+#: to its unique solution (the FMU with its dense active-set solver, Python with DAQP), so
 #: each sample's opening agrees to the QP's round-off; the loop is stable, so that does not
 #: grow. 1e-9 mm leaves four orders of
 #: margin and is still far below anything physical (the actuator's resolution is 1 mm).
@@ -224,7 +224,7 @@ def test_the_riccati_iteration_settles_on_scipys_steady_covariance(plant, functi
 
 
 def _loops(plant, fmu, scenario, settings):
-    """Python MPC (qpOASES) and the FMU, each on a fresh plant FMU."""
+    """Python MPC (DAQP) and the FMU, each on a fresh plant FMU."""
     controller = FmuController(fmu, settings.mpc.sample_period_s)
     try:
         with _PlantFactory(plant, "fmu", settings) as factory:

@@ -158,7 +158,7 @@ def test_demo_settings_are_those_documented():
     s = DemoSettings()
     assert s.mpc.max_move_mm == pytest.approx(0.72)  # 0.6 mm/s loaded speed x 1.2 s
     assert s.mpc.horizon >= 100
-    assert Path(s.mpc.qp_solver).name == "qpoases"
+    assert s.mpc.qp_solver == "daqp"
 
 
 @pytest.mark.slow

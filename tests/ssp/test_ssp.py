@@ -468,7 +468,7 @@ def test_a_long_run_of_quick_calls_is_not_cut_by_the_per_call_limit(tmp_path):
 #: ~30 s), a short scenario keeps the Python MPC's run to seconds.
 MPC_HORIZON = 20
 MPC_MINUTES = 6.0
-#: The MPC FMU against the Python MPC (the FMU's dense active-set solver and qpOASES): the
+#: The MPC FMU against the Python MPC (the FMU's dense active-set solver and DAQP): the
 #: same QP from the same data solved to its unique solution, so the openings agree to the
 #: QP's round-off (~1e-13 mm measured
 #: on the FMU alone; here, the plant's seiche exciting the loop, isolated samples reach 3e-10

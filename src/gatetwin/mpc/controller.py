@@ -22,7 +22,7 @@ grows with ``K²`` (:attr:`MpcSettings.move_weight_gain_mm_per_mm`).
 
 Why a re-linearised QP and not a nonlinear MPC on the physical kernel (its CasADi
 rendering exists): the tangent at the measured point is exact to first order, the
-condensed QP keeps qpOASES' hot-started ~0.5 ms solve, and a rebuild of its matrices
+condensed QP keeps DAQP's warm-started ~0.2 ms solve, and a rebuild of its matrices
 (only when the tangent has moved by a 1 % grid step) costs a few ms; IPOPT on the same
 horizon takes ~19 ms median and ~64 ms p99 a solve on the linear model alone
 (``benchmarks/bench_mpc.py``, N = 100), more with the kernel's nested bisection inside,
@@ -229,8 +229,8 @@ class MpcController:
         self.previous_gate_mm = float(opening_mm)
         self.observer.reset(self.model_at(flow_m3h), model_opening, level_mm)
         self.shaper.reset(opening_mm)
-        # one solve at rest sets the solver up (qpOASES' first call is a cold start that
-        # costs ~20x a hot one); from here on every step is hot-started
+        # one solve at rest sets the solver up (its first call factors the Hessian and starts
+        # cold, ~20x a warm one); from here on every step is warm-started
         self.backend.solve(self.problem(flow_m3h, level_mm))
         self.last_solution = None
         self.failures = 0

@@ -234,19 +234,25 @@ class _PlantFactory:
     """Fresh loop plants of one kind (the FMU is exported once, to a temporary folder)."""
 
     def __init__(
-        self, plant: Plant, kind: str, settings: DemoSettings, core_factory: Any = None
-    ) -> None:
+        self, plant: Plant, kind: str, settings: DemoSettings, core_factory: Any = None,
+        plant_fmu: str | Path | None = None,
+    ) -> None:  # fmt: skip
         if kind not in PLANT_KINDS:
             raise ControlError(f"plant kind must be one of {', '.join(PLANT_KINDS)} (got {kind!r})")
         if (kind == "swmm") != (core_factory is not None):
             raise ControlError("plant kind swmm goes with a SWMM core factory, and only it")
         self.plant, self.kind, self.settings = plant, kind, settings
         self.core_factory = core_factory  # the SWMM plant: gatetwin.plants.swmm_loop
+        if plant_fmu is not None and kind != "fmu":
+            raise ControlError(f"a plant FMU goes with plant kind fmu (got {kind!r})")
+        self.plant_fmu = plant_fmu
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
         self._fmu: FmuCore | None = None
 
     def __enter__(self) -> _PlantFactory:
-        if self.kind == "fmu":
+        if self.kind == "fmu" and self.plant_fmu is not None:
+            self._fmu = FmuCore(self.plant_fmu, self.settings.mpc.sample_period_s)
+        elif self.kind == "fmu":
             from gatetwin.fmu import export_fmu
 
             self._tmp = tempfile.TemporaryDirectory(prefix="gatetwin-mpc-")
@@ -293,6 +299,7 @@ def compare_controllers(
     settings: DemoSettings | None = None,
     controllers: tuple[str, ...] = ("mpc", "pi"),
     core_factory: Any = None,
+    plant_fmu: str | Path | None = None,
 ) -> dict[str, ClosedLoopRun]:
     """Run ``scenario`` with each controller, each on a fresh plant of one kind.
 
@@ -300,7 +307,9 @@ def compare_controllers(
     MPC: the schedule's model at the measured discharge), ``"mpc_envelope"`` (re-linearised
     on the envelope at every sample; the model needs an envelope) and ``"pi"`` (SIMC,
     tuned at ``settings.flow_m3h``). ``core_factory`` makes the cores of plant kind
-    ``"swmm"`` (:func:`gatetwin.plants.swmm_loop.core_factory`). Returns ``{name: run}``.
+    ``"swmm"`` (:func:`gatetwin.plants.swmm_loop.core_factory`); ``plant_fmu``, the plant of
+    kind ``"fmu"`` when ``plant_model`` was exported already (the C FMU, FMI 2.0; else it is
+    exported here). Returns ``{name: run}``.
     """
     s = settings or DemoSettings()
     unknown = [c for c in controllers if c not in CONTROLLERS]
@@ -308,7 +317,7 @@ def compare_controllers(
         raise ControlError(f"demo: unknown controller(s) {', '.join(unknown)}; known: "
                            f"{', '.join(CONTROLLERS)}")  # fmt: skip
     runs = {}
-    with _PlantFactory(plant_model, plant_kind, s, core_factory) as factory:
+    with _PlantFactory(plant_model, plant_kind, s, core_factory, plant_fmu) as factory:
         for name in controllers:
             runs[name] = _run_one(factory.make(), _controller(name, plant_model, s), scenario, s)
     return runs
@@ -348,6 +357,7 @@ def run_mpc_demo(
     settings: DemoSettings | None = None,
     progress: Callable[[str], None] | None = None,
     core_factory: Any = None,
+    plant_fmu: str | Path | None = None,
 ) -> dict[str, Any]:
     """Run the scenarios with the MPCs and the PI on one kind of plant.
 
@@ -367,6 +377,9 @@ def run_mpc_demo(
         Receives one line per finished scenario.
     core_factory : callable, optional
         Plant kind ``"swmm"``: makes a fresh SWMM core per run.
+    plant_fmu : path, optional
+        Plant kind ``"fmu"``: ``plant_model``'s C FMU (FMI 2.0) when it was exported already
+        (else the demo exports it once per scenario).
 
     Returns
     -------
@@ -405,6 +418,7 @@ def run_mpc_demo(
             settings=s,
             controllers=controllers,
             core_factory=core_factory,
+            plant_fmu=plant_fmu,
         )
         metrics = {name: {**loop_metrics(run, s.loop), **run.extra} for name, run in runs.items()}
         out["scenarios"][scenario.name] = metrics

@@ -11,8 +11,10 @@ The QP goes to :func:`casadi.conic` (the matrix-level interface under ``casadi.q
 ``qpsol`` would take the problem symbolically and re-derive the dense Hessian
 ``G'G`` (``N³`` scalar operations) in casadi's virtual machine at every call, while here
 numpy forms it once per discharge with BLAS. qpOASES keeps its working set between calls
-(casadi hot-starts its ``SQProblem`` from the second call on); DAQP is set up afresh at
-every call; OSQP is warm-started from the previous primal solution.
+(casadi hot-starts its ``SQProblem`` from the second call on); OSQP is warm-started from the
+previous primal solution. DAQP (the default) is not reached through casadi, whose plugin sets
+it up afresh at every call, but through its own package: one workspace per model's matrices,
+set up (``H`` factored) once, its working set kept from one sample to the next.
 
 See :mod:`gatetwin.mpc.opti` for the same problem posed with ``casadi.Opti`` and IPOPT.
 """
@@ -149,6 +151,20 @@ def free_response(
     return out + model.level_ref_mm
 
 
+def free_response_maps(model: DiscreteModel, horizon: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rows ``C_level A^(j+1)`` and ``C_level (I + A + … + A^j)``, ``j = 0 … N−1``:
+    :func:`free_response` is ``of_state @ z + of_drive @ drive + level_ref_mm``."""
+    n_x = model.a.shape[0]
+    of_state, of_drive = np.empty((horizon, n_x)), np.empty((horizon, n_x))
+    power, total = np.eye(n_x), np.zeros((n_x, n_x))
+    for j in range(horizon):
+        total = total + power
+        power = power @ model.a
+        of_state[j] = model.c_level @ power
+        of_drive[j] = model.c_level @ total
+    return of_state, of_drive
+
+
 @dataclass(frozen=True, eq=False)
 class QpData:
     """``min ½ x'Hx + g'x  s.t.  lba <= A x <= uba,  lbx <= x <= ubx`` (numpy arrays)."""
@@ -190,6 +206,8 @@ class CondensedQp:
         self.settings = settings
         self.has_band = settings.level_band_mm is not None
         self._dm: tuple[casadi.DM, casadi.DM] | None = None
+        #: DAQP's workspace for these matrices (:class:`QpBackend`; set up on first use)
+        self.workspace: Any = None
         markov = markov_parameters(model, n)
         self.gain = toeplitz(markov, np.zeros(n))
         #: level at k+1+j per mm of opening held from k on: the rows of G summed
@@ -200,6 +218,9 @@ class CondensedQp:
         # with matrices=False (the code generator's symbolic model) H and A are formed from
         # move_gain as casadi matrices instead: qp_matrices on an MX
         self.h, self.a = qp_matrices(self.move_gain, settings) if matrices else (None, None)
+        #: the free response's maps, C A^(j+1) of the state and C (I + A + … + A^j) of the
+        #: drive (rows j = 0 … N−1): a product per sample instead of N matrix products
+        self.free_maps = free_response_maps(model, n) if matrices else None
 
     def serves(self, model: DiscreteModel, settings: MpcSettings) -> bool:
         """Whether these matrices are ``model``'s under ``settings``: they depend on ``A``,
@@ -215,10 +236,21 @@ class CondensedQp:
             and np.array_equal(model.c_level, mine.c_level)
         )
 
+    def free_levels(self, problem: MpcProblem, samples: int) -> np.ndarray:
+        """:func:`free_response` of the problem over its first ``samples``, mm, from the
+        maps (the problem's model shares ``A`` and ``C_level`` with this one's)."""
+        if self.free_maps is None:
+            return free_response(problem.model, samples, problem.state, problem.disturbance_mm)
+        model = problem.model
+        of_state, of_drive = self.free_maps
+        drive = model.b_dist * problem.disturbance_mm + model.affine
+        return (of_state[:samples] @ np.asarray(problem.state, dtype=float)
+                + of_drive[:samples] @ drive + model.level_ref_mm)  # fmt: skip
+
     def hold_levels(self, problem: MpcProblem) -> np.ndarray:
         """Predicted levels at ``k+1 … k+N`` if the opening stayed at the previous one, mm."""
         model = problem.model
-        free = free_response(model, self.settings.horizon, problem.state, problem.disturbance_mm)
+        free = self.free_levels(problem, self.settings.horizon)
         # the model's input is e − e_ref
         return free + self.step_response * (problem.previous_opening_mm - model.opening_ref_mm)
 
@@ -247,8 +279,7 @@ class CondensedQp:
         ``samples`` (the generated controller needs one)."""
         model = problem.model
         n = self.settings.horizon if samples is None else samples
-        free = free_response(model, n, problem.state, problem.disturbance_mm)
-        return free + self.gain[:n] @ (openings_mm - model.opening_ref_mm)
+        return self.free_levels(problem, n) + self.gain[:n] @ (openings_mm - model.opening_ref_mm)
 
 
 def _stack(parts: list[Any]) -> Any:
@@ -416,13 +447,15 @@ class QpBackend:
         n_con = settings.horizon * (3 if settings.level_band_mm is not None else 1)
         dense_h = casadi.Sparsity.dense(n_var, n_var)
         dense_a = casadi.Sparsity.dense(n_con, n_var)
-        with _quiet_stdout():  # qpOASES prints its licence banner when it is created
-            self._solver = casadi.conic(
-                "mpc_qp",
-                settings.qp_solver,
-                {"h": dense_h, "a": dense_a},
-                _solver_options(settings.qp_solver),
-            )
+        self._solver: Any = None
+        if settings.qp_solver != "daqp":
+            with _quiet_stdout():  # qpOASES prints its licence banner when it is created
+                self._solver = casadi.conic(
+                    "mpc_qp",
+                    settings.qp_solver,
+                    {"h": dense_h, "a": dense_a},
+                    _solver_options(settings.qp_solver),
+                )
         self._qp: CondensedQp | None = None
         self._recent: dict[bytes, CondensedQp] = {}
         self._x0: np.ndarray | None = None
@@ -445,6 +478,8 @@ class QpBackend:
 
     def solve(self, problem: MpcProblem) -> MpcSolution:
         qp = self.condensed(problem.model, problem.settings)
+        if self._solver is None:
+            return self._solve_daqp(qp, problem)
         args = qp.data(problem).as_casadi_args()
         args["h"], args["a"] = qp.casadi_matrices()  # converted once per model, not per call
         if self._x0 is not None:
@@ -456,6 +491,31 @@ class QpBackend:
         x = np.asarray(res["x"], dtype=float).ravel()
         if not np.all(np.isfinite(x)):
             raise ControlError(f"{self.settings.qp_solver}: returned a non-finite solution")
+        return self._solution(qp, problem, x, solve_s, bool(stats.get("success", False)),
+                              str(stats.get("return_status", "")))  # fmt: skip
+
+    def _solve_daqp(self, qp: CondensedQp, problem: MpcProblem) -> MpcSolution:
+        """DAQP on the workspace of ``qp``'s matrices (set up on its first problem)."""
+        data = qp.data(problem)
+        upper = np.concatenate([data.ubx, data.uba])
+        lower = np.concatenate([data.lbx, data.lba])
+        start = time.perf_counter()
+        if qp.workspace is None:
+            qp.workspace = _daqp().Model()
+            qp.workspace.setup(data.h, data.g, data.a, upper, lower,
+                               np.zeros(upper.size, dtype=ctypes.c_int))  # fmt: skip
+        else:
+            qp.workspace.update(f=data.g, bupper=upper, blower=lower)
+        x, _, flag, _ = qp.workspace.solve()
+        solve_s = time.perf_counter() - start
+        x = np.asarray(x, dtype=float)
+        if not np.all(np.isfinite(x)):
+            raise ControlError(f"daqp: returned a non-finite solution (exit flag {flag})")
+        return self._solution(qp, problem, x, solve_s, flag in DAQP_SOLVED,
+                              DAQP_STATUS.get(flag, f"exit flag {flag}"))  # fmt: skip
+
+    def _solution(self, qp: CondensedQp, problem: MpcProblem, x: np.ndarray, solve_s: float,
+                  success: bool, status: str) -> MpcSolution:  # fmt: skip
         self._x0 = x
         openings = qp.openings(problem, x)
         return MpcSolution(
@@ -463,9 +523,26 @@ class QpBackend:
             slack_mm=float(x[self.settings.horizon]) if qp.has_band else 0.0,
             predicted_level_mm=qp.predicted_levels(problem, openings),
             solve_s=solve_s,
-            success=bool(stats.get("success", False)),
-            status=str(stats.get("return_status", "")),
+            success=success,
+            status=status,
         )
+
+
+#: DAQP's exit flags that mean a solution (optimal; optimal with soft constraints relaxed).
+DAQP_SOLVED = (1, 2)
+#: DAQP's exit flags by meaning (its documentation's table).
+DAQP_STATUS = {1: "optimal", 2: "soft optimal", -1: "infeasible", -2: "cycling",
+               -3: "unbounded", -4: "iteration limit", -5: "non-convex",
+               -6: "initial point infeasible"}  # fmt: skip
+
+
+def _daqp() -> Any:
+    """The ``daqp`` package (a dependency of gatetwin; a one-line error if it is missing)."""
+    try:
+        import daqp
+    except ImportError:
+        raise ControlError("qp_solver daqp needs the daqp package: pip install daqp") from None
+    return daqp
 
 
 __all__ = [
@@ -475,6 +552,7 @@ __all__ = [
     "QpBackend",
     "QpData",
     "free_response",
+    "free_response_maps",
     "markov_parameters",
     "prediction_matrix",
     "qp_matrices",

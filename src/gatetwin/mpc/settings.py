@@ -101,9 +101,9 @@ class MpcSettings:
     slack_weight_quadratic, slack_weight_linear : float
         Penalties of the band slack, 1/mm² and 1/mm.
     qp_solver : str
-        casadi conic plugin: ``"qpoases"`` (default: fastest measured, hot-started),
-        ``"daqp"``, ``"osqp"`` or ``"qrqp"`` (casadi's own active-set solver, the one the
-        C controller FMU carries, :mod:`gatetwin.fmu.mpc_controller`); see
+        ``"daqp"`` (default: the daqp package, one workspace per model kept from sample to
+        sample; fastest measured), or a casadi conic plugin: ``"qpoases"`` (hot-started),
+        ``"osqp"`` or ``"qrqp"`` (casadi's own active-set solver); see
         ``benchmarks/bench_mpc.py``.
     blas_threads : int or None
         Threads of the OpenBLAS bundled with casadi, which qpOASES' dense algebra uses
@@ -141,7 +141,7 @@ class MpcSettings:
     move_weight: float = gate_move_weight(REFERENCE_GAIN_MM_PER_MM)
     slack_weight_quadratic: float = 1.0e3
     slack_weight_linear: float = 1.0e3
-    qp_solver: str = "qpoases"
+    qp_solver: str = "daqp"
     blas_threads: int | None = 1
     backlash_hold_mm: float = 1e-6
     tangent_grid_rel: float = 0.01

@@ -224,8 +224,11 @@ def mpc_demo(ctx: Any) -> None:
     envelope: dict[str, Any] = {}
     for kind in MPC_PLANTS:
         ctx.progress(f"      {kind}: {MPC_MINUTES:g} simulated minutes per scenario")
-    found = map_tasks(mpc_demo_task, [(str(model_path), kind) for kind in MPC_PLANTS],
-                      ctx.fleet, lambda job: f"the MPC demo on the {job[1]}")  # fmt: skip
+    # the exported C FMU of the model is the fmu plant (it is not exported again)
+    fmu = next(str(p) for p in ctx.results["fmus"]["c"] if p.stem == model.name)
+    jobs = [(str(model_path), kind, fmu if kind == "fmu" else None) for kind in MPC_PLANTS]
+    found = map_tasks(mpc_demo_task, jobs, ctx.fleet,
+                      lambda job: f"the MPC demo on the {job[1]}")  # fmt: skip
     for kind, (result, plots) in zip(MPC_PLANTS, found, strict=True):
         for name, data in plots.items():
             write_bytes_atomic(ctx.out_dir / "figures" / f"mpc_{kind}" / name, data)
@@ -241,19 +244,21 @@ def mpc_demo(ctx: Any) -> None:
     ctx.results.setdefault("summary_sections", []).append(_mpc_markdown(doc))
 
 
-def mpc_demo_task(job: tuple[str, str]) -> tuple[dict[str, Any], dict[str, bytes]]:
-    """The MPC demo of a model file on one kind of plant (a task): its result and its plots
-    (file name: bytes), drawn in a private folder."""
+def mpc_demo_task(job: tuple[str, str, str | None]
+                  ) -> tuple[dict[str, Any], dict[str, bytes]]:  # fmt: skip
+    """The MPC demo of a model file on one kind of plant (a task), with the model's C FMU as
+    the fmu plant when one is given: its result and its plots (file name: bytes), drawn in
+    a private folder."""
     import tempfile
     from pathlib import Path
 
     from gatetwin.modelfile import read_model_file
     from gatetwin.mpc import run_mpc_demo
 
-    path, kind = job
+    path, kind, fmu = job
     with tempfile.TemporaryDirectory(prefix="gatetwin-mpc-") as tmp:
         result = run_mpc_demo(read_model_file(path).plant, plant_kind=kind,
-                              minutes=MPC_MINUTES, out_plots_dir=tmp)  # fmt: skip
+                              minutes=MPC_MINUTES, out_plots_dir=tmp, plant_fmu=fmu)  # fmt: skip
         return result, {p.name: p.read_bytes() for p in sorted(Path(tmp).iterdir())}
 
 
@@ -555,7 +560,7 @@ def write_report(ctx: Any) -> None:
         plots = sorted((ctx.out_dir / "figures").glob("mpc_*/*.png"))
         report.add_section(
             "MPC demo",
-            f"CasADi MPC (condensed QP, qpOASES) against a SIMC-tuned PI, built from "
+            f"CasADi MPC (condensed QP, DAQP) against a SIMC-tuned PI, built from "
             f"{doc['model']}; plants: the exported C FMU through fmpy, and the virtual flume. "
             f"On wide_range (120 → 300 mm at 50 m³/h, then Q ±30 m³/h) the MPC re-linearised "
             f"on the envelope at every sample runs against the single-point MPC.",

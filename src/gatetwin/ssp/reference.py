@@ -5,7 +5,7 @@ master's run must equal.
 controller the controller FMU was generated from (the PI of
 :func:`gatetwin.mpc.demo.pi_controller`, or the :class:`~gatetwin.mpc.MpcController` with
 ``linearisation="schedule"``: both solve the same strictly convex QP to its unique
-solution, the FMU with its own dense active-set solver, Python with qpOASES), through
+solution, the FMU with its own dense active-set solver, Python with DAQP), through
 :func:`gatetwin.mpc.loop.run_closed_loop`, noise-free and without actuator rounding, as the
 package's system has neither.
 """
