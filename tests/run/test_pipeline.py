@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import sys
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -121,6 +123,93 @@ def test_stages_are_extensible(records_dir: Path, tmp_path: Path) -> None:
             tmp_path / "new", stages=(*stages, PipelineStage("x", fail)), records_dir=records_dir
         )
     assert not (tmp_path / "new").exists()
+
+
+def _grouped(first, second):
+    """The checking stages, two stages of one group, and the summary."""
+    from gatetwin.run.pipeline import write_summary
+
+    return (*CHECKING, PipelineStage("first", first, "g"), PipelineStage("second", second, "g"),
+            PipelineStage("writing summary.md", write_summary))  # fmt: skip
+
+
+#: How long a stage of a group waits for its neighbour, s (the test's own bound: the two
+#: stages do nothing else, so they meet within milliseconds when they run together).
+MEET_S = 60.0
+
+
+def test_a_groups_stages_run_together_on_a_pool_and_report_in_their_order(
+    records_dir: Path, tmp_path: Path
+) -> None:
+    """On a local pool the two stages meet at a barrier (one after the other, the first
+    would wait for ever); the progress lines and the summary's sections still come in the
+    stages' order although the second adds its section first."""
+    from gatetwin.fleet import FleetSettings
+
+    meet = threading.Barrier(2, timeout=MEET_S)
+
+    def first(ctx: PipelineContext) -> None:
+        ctx.progress("      first: waiting for the second")
+        meet.wait()
+        meet.wait()  # the second has added its section
+        ctx.add_section("## from the first\n")
+
+    def second(ctx: PipelineContext) -> None:
+        ctx.progress("      second: here")
+        meet.wait()
+        ctx.add_section("## from the second\n")
+        meet.wait()
+
+    lines: list[str] = []
+    out = run_pipeline(tmp_path / "out", progress=lines.append, records_dir=records_dir,
+                       stages=_grouped(first, second), fleet=FleetSettings(workers=2))  # fmt: skip
+    at = lines.index("[4/6] first ...")
+    assert lines[at:at + 4] == ["[4/6] first ...", "      first: waiting for the second",
+                                "[5/6] second ...", "      second: here"]  # fmt: skip
+    summary = (out / "summary.md").read_text(encoding="utf-8")
+    assert summary.index("## from the first") < summary.index("## from the second")
+
+
+def test_a_groups_stages_run_one_after_another_without_a_pool(
+    records_dir: Path, tmp_path: Path
+) -> None:
+    order: list[str] = []
+
+    def stage(name: str):
+        def run(ctx: PipelineContext) -> None:
+            order.append(f"{name} starts")
+            order.append(f"{name} ends")
+
+        return run
+
+    run_pipeline(tmp_path / "out", records_dir=records_dir,
+                 stages=_grouped(stage("first"), stage("second")))  # fmt: skip
+    assert order == ["first starts", "first ends", "second starts", "second ends"]
+
+
+def test_a_failed_stage_of_a_group_fails_the_run_once_its_neighbours_have_ended(
+    records_dir: Path, tmp_path: Path
+) -> None:
+    from gatetwin.fleet import FleetSettings
+
+    started = threading.Event()
+    ended: list[str] = []
+
+    def first(ctx: PipelineContext) -> None:
+        started.wait(MEET_S)
+        raise PipelineError("the first failed")
+
+    def second(ctx: PipelineContext) -> None:
+        started.set()
+        time.sleep(0.2)
+        ended.append("second")
+
+    with pytest.raises(PipelineError, match="the first failed"):
+        run_pipeline(tmp_path / "out", records_dir=records_dir,
+                     stages=_grouped(first, second), fleet=FleetSettings(workers=2))  # fmt: skip
+    assert ended == ["second"]
+    assert not (tmp_path / "out").exists()
+    assert _siblings(tmp_path / "out") == []
 
 
 @pytest.mark.long

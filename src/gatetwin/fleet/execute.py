@@ -17,6 +17,7 @@ import contextlib
 import logging
 import multiprocessing
 import os
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -150,10 +151,17 @@ def _new_pool(workers: int) -> ProcessPoolExecutor:
     return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
 
 
+#: Held while a pool spawns processes or the shared one is replaced: the stages of a
+#: ``gatetwin run`` group submit from threads of their own (the environment a pool spawns
+#: with is process-wide).
+_SPAWNING = threading.RLock()
+
+
 def _replace_shared(workers: int, broken: ProcessPoolExecutor) -> None:
-    if _SHARED.get(workers) is broken:
-        broken.shutdown(wait=False, cancel_futures=True)
-        _SHARED[workers] = _new_pool(workers)
+    with _SPAWNING:
+        if _SHARED.get(workers) is broken:
+            broken.shutdown(wait=False, cancel_futures=True)
+            _SHARED[workers] = _new_pool(workers)
 
 
 def _pool(task: Task, jobs: list[Any], crashed: Crashed,
@@ -173,7 +181,7 @@ def _pool(task: Task, jobs: list[Any], crashed: Crashed,
 
 
 def _submit(pool: ProcessPoolExecutor, task: Task, jobs: list[Any]) -> dict[Any, int]:
-    with spawn_environment(POOL_THREADS):  # the pool spawns its processes on submit
+    with _SPAWNING, spawn_environment(POOL_THREADS):  # the pool spawns its processes on submit
         return {pool.submit(task, job): k for k, job in enumerate(jobs)}
 
 

@@ -2,8 +2,13 @@
 
 Each stage is a plain function ``stage(ctx) -> None`` that reads what earlier stages left
 in ``ctx.results`` and adds its own; extend the pipeline by appending a
-:class:`PipelineStage` to :data:`STAGES`. Outputs are written into a temporary sibling of
-the output directory, which is renamed into place only when every stage has succeeded:
+:class:`PipelineStage` to :data:`STAGES`. Neighbouring stages of one ``group`` need nothing
+from each other: on a local pool they run at the same time, their tasks sharing its
+processes (the validation, the MPC demo and the diagnosis fill the pool together where one by
+one each left a process idle at its end).
+
+Outputs are written into a temporary sibling of the output directory, which is renamed into
+place only when every stage has succeeded:
 a failed run leaves no partial output, and an existing output directory is replaced only
 after success and only if it is still the run's own (:mod:`gatetwin.run.outdir`).
 
@@ -12,10 +17,12 @@ This module orchestrates; checking, identification and so on live in their own m
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import shutil
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -75,6 +82,8 @@ class PipelineContext:
         model's FMUs, each FMU's validation, each plant of the MPC demo, each record's
         diagnosis): a local process pool or a dask scheduler; ``None`` for one after another
         here. The outputs do not depend on it.
+    stage : int
+        Number of the stage running (from 1): where its summary sections go.
     """
 
     out_dir: Path
@@ -83,14 +92,23 @@ class PipelineContext:
     results: dict[str, Any] = field(default_factory=dict)
     progress: Callable[[str], None] = print
     fleet: Any = None
+    stage: int = 0
+
+    def add_section(self, markdown: str) -> None:
+        """A section of ``summary.md`` from the running stage: sections follow the stages'
+        order, whichever stage of a group finished first."""
+        self.results.setdefault("summary_sections", []).append((self.stage, markdown))
 
 
 @dataclass(frozen=True)
 class PipelineStage:
-    """One stage: a title for the progress line and the function that runs it."""
+    """One stage: a title for the progress line and the function that runs it; ``group``,
+    when not empty, the neighbouring stages it may run at the same time as (they share
+    ``results``, and each reads only what stages before the group left there)."""
 
     title: str
     run: Callable[[PipelineContext], None]
+    group: str = ""
 
 
 # --------------------------------------------------------------------------- stages
@@ -278,7 +296,8 @@ def write_summary(ctx: PipelineContext) -> None:
             f"L {worst['L_s']} s, T {worst['T_percent']} %.\n"
         )
     parts += [t.markdown() for t in ctx.results.get("tables", [])]
-    parts += ctx.results.get("summary_sections", [])
+    sections = sorted(ctx.results.get("summary_sections", []), key=lambda part: part[0])
+    parts += [markdown for _, markdown in sections]
     write_text_atomic(ctx.out_dir / "summary.md", "\n".join(parts))
 
 
@@ -290,11 +309,17 @@ STAGES: tuple[PipelineStage, ...] = (
     PipelineStage("identifying models", identify_models),
     PipelineStage("exporting FMUs (C and python; FMI 2.0 and 3.0)", export_fmus),
     PipelineStage("tables and figures", tables_and_figures),
-    PipelineStage("validating every FMU against every record (fmpy)", _stages.validate_all),
-    PipelineStage("comparing the model families on every record", _stages.compare_families),
-    PipelineStage("MPC demo against PI (FMU and flume in the loop)", _stages.mpc_demo),
+    PipelineStage(
+        "validating every FMU against every record (fmpy)", _stages.validate_all, "checks"
+    ),
+    PipelineStage(
+        "comparing the model families on every record", _stages.compare_families, "checks"
+    ),
+    PipelineStage("MPC demo against PI (FMU and flume in the loop)", _stages.mpc_demo, "checks"),
+    PipelineStage("diagnosing the bundled records", _stages.diagnose_records, "checks"),
+    # after the MPC demo, whose mpc.json it adds its result to; alone, as it runs the SSP in
+    # this process beside its tasks
     PipelineStage("controller FMUs and the closed loop as an SSP", _stages.closed_loop_artefacts),
-    PipelineStage("diagnosing the bundled records", _stages.diagnose_records),
     PipelineStage("writing summary.md", write_summary),
     PipelineStage("writing report.html", _stages.write_report),
 )
@@ -351,9 +376,10 @@ def run_pipeline(
     work = make_work_dir(target)
     try:
         ctx = PipelineContext(out_dir=work, records_dir=inputs, progress=say, fleet=fleet)
+        start = time.perf_counter()
         with shared_pool(fleet):
             times = _run_stages(ctx, stages, say)
-        _write_stage_times(work, times, say)
+        _write_stage_times(work, times, time.perf_counter() - start, say)
         (work / MARKER).write_text("written by gatetwin run\n", encoding="utf-8")
         (work / RUN_PID_FILE).unlink()
         make_world_readable(work)
@@ -366,35 +392,100 @@ def run_pipeline(
 
 def _run_stages(ctx: PipelineContext, stages: Sequence[PipelineStage],
                 say: Callable[[str], None]) -> list[tuple[str, float]]:  # fmt: skip
-    """Run ``stages`` in order; each one's title and wall-clock time, s."""
-    times = []
-    for number, stage in enumerate(stages, 1):
-        say(f"[{number}/{len(stages)}] {stage.title} ...")
-        start = time.perf_counter()
-        stage.run(ctx)
-        times.append((stage.title, time.perf_counter() - start))
+    """Run ``stages`` in order, a group's together where the run has a local pool; each
+    one's title and wall-clock time, s."""
+    times: list[tuple[str, float]] = []
+    for batch in _batches(list(enumerate(stages, 1)), _pooled(ctx.fleet)):
+        if len(batch) == 1:
+            number, stage = batch[0]
+            say(f"[{number}/{len(stages)}] {stage.title} ...")
+            ctx.stage = number
+            times.append((stage.title, _timed(stage, ctx)))
+        else:
+            times += _run_together(ctx, batch, len(stages), say)
     return times
 
 
-def stage_times_markdown(times: Sequence[tuple[str, float]]) -> str:
-    """The "Stage times" section: one row per stage, wall-clock seconds, and the total."""
+def _pooled(fleet: Any) -> bool:
+    """Whether the run's tasks go to a local pool of two or more processes (where a group's
+    stages run together; serially or on dask they run one after another)."""
+    return fleet is not None and not fleet.scheduler and fleet.workers > 1
+
+
+def _batches(numbered: list[tuple[int, PipelineStage]], together: bool
+             ) -> list[list[tuple[int, PipelineStage]]]:  # fmt: skip
+    """The stages in runs: neighbours of one group together when ``together``, else one by
+    one."""
+    batches: list[list[tuple[int, PipelineStage]]] = []
+    for number, stage in numbered:
+        last = batches[-1][-1][1] if batches else None
+        if together and stage.group and last is not None and last.group == stage.group:
+            batches[-1].append((number, stage))
+        else:
+            batches.append([(number, stage)])
+    return batches
+
+
+def _timed(stage: PipelineStage, ctx: PipelineContext) -> float:
+    start = time.perf_counter()
+    stage.run(ctx)
+    return time.perf_counter() - start
+
+
+def _run_together(ctx: PipelineContext, batch: list[tuple[int, PipelineStage]], total: int,
+                  say: Callable[[str], None]) -> list[tuple[str, float]]:  # fmt: skip
+    """The stages of ``batch`` at the same time, each in a thread (their tasks share the
+    pool) with a context of its own that shares ``results``. The first one's progress is
+    printed as it comes, the others' once it has ended, in the stages' order: the lines are
+    those of a run one after another. The first error in
+    the stages' order is raised once every stage of the batch has ended."""
+    first = batch[0][0]
+    held: dict[int, list[str]] = {number: [] for number, _ in batch}
+    say(f"[{first}/{total}] {batch[0][1].title} ...")
+    with ThreadPoolExecutor(max_workers=len(batch)) as threads:
+        futures = [
+            threads.submit(_timed, stage, dataclasses.replace(
+                ctx, stage=number, progress=say if number == first else held[number].append))
+            for number, stage in batch
+        ]  # fmt: skip
+    times = []
+    for (number, stage), future in zip(batch, futures, strict=True):
+        if number != first:
+            say(f"[{number}/{total}] {stage.title} ...")
+            for line in held[number]:
+                say(line)
+        error = future.exception()
+        if error is not None:
+            raise error
+        times.append((stage.title, future.result()))
+    return times
+
+
+def stage_times_markdown(times: Sequence[tuple[str, float]], total_s: float | None = None
+                         ) -> str:  # fmt: skip
+    """The "Stage times" section: one row per stage, wall-clock seconds, and the total (the
+    run's own, ``total_s``, when stages ran at the same time; else their sum)."""
     lines = ["## Stage times", "", "Wall-clock seconds of each stage on the machine that ran "
-             "it (they vary from run to run; every other output does not).", "",
+             "it (they vary from run to run; every other output does not). The checks "
+             "(validation, family comparison, MPC demo, diagnosis) run at the same time on a "
+             "local pool: their rows overlap, and the total is the run's.", "",
              "| stage | time (s) |", "|---|---|"]  # fmt: skip
     lines += [f"| {title} | {seconds:.1f} |" for title, seconds in times]
-    lines.append(f"| total | {sum(s for _, s in times):.1f} |")
+    total = sum(s for _, s in times) if total_s is None else total_s
+    lines.append(f"| total | {total:.1f} |")
     return "\n".join(lines) + "\n"
 
 
-def _write_stage_times(work: Path, times: Sequence[tuple[str, float]],
+def _write_stage_times(work: Path, times: Sequence[tuple[str, float]], total_s: float,
                        say: Callable[[str], None]) -> None:  # fmt: skip
-    """Print the stage times and append them to ``summary.md`` when a stage wrote one."""
+    """Print the stage times and the run's, and append them to ``summary.md`` when a stage
+    wrote one."""
     width = max((len(title) for title, _ in times), default=0)
     say("stage times (s):")
     for title, seconds in times:
         say(f"      {title:<{width}}  {seconds:6.1f}")
-    say(f"      {'total':<{width}}  {sum(s for _, s in times):6.1f}")
+    say(f"      {'total':<{width}}  {total_s:6.1f}")
     summary = work / "summary.md"
     if summary.is_file():
         text = summary.read_text(encoding="utf-8")
-        summary.write_text(text + "\n" + stage_times_markdown(times), encoding="utf-8")
+        summary.write_text(text + "\n" + stage_times_markdown(times, total_s), encoding="utf-8")

@@ -79,7 +79,7 @@ def validate_all(ctx: Any) -> None:
                  f"{n_out} outside the FMU's stated validity")  # fmt: skip
     c_cells = [c for c in cells if c["backend"] == "c"]
     skipped = "\n".join(f"- {o['model']} × {o['record']}: {o['reason']}" for o in outside)
-    ctx.results.setdefault("summary_sections", []).append(
+    ctx.add_section(
         "## Validation matrix (C FMUs; the python and FMI 3.0 FMUs give the same numbers)\n\n"
         f"Criterion: {', '.join(MATRIX_FAIL_UNDER)}; {n_pass} of {len(cells)} cells pass "
         f"over the {len(ctx.results['fmus'])} FMU sets ({', '.join(ctx.results['fmus'])}). "
@@ -128,7 +128,7 @@ def compare_families(ctx: Any) -> None:
     ctx.results["families"] = rows
     write_json_atomic(ctx.out_dir / "families.json", {"gauge": FAMILY_GAUGE, "rows": rows})
     ctx.progress(f"      {len(rows)} records × {len(plants)} families at gauge {FAMILY_GAUGE}")
-    ctx.results.setdefault("summary_sections", []).append(
+    ctx.add_section(
         f"## Model families per record (gauge {FAMILY_GAUGE}, free run)\n\n"
         + families_markdown(rows, FAMILY_NAMES)
     )
@@ -241,7 +241,7 @@ def mpc_demo(ctx: Any) -> None:
            "envelope_vs_single_point": envelope}  # fmt: skip
     write_json_atomic(ctx.out_dir / "mpc.json", doc)
     ctx.results["mpc"] = doc
-    ctx.results.setdefault("summary_sections", []).append(_mpc_markdown(doc))
+    ctx.add_section(_mpc_markdown(doc))
 
 
 def mpc_demo_task(job: tuple[str, str, str | None]
@@ -431,7 +431,7 @@ def diagnose_records(ctx: Any) -> None:
     write_json_atomic(ctx.out_dir / "diagnose.json",
                       {"diagnoses": results, "not_diagnosed": skipped})  # fmt: skip
     ctx.results["diagnose"] = results
-    ctx.results.setdefault("summary_sections", []).append(_diagnose_markdown(results))
+    ctx.add_section(_diagnose_markdown(results))
 
 
 def _output_relative(value: Any, out_dir: Any) -> Any:
