@@ -174,6 +174,25 @@ def test_qp_and_ipopt_agree_on_the_first_move(solver):
     assert all(active.values()), active  # every kind of constraint was exercised
 
 
+def test_daqp_reports_a_problem_without_solution_and_solves_the_next_on_the_same_model():
+    """An opening far outside the range that one move cannot bring back: no point meets both
+    the rate and the range bounds. DAQP says so (not a success, its status named: the
+    controller then holds the gate), and the same model's next, feasible problem is solved
+    on the kept workspace as a fresh backend solves it."""
+    settings = MpcSettings(horizon=40)
+    plant = fopdt()
+    model = discretise(plant, 40.0)
+    z = model.steady_state(25.0)
+    stuck = MpcProblem(model, z, 0.0, model.level_mm(z), 300.0, settings)
+    fine = MpcProblem(model, z, 0.0, model.level_mm(z) + 20.0, 25.0, settings)
+    qp = QpBackend(settings)
+    refused = qp.solve(stuck)
+    assert not refused.success and refused.status == "infeasible"
+    solved, fresh = qp.solve(fine), QpBackend(settings).solve(fine)
+    assert solved.success and fresh.success
+    assert abs(solved.first_move_mm - fresh.first_move_mm) <= AGREE_MM
+
+
 def test_qp_and_ipopt_agree_without_a_level_band():
     settings = MpcSettings(horizon=60, level_band_mm=None)
     qp, reference = QpBackend(settings), OptiBackend(settings)

@@ -168,23 +168,28 @@ def test_a_groups_stages_run_together_on_a_pool_and_report_in_their_order(
                                 "[5/6] second ...", "      second: here"]  # fmt: skip
     summary = (out / "summary.md").read_text(encoding="utf-8")
     assert summary.index("## from the first") < summary.index("## from the second")
+    # the rows of the group overlap: the total is the run's own, which holds each stage
+    assert "ran at the same time" in summary
+    rows = {r.split("|")[1].strip(): float(r.split("|")[2])
+            for r in summary.split("## Stage times")[1].splitlines() if r.startswith("| ")
+            and "stage" not in r}  # fmt: skip
+    assert rows["total"] >= max(rows["first"], rows["second"]) - 0.05  # each rounded to 0.1 s
 
 
 def test_a_groups_stages_run_one_after_another_without_a_pool(
     records_dir: Path, tmp_path: Path
 ) -> None:
-    order: list[str] = []
+    order: list[tuple[str, bool]] = []
 
     def stage(name: str):
         def run(ctx: PipelineContext) -> None:
-            order.append(f"{name} starts")
-            order.append(f"{name} ends")
+            order.append((name, threading.current_thread() is threading.main_thread()))
 
         return run
 
     run_pipeline(tmp_path / "out", records_dir=records_dir,
                  stages=_grouped(stage("first"), stage("second")))  # fmt: skip
-    assert order == ["first starts", "first ends", "second starts", "second ends"]
+    assert order == [("first", True), ("second", True)]  # in the run's own thread, in order
 
 
 def test_a_failed_stage_of_a_group_fails_the_run_once_its_neighbours_have_ended(
@@ -192,16 +197,18 @@ def test_a_failed_stage_of_a_group_fails_the_run_once_its_neighbours_have_ended(
 ) -> None:
     from gatetwin.fleet import FleetSettings
 
-    started = threading.Event()
+    started, failing = threading.Event(), threading.Event()
     ended: list[str] = []
 
     def first(ctx: PipelineContext) -> None:
         started.wait(MEET_S)
+        failing.set()
         raise PipelineError("the first failed")
 
     def second(ctx: PipelineContext) -> None:
         started.set()
-        time.sleep(0.2)
+        failing.wait(MEET_S)
+        time.sleep(0.2)  # a run that did not wait would have raised by now
         ended.append("second")
 
     with pytest.raises(PipelineError, match="the first failed"):

@@ -144,6 +144,17 @@ def shared_pool(settings: FleetSettings | None) -> Iterator[None]:
         yield
     finally:
         _SHARED.pop(workers).shutdown(cancel_futures=True)
+        _STOPPED.clear()
+
+
+def stop_shared_pools() -> None:
+    """Cancel the shared pools' waiting tasks and refuse new ones until the block of
+    :func:`shared_pool` ends: an interrupted ``gatetwin run`` whose stages run in threads
+    lets them end quickly (their tasks refused) before it removes what they write into."""
+    _STOPPED.set()
+    with _SPAWNING:
+        for pool in _SHARED.values():
+            pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _new_pool(workers: int) -> ProcessPoolExecutor:
@@ -155,6 +166,8 @@ def _new_pool(workers: int) -> ProcessPoolExecutor:
 #: ``gatetwin run`` group submit from threads of their own (the environment a pool spawns
 #: with is process-wide).
 _SPAWNING = threading.RLock()
+#: Set by :func:`stop_shared_pools`: no task is run any more.
+_STOPPED = threading.Event()
 
 
 def _replace_shared(workers: int, broken: ProcessPoolExecutor) -> None:
@@ -304,9 +317,13 @@ def run_tasks(task: Task, jobs: Iterable[Any], settings: FleetSettings, crashed:
     jobs = list(jobs)
     if not jobs:
         return []
+    if _STOPPED.is_set():
+        raise GatetwinError("the run was interrupted: no more tasks")
     if settings.scheduler:
         stream = _dask(task, jobs, crashed, settings.scheduler, settings.connect_timeout_s)
-    elif settings.workers <= 1 or len(jobs) == 1:
+    elif settings.workers <= 1 or (len(jobs) == 1 and settings.workers not in _SHARED):
+        # one job runs here, unless a shared pool is open: a stage of a group runs in a thread
+        # of the run, and its work belongs in a process of its own
         stream = _serial(task, jobs, crashed)
     else:
         stream = _pool(task, jobs, crashed, settings.workers)

@@ -1,4 +1,4 @@
-"""The MPC problem as a condensed, dense QP solved by a casadi conic plugin.
+"""The MPC problem as a condensed, dense QP, solved by DAQP or a casadi conic plugin.
 
 The predicted levels are affine in the openings, ``level = f + G e``, with ``G`` the
 lower-triangular Toeplitz matrix of the model's Markov parameters ``C A^m B`` and ``f``
@@ -7,14 +7,14 @@ eliminated and the QP stays small and dense). Decision variables are the moves
 ``Δe_0 … Δe_{N−1}`` (mm), so that the rate limit is a bound, and with a level band one
 slack ``s`` (mm) shared by the horizon.
 
-The QP goes to :func:`casadi.conic` (the matrix-level interface under ``casadi.qpsol``):
-``qpsol`` would take the problem symbolically and re-derive the dense Hessian
-``G'G`` (``N³`` scalar operations) in casadi's virtual machine at every call, while here
-numpy forms it once per discharge with BLAS. qpOASES keeps its working set between calls
-(casadi hot-starts its ``SQProblem`` from the second call on); OSQP is warm-started from the
-previous primal solution. DAQP (the default) is not reached through casadi, whose plugin sets
-it up afresh at every call, but through its own package: one workspace per model's matrices,
-set up (``H`` factored) once, its working set kept from one sample to the next.
+DAQP (the default) is reached through its own package: one workspace per model's matrices,
+set up (``H`` factored) once, its working set kept from one sample to the next; casadi's DAQP
+plugin would set it up afresh at every call. The other solvers go to :func:`casadi.conic`
+(the matrix-level interface under ``casadi.qpsol``): ``qpsol`` would take the problem
+symbolically and re-derive the dense Hessian ``G'G`` (``N³`` scalar operations) in casadi's
+virtual machine at every call, while here numpy forms it once per discharge with BLAS.
+qpOASES keeps its working set between calls (casadi hot-starts its ``SQProblem`` from the
+second call on); OSQP is warm-started from the previous primal solution.
 
 See :mod:`gatetwin.mpc.opti` for the same problem posed with ``casadi.Opti`` and IPOPT.
 """
@@ -431,24 +431,25 @@ RECENT_QPS = 32
 
 
 class QpBackend:
-    """Solves :class:`MpcProblem` s through one casadi conic solver (kept between calls).
+    """Solves :class:`MpcProblem` s with ``settings.qp_solver``: DAQP on a workspace per
+    model's matrices, or one casadi conic solver kept between calls.
 
-    The solver is created once for the problem's dimensions; the condensed matrices are
-    rebuilt only when the model's ``A``, ``B`` or ``C_level`` change.
+    The condensed matrices (and DAQP's workspace) are rebuilt only when the model's ``A``,
+    ``B`` or ``C_level`` or the settings change.
     """
 
     name = "qp"
 
     def __init__(self, settings: MpcSettings) -> None:
         self.settings = settings
-        if settings.blas_threads is not None:
-            set_casadi_blas_threads(settings.blas_threads)
-        n_var = settings.horizon + (settings.level_band_mm is not None)
-        n_con = settings.horizon * (3 if settings.level_band_mm is not None else 1)
-        dense_h = casadi.Sparsity.dense(n_var, n_var)
-        dense_a = casadi.Sparsity.dense(n_con, n_var)
         self._solver: Any = None
         if settings.qp_solver != "daqp":
+            if settings.blas_threads is not None:
+                set_casadi_blas_threads(settings.blas_threads)
+            n_var = settings.horizon + (settings.level_band_mm is not None)
+            n_con = settings.horizon * (3 if settings.level_band_mm is not None else 1)
+            dense_h = casadi.Sparsity.dense(n_var, n_var)
+            dense_a = casadi.Sparsity.dense(n_con, n_var)
             with _quiet_stdout():  # qpOASES prints its licence banner when it is created
                 self._solver = casadi.conic(
                     "mpc_qp",
@@ -467,7 +468,7 @@ class QpBackend:
         # a re-linearised model often comes back to matrices it had a few samples ago
         # (the gate dithering by its resolution): those are kept, a few dozen at most
         key = b"".join(v.tobytes() for v in (model.a, model.b, model.c_level))
-        key += np.float64(settings.move_weight).tobytes()
+        key += repr(settings).encode()  # the horizon, band and weights shape H and A too
         qp = self._recent.get(key)
         if qp is None:
             if len(self._recent) >= RECENT_QPS:
@@ -501,17 +502,28 @@ class QpBackend:
         lower = np.concatenate([data.lbx, data.lba])
         start = time.perf_counter()
         if qp.workspace is None:
-            qp.workspace = _daqp().Model()
-            qp.workspace.setup(data.h, data.g, data.a, upper, lower,
-                               np.zeros(upper.size, dtype=ctypes.c_int))  # fmt: skip
-        else:
-            qp.workspace.update(f=data.g, bupper=upper, blower=lower)
+            workspace = _daqp().Model()
+            workspace.settings = {**workspace.settings, "primal_tol": DAQP_PRIMAL_TOL_MM}
+            flag = workspace.setup(data.h, data.g, data.a, upper, lower,
+                                   np.zeros(upper.size, dtype=ctypes.c_int))[0]  # fmt: skip
+            if flag < 0:  # no workspace kept: the next sample sets one up again
+                return self._failed(qp, problem, flag, time.perf_counter() - start)
+            qp.workspace = workspace
+        elif (flag := qp.workspace.update(f=data.g, bupper=upper, blower=lower)) < 0:
+            return self._failed(qp, problem, flag, time.perf_counter() - start)
         x, _, flag, _ = qp.workspace.solve()
         solve_s = time.perf_counter() - start
         x = np.asarray(x, dtype=float)
         if not np.all(np.isfinite(x)):
             raise ControlError(f"daqp: returned a non-finite solution (exit flag {flag})")
         return self._solution(qp, problem, x, solve_s, flag in DAQP_SOLVED,
+                              DAQP_STATUS.get(flag, f"exit flag {flag}"))  # fmt: skip
+
+    def _failed(self, qp: CondensedQp, problem: MpcProblem, flag: int, solve_s: float
+                ) -> MpcSolution:  # fmt: skip
+        """No solution (DAQP refused the data): the moves held at 0, reported as failed."""
+        x = np.zeros(self.settings.horizon + qp.has_band)
+        return self._solution(qp, problem, x, solve_s, False,
                               DAQP_STATUS.get(flag, f"exit flag {flag}"))  # fmt: skip
 
     def _solution(self, qp: CondensedQp, problem: MpcProblem, x: np.ndarray, solve_s: float,
@@ -528,6 +540,9 @@ class QpBackend:
         )
 
 
+#: DAQP's bound on a constraint's violation, mm of opening or level (its default, 1e-6, is
+#: looser than the 1e-9 mm the C controller FMU and the Python loop are held to).
+DAQP_PRIMAL_TOL_MM = 1e-9
 #: DAQP's exit flags that mean a solution (optimal; optimal with soft constraints relaxed).
 DAQP_SOLVED = (1, 2)
 #: DAQP's exit flags by meaning (its documentation's table).

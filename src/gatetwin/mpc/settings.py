@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 from gatetwin.errors import ControlError
 from gatetwin.mpc.discrete import SAMPLE_PERIOD_S
 
-#: QP solvers reachable from PyPI's casadi that the MPC accepts (casadi ``conic`` plugins).
+#: QP solvers the MPC accepts: DAQP through its own package, the others casadi ``conic``
+#: plugins reachable from PyPI's casadi.
 QP_SOLVERS = ("qpoases", "daqp", "osqp", "qrqp")
 
 #: The gain magnitude of the default settings, mm/mm (gauge 3F of the bundled flume at
@@ -107,9 +108,9 @@ class MpcSettings:
         ``benchmarks/bench_mpc.py``.
     blas_threads : int or None
         Threads of the OpenBLAS bundled with casadi, which qpOASES' dense algebra uses
-        (process-wide; ``None`` leaves it alone). 1: at N = 100–200 the matrices are too
-        small to gain from threads, and on a busy 2-core machine OpenBLAS' threads made
-        single solves take 40–50 ms instead of 0.5 ms.
+        (process-wide, set when a casadi solver is made; ``None`` leaves it alone). 1: at
+        N = 100–200 the matrices are too small to gain from threads, and on a busy 2-core
+        machine OpenBLAS' threads made single solves take 40–50 ms instead of 0.5 ms.
     backlash_hold_mm : float
         For a plant with an ``actuator_backlash``: the smallest gate reversal the MPC makes,
         mm (1e-6: a reversal below a micrometre is round-off in the plan, and each one

@@ -20,16 +20,17 @@ from __future__ import annotations
 import dataclasses
 import os
 import shutil
+import threading
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from gatetwin.bundled import bundled_records_dir
 from gatetwin.errors import PipelineError
-from gatetwin.fleet.execute import shared_pool
+from gatetwin.fleet.execute import shared_pool, stop_shared_pools
 from gatetwin.records import detect_table_kind, read_record, read_static_table
 from gatetwin.run import stages as _stages
 from gatetwin.run.outdir import (
@@ -379,7 +380,9 @@ def run_pipeline(
         start = time.perf_counter()
         with shared_pool(fleet):
             times = _run_stages(ctx, stages, say)
-        _write_stage_times(work, times, time.perf_counter() - start, say)
+        overlapped = any(len(b) > 1 for b in _batches(list(enumerate(stages, 1)),
+                                                      _pooled(fleet)))  # fmt: skip
+        _write_stage_times(work, times, time.perf_counter() - start if overlapped else None, say)
         (work / MARKER).write_text("written by gatetwin run\n", encoding="utf-8")
         (work / RUN_PID_FILE).unlink()
         make_world_readable(work)
@@ -435,40 +438,68 @@ def _timed(stage: PipelineStage, ctx: PipelineContext) -> float:
 def _run_together(ctx: PipelineContext, batch: list[tuple[int, PipelineStage]], total: int,
                   say: Callable[[str], None]) -> list[tuple[str, float]]:  # fmt: skip
     """The stages of ``batch`` at the same time, each in a thread (their tasks share the
-    pool) with a context of its own that shares ``results``. The first one's progress is
-    printed as it comes, the others' once it has ended, in the stages' order: the lines are
-    those of a run one after another. The first error in
-    the stages' order is raised once every stage of the batch has ended."""
-    first = batch[0][0]
-    held: dict[int, list[str]] = {number: [] for number, _ in batch}
-    say(f"[{first}/{total}] {batch[0][1].title} ...")
-    with ThreadPoolExecutor(max_workers=len(batch)) as threads:
-        futures = [
-            threads.submit(_timed, stage, dataclasses.replace(
-                ctx, stage=number, progress=say if number == first else held[number].append))
-            for number, stage in batch
-        ]  # fmt: skip
-    times = []
-    for (number, stage), future in zip(batch, futures, strict=True):
-        if number != first:
-            say(f"[{number}/{total}] {stage.title} ...")
-            for line in held[number]:
-                say(line)
-        error = future.exception()
-        if error is not None:
+    pool) with a context of its own that shares ``results``. Each stage's progress is
+    printed once the stages before it have ended (the first one's as it comes): the lines are
+    those of a run one after another. The first error in the stages' order is raised once
+    every stage of the batch has ended; an interrupt stops the pool's waiting tasks and waits
+    for the stages to end before it goes on (so that nothing writes into the output being
+    removed)."""
+    relays = [_Relay(say, f"[{number}/{total}] {stage.title} ...") for number, stage in batch]
+    relays[0].open()
+    threads = ThreadPoolExecutor(max_workers=len(batch))
+    futures = [threads.submit(_timed, stage, dataclasses.replace(ctx, stage=number,
+                                                                progress=relay))
+               for (number, stage), relay in zip(batch, relays, strict=True)]  # fmt: skip
+    try:
+        for future, after in zip(futures, [*relays[1:], None], strict=True):
+            wait([future])
+            if after is not None:
+                after.open()
+    except BaseException:
+        stop_shared_pools()
+        wait(futures)
+        raise
+    finally:
+        threads.shutdown(wait=True)
+    for future in futures:
+        if (error := future.exception()) is not None:
             raise error
-        times.append((stage.title, future.result()))
-    return times
+    return [
+        (stage.title, future.result()) for (_, stage), future in zip(batch, futures, strict=True)
+    ]
+
+
+class _Relay:
+    """A grouped stage's progress lines: held (after its header) until :meth:`open`, then
+    printed as they come."""
+
+    def __init__(self, say: Callable[[str], None], header: str) -> None:
+        self.say, self.held, self.live = say, [header], False
+        self.lock = threading.Lock()
+
+    def __call__(self, line: str) -> None:
+        with self.lock:
+            if self.live:
+                self.say(line)
+            else:
+                self.held.append(line)
+
+    def open(self) -> None:
+        with self.lock:
+            for line in self.held:
+                self.say(line)
+            self.held, self.live = [], True
 
 
 def stage_times_markdown(times: Sequence[tuple[str, float]], total_s: float | None = None
                          ) -> str:  # fmt: skip
-    """The "Stage times" section: one row per stage, wall-clock seconds, and the total (the
-    run's own, ``total_s``, when stages ran at the same time; else their sum)."""
+    """The "Stage times" section: one row per stage, wall-clock seconds, and the total: the
+    run's own ``total_s`` when stages ran at the same time (their rows overlap), else their
+    sum."""
+    overlap = (" Stages of a group ran at the same time: their rows overlap, and the total is "
+               "the run's own." if total_s is not None else "")  # fmt: skip
     lines = ["## Stage times", "", "Wall-clock seconds of each stage on the machine that ran "
-             "it (they vary from run to run; every other output does not). The checks "
-             "(validation, family comparison, MPC demo, diagnosis) run at the same time on a "
-             "local pool: their rows overlap, and the total is the run's.", "",
+             f"it (they vary from run to run; every other output does not).{overlap}", "",
              "| stage | time (s) |", "|---|---|"]  # fmt: skip
     lines += [f"| {title} | {seconds:.1f} |" for title, seconds in times]
     total = sum(s for _, s in times) if total_s is None else total_s
@@ -476,15 +507,17 @@ def stage_times_markdown(times: Sequence[tuple[str, float]], total_s: float | No
     return "\n".join(lines) + "\n"
 
 
-def _write_stage_times(work: Path, times: Sequence[tuple[str, float]], total_s: float,
+def _write_stage_times(work: Path, times: Sequence[tuple[str, float]], total_s: float | None,
                        say: Callable[[str], None]) -> None:  # fmt: skip
-    """Print the stage times and the run's, and append them to ``summary.md`` when a stage
-    wrote one."""
+    """Print the stage times and the total (``total_s``, the run's own, where stages ran at
+    the same time; else their sum), and append them to ``summary.md`` when a stage wrote
+    one."""
     width = max((len(title) for title, _ in times), default=0)
     say("stage times (s):")
     for title, seconds in times:
         say(f"      {title:<{width}}  {seconds:6.1f}")
-    say(f"      {'total':<{width}}  {total_s:6.1f}")
+    total = sum(s for _, s in times) if total_s is None else total_s
+    say(f"      {'total':<{width}}  {total:6.1f}")
     summary = work / "summary.md"
     if summary.is_file():
         text = summary.read_text(encoding="utf-8")

@@ -224,8 +224,9 @@ def mpc_demo(ctx: Any) -> None:
     envelope: dict[str, Any] = {}
     for kind in MPC_PLANTS:
         ctx.progress(f"      {kind}: {MPC_MINUTES:g} simulated minutes per scenario")
-    # the exported C FMU of the model is the fmu plant (it is not exported again)
-    fmu = next(str(p) for p in ctx.results["fmus"]["c"] if p.stem == model.name)
+    # the exported C FMU of the model is the fmu plant (not exported again, when there is one)
+    fmu = next((str(p) for p in ctx.results.get("fmus", {}).get("c", [])
+                if p.stem == model.name), None)  # fmt: skip
     jobs = [(str(model_path), kind, fmu if kind == "fmu" else None) for kind in MPC_PLANTS]
     found = map_tasks(mpc_demo_task, jobs, ctx.fleet,
                       lambda job: f"the MPC demo on the {job[1]}")  # fmt: skip
