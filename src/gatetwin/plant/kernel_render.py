@@ -5,7 +5,6 @@ A kernel is scalar arithmetic on a few helpers (``fmin``, ``fmax``, ``less``, ``
 kernel's own functions, so the arithmetic is never written again:
 
 * :func:`numba_kernel` — the functions compiled by numba (fast simulation for fitting);
-* :func:`casadi_kernel` — the functions evaluated on CasADi symbols (MPC models);
 * :func:`c_source` — the functions traced into straight-line C (the C FMU's
   ``physical_kernel.c``): every operation becomes one ``const double`` in evaluation order, so
   with ``-ffp-contract=off`` the C result, built by the host's compiler against the C library
@@ -27,7 +26,6 @@ __all__ = [
     "CValue",
     "c_function",
     "c_source",
-    "casadi_kernel",
     "numba_functions",
     "numba_kernel",
 ]
@@ -90,23 +88,6 @@ def numba_functions(module: types.ModuleType) -> types.SimpleNamespace:
     from numba import njit
 
     return _rebind(module, {}, wrap=lambda f: njit(cache=True)(f))
-
-
-def casadi_kernel(module: types.ModuleType) -> types.SimpleNamespace:
-    """The kernel's functions on CasADi ``SX``/``MX`` expressions."""
-    import casadi as ca
-
-    helpers = {
-        "fmin": ca.fmin,
-        "fmax": ca.fmax,
-        "less": lambda a, b: a < b,
-        "select": lambda c, a, b: ca.if_else(c, a, b),
-        "sqrt": ca.sqrt,
-        "exp": ca.exp,
-        "log": ca.log,
-        "floor": ca.floor,
-    }
-    return _rebind(module, helpers)
 
 
 # -- C emitter -----------------------------------------------------------------------------------

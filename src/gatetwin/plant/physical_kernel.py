@@ -48,8 +48,8 @@ only and no gatetwin imports. Renderings derive from this source, none restate i
 
 * the Python simulator (:mod:`gatetwin.plant.physical`) calls it as it is;
 * the pythonfmu slave embeds this file verbatim at export;
-* :mod:`gatetwin.plant.kernel_render` rebinds the helpers to numba (identification), CasADi
-  (the MPC's symbolic model) and a C emitter that writes the C FMU's ``physical_kernel.c``.
+* :mod:`gatetwin.plant.kernel_render` rebinds the helpers to numba (identification) and a C
+  emitter that writes the C FMU's ``physical_kernel.c``.
 
 Parameters are one flat sequence ``p`` in the order of :data:`PARAMETERS`.
 """
@@ -300,7 +300,7 @@ def law_gate_flow_slopes(depth_m: float, tail_m: float, opening_mm: float, law: 
         depth_m, tail_m, opening_mm, law, p)  # fmt: skip
     above = select(less(DEPTH_MIN_M, depth_m), 1.0, 0.0)  # d h / d depth
     # dCd/dh: through the logistic in ln r, r = e/h; grow / (1 + grow) written so that
-    # neither arm overflows (exp(z) is inf for a large z in C, numba and CasADi)
+    # neither arm overflows (exp(z) is inf for a large z in C and numba)
     lift = select(less(z, 0.0), grow / (1.0 + grow), 1.0 / (1.0 + exp(-fmax(z, 0.0))))
     dcd_dz = -(c_small - c_large) * shape * share * lift
     dcd_dh = select(less(RATIO_MIN, e / h), dcd_dz / width * (-1.0 / h), 0.0) * above
