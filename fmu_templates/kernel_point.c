@@ -1,6 +1,8 @@
 /* See kernel_point.h. */
 #include "kernel_point.h"
 
+#include <math.h>
+
 #include "physical_kernel.h"
 
 double kernel_steady_depth_m(const double *p, double opening_mm, double flow_m3h)
@@ -11,18 +13,24 @@ double kernel_steady_depth_m(const double *p, double opening_mm, double flow_m3h
 }
 
 /* held_steady_depth_m of gatetwin.plant.physical_kernel: Cd's curve at the discharge once,
- * then the halvings */
+ * then its steps from its start until a step is within the tolerance (or NaN) */
 double kernel_tail_steady_depth_m(const double *p, double tail_m, double opening_mm,
                                   double flow_m3h)
 {
-    double low = GT_DEPTH_LOW_M, high = p[GT_DEPTH_MAX_INDEX], law[5];
+    double low = GT_DEPTH_LOW_M, high = p[GT_DEPTH_MAX_INDEX], law[5], depth, step, tolerance;
     int i;
     gt_cd_law(flow_m3h, p, &law[0], &law[1], &law[2], &law[3], &law[4]);
-    for (i = 0; i < GT_BISECTION_STEPS; i++) {
-        gt_law_bisection_step(low, high, tail_m, opening_mm, flow_m3h, law[0], law[1], law[2],
-                              law[3], law[4], p, &low, &high);
+    tolerance = (high - low) * ldexp(1.0, -GT_BISECTION_STEPS);
+    step = high - low;
+    gt_steady_depth_start_m(tail_m, opening_mm, flow_m3h, law[0], p, &depth);
+    for (i = 0; i < GT_STEADY_MAX_STEPS; i++) {
+        gt_law_newton_step(low, high, depth, step, tail_m, opening_mm, flow_m3h, law[0], law[1],
+                           law[2], law[3], law[4], p, &low, &high, &depth, &step);
+        if (!(step > tolerance || -step > tolerance)) {
+            break;
+        }
     }
-    return 0.5 * (low + high);
+    return depth;
 }
 
 void kernel_envelope_steady(const double *p, double opening_mm, double flow_m3h,

@@ -40,6 +40,7 @@ __all__ = [
     "run_tasks",
     "shared_pool",
     "spawn_environment",
+    "stop_shared_pools",
 ]
 
 Progress = Callable[[str], None]

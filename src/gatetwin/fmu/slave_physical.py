@@ -56,7 +56,7 @@ class PhysicalFamily:
 
     def _envelope_steady(self, u: float, q: float) -> tuple[float, float, float]:
         """The same and the steady depth at the gate, m (kernel_envelope_steady); the
-        bisection only when the opening, the discharge or a parameter changed (as
+        steady-depth solve only when the opening, the discharge or a parameter changed (as
         ``piece_point`` of model_fopdt.c keeps its point while they are held)."""
         p = self._physical()
         e = u + self.real[self.vr_opening_ref]

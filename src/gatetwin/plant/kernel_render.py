@@ -232,7 +232,8 @@ def c_source(module: types.ModuleType, prefix: str) -> tuple[str, str]:
     header = (
         head + f"#ifndef {guard}\n#define {guard}\n\n#define {prefix.upper()}N_PARAMETERS "
         f"{module.N_PARAMETERS}\n#define {prefix.upper()}BISECTION_STEPS "
-        f"{module.BISECTION_STEPS}\n#define {prefix.upper()}DEPTH_LOW_M "
+        f"{module.BISECTION_STEPS}\n#define {prefix.upper()}STEADY_MAX_STEPS "
+        f"{module.STEADY_MAX_STEPS}\n#define {prefix.upper()}DEPTH_LOW_M "
         f"{_c(module.DEPTH_LOW_M)}\n#define {prefix.upper()}DEPTH_MAX_INDEX "
         f"{module.DEPTH_MAX_INDEX}\n\n" + "\n".join(protos) + "\n\n#endif\n"
     )

@@ -473,8 +473,8 @@ def tangent_point(
 
 def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float],
                    tail_m: float | None = None) -> float:  # fmt: skip
-    """The kernel's bisection, run to its fixed number of steps (as the C FMU runs it); the
-    tail pool at its steady depth for the discharge, or held at ``tail_m``."""
+    """The kernel's steady-depth solve (as the C FMU runs it); the tail pool at its steady
+    depth for the discharge, or held at ``tail_m``."""
     k = kernel
     if tail_m is None:
         return k.steady_depth_m(opening_mm, flow_m3h, p)

@@ -13,7 +13,7 @@ Semantics shared by every rendering (this simulator, the C FMU, the pythonfmu FM
   than :data:`MAX_SUBSTEPS` is refused;
 * initial state: the gate at the command, the depth at which the gate passes the inflow
   into the tail pool (if any) at its steady depth for the inflow
-  (:data:`~gatetwin.plant.physical_kernel.BISECTION_STEPS` bisection steps);
+  (:func:`~gatetwin.plant.physical_kernel.held_steady_depth_m`);
 * output: the kernel's gauge level at the current depth, gate position and the inflow in
   force over the last step, plus the schedule's ``level_ref_mm`` (a datum correction, 0 as
   identified; scheduled on Q so that the FMU's discharge knots mark the validity range);

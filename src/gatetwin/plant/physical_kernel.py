@@ -20,14 +20,16 @@ centre while the jet is free), and the pool's depth ``h_t`` above the sill follo
 whose steady depth at the discharge Q is ``z + (h_c − z) (Q/Q_c)^(1/β)``: ``h_c`` the tail
 depth at the discharge centre, ``β`` the exponent of the outlet below (½ an orifice, 1.5 a weir,
 about 5/3 a long channel at normal depth). A submerged gate answers with the tail pool's
-slower mode too. The steady functions (bisection, level, time constant) see the tail pool at its
+slower mode too. The steady functions (depth, level, time constant) see the tail pool at its
 steady depth for the inflow.
 
 The discharge's centre ``Q_c`` and scale ``Q_s`` (m³/h) are parameters fixed at
 identification from the data's own discharge range (see :mod:`gatetwin.identification.physical`),
-so the coefficients are of order one at any gate size. The steady depth is found by bisection
-on ``[DEPTH_LOW_M, depth_max_m]``, the upper end a parameter too (a lab flume and a canal pool
-differ by an order of magnitude in depth).
+so the coefficients are of order one at any gate size. The steady depth is found by Newton's
+method on the gate law with its own slope, from the orifice law's depth, inside the bracket
+``[DEPTH_LOW_M, depth_max_m]`` (the upper end a parameter too: a lab flume and a canal pool
+differ by an order of magnitude in depth), which a step halves where Newton's would leave it
+or stall (:func:`held_steady_depth_m`).
 
 The discharge coefficient falls from its small-opening value c₀ towards c∞ as the opening
 grows relative to the depth, with a logistic in ln r; the critical-flow cap is the gate lifted
@@ -74,6 +76,7 @@ __all__ = [
     "RENDERED",
     "SLOPE_MIN_M2S",
     "SPEED_FLOOR",
+    "STEADY_MAX_STEPS",
     "TAIL_EXPONENT_MIN",
     "CdLaw",
     "actuator_speed_mm_s",
@@ -89,10 +92,11 @@ __all__ = [
     "has_floor",
     "has_tail",
     "held_steady_depth_m",
-    "law_bisection_step",
+    "law_newton_step",
     "law_gate_flow_m3s",
     "law_gate_flow_slopes",
     "law_gate_terms",
+    "law_terms_slopes",
     "less",
     "level_mm",
     "log",
@@ -103,6 +107,7 @@ __all__ = [
     "select",
     "sqrt",
     "steady_depth_m",
+    "steady_depth_start_m",
     "storage_area_m2",
     "storage_room_m2",
     "substep",
@@ -137,7 +142,7 @@ PARAMETERS = (
     ("max_substep_s", "s", "Longest integration sub-step"),
     ("flow_centre_m3h", "m3/h", "Discharge at which the Cd coefficients hold, Q_c"),
     ("flow_scale_m3h", "m3/h", "Discharge unit of the Cd slopes and of o2, Q_s"),
-    ("depth_max_m", "m", "Upper end of the steady-depth bisection bracket"),
+    ("depth_max_m", "m", "Upper end of the steady-depth bracket"),
     ("tail_area_m2", "m2", "Storage area of the pool below the gate, A_t; 0: free underflow"),
     ("tail_depth_m", "m", "Steady depth of the pool below the gate at Q = flow_centre_m3h, h_c"),
     ("tail_datum_m", "m", "Depth of the pool below the gate at which its outflow stops, z"),
@@ -165,10 +170,15 @@ DEPTH_MIN_M = 1e-4
 RATIO_MIN = 1e-6
 #: The actuator never slows below this fraction of its no-load speed.
 SPEED_FLOOR = 0.05
-#: Lower end and iteration count of the steady-depth bisection (the upper end is the
-#: parameter ``depth_max_m``; 2 m / 2^44 = 1.1e-13 m, 32 m / 2^44 = 1.8e-12 m).
+#: Lower end of the steady depth's bracket (the upper end is the parameter ``depth_max_m``),
+#: and the halvings that bring the bracket to the solve's tolerance (its width / 2^44:
+#: 2 m / 2^44 = 1.1e-13 m, 32 m / 2^44 = 1.8e-12 m).
 DEPTH_LOW_M = 1e-4
 BISECTION_STEPS = 44
+#: Most steps of the steady-depth solve: a Newton step is taken only where it lands inside
+#: the bracket and at most half as long as the step before it, else the bracket is halved,
+#: so the steps shrink to the tolerance within about twice the halvings whatever the law.
+STEADY_MAX_STEPS = 2 * BISECTION_STEPS
 #: Index of the bracket's upper end in ``p``.
 DEPTH_MAX_INDEX = 20
 #: Smallest exponent of the tail pool's outflow (keeps its steady depth defined).
@@ -295,9 +305,18 @@ def gate_flow_slopes(depth_m: float, tail_m: float, opening_mm: float, flow_m3h:
 def law_gate_flow_slopes(depth_m: float, tail_m: float, opening_mm: float, law: CdLaw,
                          p: list[float]) -> tuple[float, float]:  # fmt: skip
     """:func:`gate_flow_slopes` with Cd's curve at the discharge given (:func:`cd_law`)."""
+    terms = law_gate_terms(depth_m, tail_m, opening_mm, law, p)
+    return law_terms_slopes(terms, depth_m, tail_m, law, p)
+
+
+def law_terms_slopes(terms: tuple[float, float, float, float, float, float, float, float,
+                                  float, float],
+                     depth_m: float, tail_m: float, law: CdLaw,
+                     p: list[float]) -> tuple[float, float]:  # fmt: skip
+    """:func:`law_gate_flow_slopes` from the law's terms at the depth
+    (:func:`law_gate_terms`), which the caller has."""
     c_small, c_large, _, width, shape = law
-    h, e, z, grow, share, cd, tailwater, root, free, critical = law_gate_terms(
-        depth_m, tail_m, opening_mm, law, p)  # fmt: skip
+    h, e, z, grow, share, cd, tailwater, root, free, critical = terms
     above = select(less(DEPTH_MIN_M, depth_m), 1.0, 0.0)  # d h / d depth
     # dCd/dh: through the logistic in ln r, r = e/h; grow / (1 + grow) written so that
     # neither arm overflows (exp(z) is inf for a large z in C and numba)
@@ -382,18 +401,44 @@ def substep(
     return depth_end, tail_end, gate_end
 
 
-def law_bisection_step(
-    low_m: float, high_m: float, tail_m: float, opening_mm: float, flow_m3h: float,
-    c_small: float, c_large: float, middle: float, width: float, shape: float, p: list[float],
-) -> tuple[float, float]:  # fmt: skip
-    """One halving of the bracket of the depth at which the gate passes the inflow into the
-    tail pool held at ``tail_m``, with Cd's curve at the discharge given as :func:`cd_law`
-    returns it."""
-    half = 0.5 * (low_m + high_m)
+def law_newton_step(
+    low_m: float, high_m: float, depth_m: float, step_m: float, tail_m: float,
+    opening_mm: float, flow_m3h: float, c_small: float, c_large: float, middle: float,
+    width: float, shape: float, p: list[float],
+) -> tuple[float, float, float, float]:  # fmt: skip
+    """One step of the solve for the depth at which the gate passes the inflow into the tail
+    pool held at ``tail_m`` (Cd's curve at the discharge as :func:`cd_law` returns it): the
+    bracket ``[low_m, high_m]`` narrowed by the side ``depth_m`` lies on, and the next depth:
+    Newton's (the law's own slope, :func:`law_gate_flow_slopes`) where it lands inside the
+    bracket and is at most half as long as the step before (``step_m``), else the narrowed
+    bracket's middle. Returns the bracket, the next depth and the step to it."""
     law = (c_small, c_large, middle, width, shape)
-    passing = law_gate_flow_m3s(half, tail_m, opening_mm, law, p)
-    below = less(passing, flow_m3h / 3600.0)
-    return select(below, half, low_m), select(below, high_m, half)
+    terms = law_gate_terms(depth_m, tail_m, opening_mm, law, p)
+    excess = fmin(terms[8], terms[9]) - flow_m3h / 3600.0
+    below = less(excess, 0.0)
+    low = select(below, depth_m, low_m)
+    high = select(below, high_m, depth_m)
+    newton = -excess / fmax(law_terms_slopes(terms, depth_m, tail_m, law, p)[0], SLOPE_MIN_M2S)
+    target = depth_m + newton
+    short = select(less(2.0 * fmax(newton, -newton), fmax(step_m, -step_m)), 1.0, 0.0)
+    # on the bracket's upper end only where the law passes the inflow exactly there
+    take = select(less(low, target), select(less(high, target), 0.0, short), 0.0)
+    following = select(take, target, 0.5 * (low + high))
+    return low, high, following, following - depth_m
+
+
+def steady_depth_start_m(tail_m: float, opening_mm: float, flow_m3h: float, c_small: float,
+                         p: list[float]) -> float:  # fmt: skip
+    """Where the steady-depth solve starts: the depth at which the gate would pass the
+    inflow as an orifice with Cd at small openings (c₀), or under the critical-flow cap,
+    whichever is deeper (the law passes the lesser of the two), inside the bracket."""
+    e = fmax(opening_mm, 0.0) / 1000.0
+    q = flow_m3h / 3600.0
+    tailwater = select(has_tail(p), fmax(tail_m, 0.5 * e), 0.0)
+    velocity = q / fmax(c_small * p[9] * e, 1e-12)  # √(2 g head)
+    orifice = tailwater + velocity * velocity / (2.0 * G)
+    critical = 1.5 * exp(log(fmax(q / (p[9] * sqrt(G)), 1e-300)) * (2.0 / 3.0))
+    return fmin(fmax(fmax(orifice, critical), DEPTH_LOW_M), p[DEPTH_MAX_INDEX])
 
 
 def has_floor(p: list[float]) -> bool:
@@ -404,21 +449,29 @@ def has_floor(p: list[float]) -> bool:
 
 def steady_depth_m(opening_mm: float, flow_m3h: float, p: list[float]) -> float:
     """Depth at the gate at which it passes ``flow_m3h`` with the tail pool at its steady
-    depth: :func:`law_bisection_step` over ``[DEPTH_LOW_M, depth_max_m]`` run to its fixed
-    number of steps (as ``kernel_point.c`` runs it), m."""
+    depth (:func:`held_steady_depth_m`), m."""
     return held_steady_depth_m(tail_steady_m(flow_m3h, p), opening_mm, flow_m3h, p)
 
 
 def held_steady_depth_m(tail_m: float, opening_mm: float, flow_m3h: float,
                         p: list[float]) -> float:  # fmt: skip
-    """:func:`steady_depth_m` with the tail pool held at ``tail_m``, m (Cd's curve at the
-    discharge computed once, not at each halving)."""
+    """:func:`steady_depth_m` with the tail pool held at ``tail_m``, m: :func:`law_newton_step`
+    from :func:`steady_depth_start_m` on ``[DEPTH_LOW_M, depth_max_m]`` until a step is no
+    longer than the bracket's width / 2^:data:`BISECTION_STEPS` (or is NaN), at most
+    :data:`STEADY_MAX_STEPS` steps (as ``kernel_point.c`` runs it; Cd's curve at the
+    discharge computed once). A law that passes the inflow at no depth in the bracket ends
+    at its nearer end."""
     c_small, c_large, middle, width, shape = cd_law(flow_m3h, p)
     low, high = DEPTH_LOW_M, p[DEPTH_MAX_INDEX]
-    for _ in range(BISECTION_STEPS):
-        low, high = law_bisection_step(low, high, tail_m, opening_mm, flow_m3h, c_small, c_large,
-                                       middle, width, shape, p)  # fmt: skip
-    return 0.5 * (low + high)
+    tolerance = (high - low) * 2.0**-BISECTION_STEPS
+    depth, step = steady_depth_start_m(tail_m, opening_mm, flow_m3h, c_small, p), high - low
+    for _ in range(STEADY_MAX_STEPS):
+        low, high, depth, step = law_newton_step(low, high, depth, step, tail_m, opening_mm,
+                                                 flow_m3h, c_small, c_large, middle, width,
+                                                 shape, p)  # fmt: skip
+        if not (step > tolerance or -step > tolerance):
+            break
+    return depth
 
 
 def level_mm(depth_m: float, opening_mm: float, flow_m3h: float, p: list[float]) -> float:
@@ -564,10 +617,12 @@ RENDERED = (
     ("tail_steady_m", ("flow_m3h",), 1),
     ("cd_law", ("flow_m3h",), 5),
     (
-        "law_bisection_step",
+        "law_newton_step",
         (
             "low_m",
             "high_m",
+            "depth_m",
+            "step_m",
             "tail_m",
             "opening_mm",
             "flow_m3h",
@@ -577,8 +632,9 @@ RENDERED = (
             "width",
             "shape",
         ),
-        2,
+        4,
     ),  # fmt: skip
+    ("steady_depth_start_m", ("tail_m", "opening_mm", "flow_m3h", "c_small"), 1),
     ("has_tail", (), 1),
     ("storage_room_m2", (), 1),
     ("operating_room_m2", ("level_mm", "flow_m3h"), 1),
