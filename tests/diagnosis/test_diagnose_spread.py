@@ -94,13 +94,12 @@ def test_workers_with_a_scheduler_is_refused_in_one_line(tmp_path, capsys) -> No
 def _diagnose_stage(out: Path, records: Path, fleet: FleetSettings | None) -> tuple[str, dict]:
     """The run's diagnosis stage into ``out``: ``diagnose.json`` (``out`` replaced by OUT)
     and every other file's content."""
-    from types import SimpleNamespace
-
+    from gatetwin.run.pipeline import PipelineContext
     from gatetwin.run.stages import diagnose_records as diagnose_stage
 
     (out / "models").mkdir(parents=True)  # C is also diagnosed against the step tests'
     shutil.copy(Path(__file__).resolve().parents[2] / "models" / "fopdt_3F.json", out / "models")
-    ctx = SimpleNamespace(out_dir=out, records_dir=records, fleet=fleet, results={},
+    ctx = PipelineContext(out_dir=out, records_dir=records, fleet=fleet,
                           progress=lambda _line: None)  # fmt: skip
     diagnose_stage(ctx)
     files = {str(p.relative_to(out)): _content(p) for p in sorted(out.rglob("*"))
