@@ -1,11 +1,11 @@
 /* The steady point of the generated physical kernel (physical_kernel.c): the control flow of
- * gatetwin.plant.model.steady_depth_m and envelope_point around the kernel's bisection step,
+ * gatetwin.plant.model.steady_depth_m and envelope_point around the kernel's Newton step,
  * level and time constant. Needs nothing but the kernel, so every component that renders an
  * envelope (the plants, the envelope observer) compiles it as it is. */
 #ifndef GATETWIN_KERNEL_POINT_H
 #define GATETWIN_KERNEL_POINT_H
 
-/* The steady depth at the gate (m): the kernel's bisection, its fixed number of steps. */
+/* The steady depth at the gate (m): held_steady_depth_m's loop on the kernel's Newton step. */
 double kernel_steady_depth_m(const double *p, double opening_mm, double flow_m3h);
 /* The same with the pool below the gate held at tail_m (m). */
 double kernel_tail_steady_depth_m(const double *p, double tail_m, double opening_mm,

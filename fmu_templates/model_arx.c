@@ -154,7 +154,7 @@ static void steady_point(const ModelData *m, double u_mm, double *level_mm, doub
 }
 
 /* One sample of the envelope ARX at the input deviation u; the steady point from the cache
- * when it holds for u (the bisection only when the input, the discharge or a parameter
+ * when it holds for u (the steady solve only when the input, the discharge or a parameter
  * changed). */
 static double envelope_sample(ModelData *m, double u_mm)
 {

@@ -203,7 +203,7 @@ static void steady_point(const ModelData *m, double u_mm, double *level_mm, doub
 }
 
 /* The time constant of a piece that starts at the level x for the input u: the secant of the
- * storage equation from x to the steady point at u (the bisection only when the arrived
+ * storage equation from x to the steady point at u (the steady solve only when the arrived
  * input, the discharge or a parameter changed). */
 static void piece_point(ModelData *m, double u_mm, double x_mm, double *level_mm, double *tau_s)
 {

@@ -1,6 +1,6 @@
 /* Physical dynamics: the steps of gatetwin.plant.physical.PhysicalSimulator around the kernel
- * generated into physical_kernel.c (gatetwin.plant.physical_kernel): the steady depth by a fixed
- * number of bisection steps, then equal sub-steps of at most max_substep_s per communication
+ * generated into physical_kernel.c (gatetwin.plant.physical_kernel): the steady depth by the
+ * kernel's solve (kernel_point.c), then equal sub-steps of at most max_substep_s per communication
  * step. The parameters are the Real variables from VR_KERNEL_FIRST on, in kernel order. A seiche
  * block (effects.c) is driven over each sub-step by the gate position at its start.
  */

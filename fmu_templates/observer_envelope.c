@@ -4,7 +4,7 @@
  *
  * This file only orders calls. The steady points of the tangent come from the plant kernel's
  * C (physical_kernel.c, generated from gatetwin.plant.physical_kernel; kernel_point.c runs its
- * bisection), at the openings the generated `openings` asks for; every other number is
+ * steady-depth solve), at the openings the generated `openings` asks for; every other number is
  * computed by the functions casadi generated from the observer's Python code
  * (observer_envelope_generated.c, gatetwin.mpc.observer_codegen.build_envelope_functions).
  * Per sample, as OnlineObserver.step: the tangent at the inputs now; correct with the measured

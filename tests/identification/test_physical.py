@@ -43,8 +43,8 @@ from gatetwin.plant.simulate import SimulationError, simulate, simulator_for
 from gatetwin.records import read_record
 
 MODEL = Path(__file__).resolve().parents[2] / "models" / "physical_3F.json"
-#: Round-off: the renderings run the same operations; numba's and CasADi's libm calls may
-#: differ from the C library's by a few ulp.
+#: Round-off: the renderings run the same operations; numba's libm calls may differ from the
+#: C library's by a few ulp.
 ROUNDOFF = 1e-12
 
 
@@ -72,6 +72,59 @@ def _random_points(n: int, seed: int = 3) -> np.ndarray:
     return np.column_stack([rng.uniform(0.05, 0.45, n), rng.uniform(0.0, 0.3, n),
                             rng.uniform(5, 85, n), rng.uniform(5, 85, n),
                             rng.uniform(20, 95, n), rng.uniform(0.01, 2.0, n)])  # fmt: skip
+
+
+def test_the_c_steady_depth_solve_is_pythons_and_takes_a_few_steps(plant, tmp_path):
+    """``kernel_point.c``'s loop on the traced step, against ``held_steady_depth_m`` to the bit
+    at 400 random points, a quarter of them with no depth in the bracket that passes the
+    inflow (a closed gate, or more discharge than the deepest pool passes); where the root is
+    inside the bracket, the solve takes at most ``FEW_STEPS`` steps (a fall-back to halvings
+    would take 44)."""
+    from gatetwin.fmu.c_build import templates_dir
+
+    try:
+        cc = find_compiler()
+    except Exception:
+        pytest.skip("no C compiler")
+    for name, text in generated_kernel().items():
+        (tmp_path / name).write_text(text)
+    for name in ("kernel_point.c", "kernel_point.h"):
+        (tmp_path / name).write_text((templates_dir() / name).read_text())
+    lib = tmp_path / "libpoint.so"
+    flags = [f for f in CFLAGS if not f.startswith("-fvisibility")]  # the FMUs' flags
+    subprocess.run([*cc, *flags, "-o", str(lib), "physical_kernel.c", "kernel_point.c", "-lm"],
+                   cwd=tmp_path, check=True)  # fmt: skip
+    solve = ctypes.CDLL(str(lib)).kernel_tail_steady_depth_m
+    solve.restype = ctypes.c_double
+    p = plant.vector
+    pa = (ctypes.c_double * len(p))(*p)
+    steps = []
+    counted = kernel.law_newton_step
+
+    def step(*args: float) -> tuple[float, float, float, float]:
+        steps[-1] += 1
+        return counted(*args)
+
+    rng = np.random.default_rng(11)
+    for k in range(400):
+        tail, q = rng.uniform(0.0, 0.3), rng.uniform(0.0, 150.0)
+        e = rng.uniform(5.0, 85.0) if k % 4 else float(rng.choice([0.0, 400.0]))
+        steps.append(0)
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(kernel, "law_newton_step", step)
+            want = kernel.held_steady_depth_m(tail, e, q, p)
+        got = solve(pa, *(ctypes.c_double(v) for v in (tail, e, q)))
+        assert got == want, (tail, e, q)
+        ends = (kernel.DEPTH_LOW_M, p[kernel.DEPTH_MAX_INDEX])
+        if all(abs(want - end) > 1e-9 for end in ends):
+            assert steps[-1] <= FEW_STEPS, (tail, e, q, steps[-1])
+
+
+#: Most steps of the steady-depth solve where the root is inside the bracket: Newton's from the
+#: orifice law's depth takes 3-6 on the bundled models and the tests' tail pool and floor
+#: (2,800 random points; 13 with the gate lifted 400 mm over a tail pool); under half a
+#: bisection's 44, so a solve that fell back to halvings fails.
+FEW_STEPS = 20
 
 
 def test_the_gate_laws_slopes_are_its_derivatives(plant):
@@ -160,7 +213,7 @@ def test_c_rendering_of_the_kernel_equals_python(plant, tmp_path):
             *(ctypes.c_double(v) for v in secant_args), pa, ctypes.byref(out[0])
         )
         assert out[0].value == kernel.secant_time_constant_s(*secant_args, p)
-        # the envelope FOPDT's piece with the tail pool held at ht (and its bisection step)
+        # the envelope FOPDT's piece with the tail pool held at ht (at its steady solve's depth)
         held = steady_depth_m(a, q, p, ht)
         piece_args = (target + 1000.0 * (h - 0.25), ht, held, a, q, dt)
         getattr(c, f"{KERNEL_PREFIX}tail_pool_piece")(

@@ -20,12 +20,12 @@ resolution (the envelope's ``resolution_mm``), so it does not integrate the roun
 a limit cycle. Where ``|K|`` exceeds the gain the move weight was tuned for, the weight
 grows with ``K²`` (:attr:`MpcSettings.move_weight_gain_mm_per_mm`).
 
-Why a re-linearised QP and not a nonlinear MPC on the physical kernel (its CasADi
-rendering exists): the tangent at the measured point is exact to first order, the
-condensed QP keeps DAQP's warm-started ~0.2 ms solve, and a rebuild of its matrices
+Why a re-linearised QP and not a nonlinear MPC on the physical kernel: the tangent at the
+measured point is exact to first order, the condensed QP keeps DAQP's warm-started ~0.2 ms
+solve, and a rebuild of its matrices
 (only when the tangent has moved by a 1 % grid step) costs a few ms; IPOPT on the same
 horizon takes ~19 ms median and ~64 ms p99 a solve on the linear model alone
-(``benchmarks/bench_mpc.py``, N = 100), more with the kernel's nested bisection inside,
+(``benchmarks/bench_mpc.py``, N = 100), more with the kernel's nested steady-depth solve inside,
 and gives up the QP's solution in a bounded number of active-set steps.
 
 A plant with effect blocks is controlled with all of them: the output blocks are states of

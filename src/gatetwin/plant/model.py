@@ -273,7 +273,7 @@ OPERATING_STORAGE_RULE = (
     f"{kernel.AREA_MIN_M2:g} m2 wherever the model runs (the validity's levels and discharges)"
 )
 #: Kernel parameters added after the first model files were written, with the values those
-#: files' equations had built in (the discharge normalisation and the bisection bracket they
+#: files' equations had built in (the discharge normalisation and the steady-depth bracket they
 #: were identified with; no tail pool: a free gate; no floor at the gauge): a file without
 #: them reads as it always did.
 FORMAT_DEFAULTS = {

@@ -92,10 +92,10 @@ __all__ = [
     "has_floor",
     "has_tail",
     "held_steady_depth_m",
-    "law_newton_step",
     "law_gate_flow_m3s",
     "law_gate_flow_slopes",
     "law_gate_terms",
+    "law_newton_step",
     "law_terms_slopes",
     "less",
     "level_mm",
@@ -421,8 +421,9 @@ def law_newton_step(
     newton = -excess / fmax(law_terms_slopes(terms, depth_m, tail_m, law, p)[0], SLOPE_MIN_M2S)
     target = depth_m + newton
     short = select(less(2.0 * fmax(newton, -newton), fmax(step_m, -step_m)), 1.0, 0.0)
-    # on the bracket's upper end only where the law passes the inflow exactly there
-    take = select(less(low, target), select(less(high, target), 0.0, short), 0.0)
+    # on an end of the bracket only where the law passes the inflow exactly there (a last
+    # Newton step under half an ulp lands on the depth it starts from, the bracket's end)
+    take = select(less(target, low), 0.0, select(less(high, target), 0.0, short))
     following = select(take, target, 0.5 * (low + high))
     return low, high, following, following - depth_m
 
