@@ -80,21 +80,9 @@ def test_the_c_steady_depth_solve_is_pythons_and_takes_a_few_steps(plant, tmp_pa
     inflow (a closed gate, or more discharge than the deepest pool passes); where the root is
     inside the bracket, the solve takes at most ``FEW_STEPS`` steps (a fall-back to halvings
     would take 44)."""
-    from gatetwin.fmu.c_build import templates_dir
-
-    try:
-        cc = find_compiler()
-    except Exception:
-        pytest.skip("no C compiler")
-    for name, text in generated_kernel().items():
-        (tmp_path / name).write_text(text)
-    for name in ("kernel_point.c", "kernel_point.h"):
-        (tmp_path / name).write_text((templates_dir() / name).read_text())
-    lib = tmp_path / "libpoint.so"
-    flags = [f for f in CFLAGS if not f.startswith("-fvisibility")]  # the FMUs' flags
-    subprocess.run([*cc, *flags, "-o", str(lib), "physical_kernel.c", "kernel_point.c", "-lm"],
-                   cwd=tmp_path, check=True)  # fmt: skip
-    solve = ctypes.CDLL(str(lib)).kernel_tail_steady_depth_m
+    solve = _kernel_library(
+        tmp_path, ("kernel_point.c", "kernel_point.h")
+    ).kernel_tail_steady_depth_m
     solve.restype = ctypes.c_double
     p = plant.vector
     pa = (ctypes.c_double * len(p))(*p)
@@ -178,19 +166,29 @@ def test_the_slopes_stay_finite_where_the_cd_logistic_overflows():
         assert abs(slope - ahead) <= 1e-5 * abs(ahead)
 
 
-def test_c_rendering_of_the_kernel_equals_python(plant, tmp_path):
+def _kernel_library(folder: Path, templates: tuple[str, ...] = ()) -> ctypes.CDLL:
+    """The generated ``physical_kernel.c`` (and the FMU templates named) built with the FMUs'
+    flags into a library in ``folder``; skips the test without a C compiler."""
+    from gatetwin.fmu.c_build import templates_dir
+
     try:
         cc = find_compiler()
     except Exception:
         pytest.skip("no C compiler")
-    """To the bit against the kernel in Python (both call this platform's exp and log)."""
     for name, text in generated_kernel().items():
-        (tmp_path / name).write_text(text)
-    lib = tmp_path / "libkernel.so"
+        (folder / name).write_text(text)
+    for name in templates:
+        (folder / name).write_text((templates_dir() / name).read_text())
+    lib = folder / "libkernel.so"
     flags = [f for f in CFLAGS if not f.startswith("-fvisibility")]  # the FMUs' flags
-    subprocess.run([*cc, *flags, "-o", str(lib), "physical_kernel.c", "-lm"],
-                   cwd=tmp_path, check=True)  # fmt: skip
-    c = ctypes.CDLL(str(lib))
+    sources = ["physical_kernel.c", *(t for t in templates if t.endswith(".c"))]
+    subprocess.run([*cc, *flags, "-o", str(lib), *sources, "-lm"], cwd=folder, check=True)
+    return ctypes.CDLL(str(lib))
+
+
+def test_c_rendering_of_the_kernel_equals_python(plant, tmp_path):
+    """To the bit against the kernel in Python (both call this platform's exp and log)."""
+    c = _kernel_library(tmp_path)
     p = plant.vector
     pa = (ctypes.c_double * len(p))(*p)
     out = [ctypes.c_double() for _ in range(3)]
