@@ -7,6 +7,7 @@ platform computes."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import struct
 import subprocess
@@ -184,7 +185,7 @@ def _trace(command: list[str], inputs: Path) -> np.ndarray:
     with inputs.open() as stdin, tempfile.TemporaryFile("w+") as stdout, \
             tempfile.TemporaryFile("w+") as stderr:  # fmt: skip
         done = subprocess.run(command, stdin=stdin, stdout=stdout, stderr=stderr, timeout=600,
-                              env={**__import__("os").environ, "WINEDEBUG": "-all"})  # fmt: skip
+                              env={**os.environ, "WINEDEBUG": "-all"})  # fmt: skip
         stdout.seek(0), stderr.seek(0)
         assert done.returncode == 0, stderr.read()[-2000:]
         return np.array([float(v) for v in stdout.read().split()])
@@ -217,11 +218,27 @@ needs_qemu = pytest.mark.skipif(
 needs_wine = pytest.mark.skipif(WINE is None, reason="wine absent")
 
 
+def _wine_prefix_made() -> None:
+    """Make wine's prefix (~/.wine) before the first trace, one process at a time: two test
+    workers whose first wine runs make it at once race on its folders and the wine server's
+    socket ("chdir to /tmp/wine-…: No such file or directory"). ``wineboot -i`` makes it or
+    finds it made; ``wineserver -w`` waits until the services it started have quit."""
+    import fcntl
+
+    env = {**os.environ, "WINEDEBUG": "-all"}
+    with open(Path(tempfile.gettempdir()) / f"gatetwin-wine-{os.getuid()}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        for command in (["wineboot", "-i"], ["wineserver", "-w"]):
+            subprocess.run(command, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                           stderr=subprocess.DEVNULL, timeout=600, check=True)  # fmt: skip
+
+
 @pytest.fixture(scope="session")
 def traces(exported, tmp_path_factory):
     """``trace(version, format, model)``: the levels the FMU binary of that FMI version and
     format computes on the bundled record, driven by tests/c/fmu_trace.c (each run once)."""
     done: dict[tuple[str, str, str], np.ndarray] = {}
+    done_wine: list[bool] = []
 
     def trace(version: str, what: str, model: str = "fopdt_3F") -> np.ndarray:
         if (version, what, model) not in done:
@@ -232,6 +249,9 @@ def traces(exported, tmp_path_factory):
             out = tmp_path_factory.mktemp("trace") / f"trace{suffix}"
             host = _host(root, target, out, version)
             binary = next((root / "binaries" / folders[0 if version == "2.0" else 1]).iterdir())
+            if runner == (WINE,) and not done_wine:
+                _wine_prefix_made()
+                done_wine.append(True)
             done[version, what, model] = _trace([*runner, str(host), str(binary), *args], inputs)
         return done[version, what, model]
 
