@@ -208,3 +208,34 @@ def test_fmi3_warns_once_outside_the_schedule_as_the_fmi2_fmu_does(extracted):
         assert status == 0  # warned once per instance
     finally:
         driver.close()
+
+
+def test_both_versions_carry_one_binary_built_once(tmp_path, monkeypatch):
+    """A model's FMI 2.0 and 3.0 FMUs carry one binary with both glues compiled in: the
+    second export copies the first's build (one compiler run), and the binary answers to
+    both versions' function names."""
+    import ctypes
+
+    import gatetwin.fmu.c_build as c_build
+
+    if compiler() is None:
+        pytest.skip("no C compiler (cc/gcc) on PATH")
+    runs = []
+    compile_shared = c_build.compile_shared
+    monkeypatch.setattr(c_build, "compile_shared",
+                        lambda *a, **k: runs.append(a) or compile_shared(*a, **k))  # fmt: skip
+    monkeypatch.setattr(c_build, "_BUILT", {})
+    binaries = {}
+    for version in ("2.0", "3.0"):
+        fmu = export_fmu(fopdt_plant(), tmp_path / f"m{version}.fmu", backend="c",
+                         model_name="m", provenance={}, fmi_version=version)  # fmt: skip
+        with zipfile.ZipFile(fmu) as z:
+            (name,) = (n for n in z.namelist() if n.startswith("binaries/"))
+            binaries[version] = z.read(name)
+    assert len(runs) == 1
+    assert binaries["2.0"] == binaries["3.0"]
+    library = tmp_path / Path(name).name
+    library.write_bytes(binaries["2.0"])
+    loaded = ctypes.CDLL(str(library))
+    assert all(hasattr(loaded, f) for f in ("fmi2DoStep", "fmi3DoStep", "fmi2Instantiate",
+                                             "fmi3InstantiateCoSimulation"))  # fmt: skip

@@ -407,6 +407,56 @@ def compile_shared(
         raise ExportError(f"C compiler {cmd[0]} failed: {first.strip()}")
 
 
+#: Plant binaries built in this process, by the digest of what they were built from (every
+#: C file and header compiled, compiler and flags); the last :data:`BUILT_KEPT` are kept.
+_BUILT: dict[str, bytes] = {}
+#: How many binaries :data:`_BUILT` keeps (a few hundred kB each).
+BUILT_KEPT = 16
+
+
+def build_both_apis(
+    sources_dir: Path,
+    c_files: tuple[str, ...],
+    fmi_version: str,
+    out: Path,
+    extra_flags: tuple[str, ...] = (),
+    compiler: list[str] | None = None,
+) -> None:
+    """Build a plant's binary ``out`` from ``sources_dir`` with the glue of every FMI version
+    compiled in, not only ``fmi_version``'s: the FMI 2.0 and 3.0 FMUs of one model then share
+    one binary (the component, compiler and flags are the same, only the glue differs), built
+    once in this process and copied for the other version. The FMU's ``sources/`` keep their
+    own version's glue: built from them, the binary exports that version's functions alone,
+    with the same arithmetic."""
+    import hashlib
+
+    templates = templates_dir()
+    glues = tuple(api.glue for api in FMI_APIS.values())
+    files = (*glues, *(f for f in c_files if f not in glues))
+    with tempfile.TemporaryDirectory(prefix="gatetwin-build-") as tmp:
+        build = Path(tmp)
+        for path in sources_dir.iterdir():
+            if path.suffix in (".c", ".h"):
+                shutil.copyfile(path, build / path.name)
+        for api in FMI_APIS.values():
+            for name in (api.glue, *api.headers):
+                if not (build / name).exists():
+                    shutil.copyfile(templates / name, build / name)
+        command = compile_command(files, build / "binary", extra_flags, compiler)
+        at = command.index("-o")  # the output's path aside
+        digest = hashlib.sha256(json.dumps(command[:at] + command[at + 2 :]).encode())
+        for path in sorted(build.iterdir()):
+            digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+        key = digest.hexdigest()
+        if key not in _BUILT:
+            compile_shared(build, files, out, extra_flags, compiler)
+            _BUILT[key] = out.read_bytes()
+            while len(_BUILT) > BUILT_KEPT:
+                del _BUILT[next(iter(_BUILT))]
+        else:
+            out.write_bytes(_BUILT[key])
+
+
 def build_c_fmu(
     desc: FmuDescription,
     fmu_dir: Path,
@@ -424,15 +474,16 @@ def build_c_fmu(
     c_files = write_sources(desc, sources_dir, fmi_version)
     binary_dir = fmu_dir / "binaries" / platform
     binary_dir.mkdir(parents=True, exist_ok=True)
-    compile_shared(sources_dir, c_files, binary_dir / f"{desc.model_identifier}{extension}",
-                   HOST_FLAGS)  # fmt: skip
+    build_both_apis(sources_dir, c_files, fmi_version,
+                    binary_dir / f"{desc.model_identifier}{extension}", HOST_FLAGS)  # fmt: skip
     known = platforms_of(fmi_version)
     foreign = [known[f] for f in platforms if f != platform]
 
     def cross(target: Platform) -> None:
         out = fmu_dir / "binaries" / target.folder / f"{desc.model_identifier}{target.extension}"
         out.parent.mkdir(parents=True, exist_ok=True)
-        compile_shared(sources_dir, c_files, out, compiler=zig_cc(target.zig_target))
+        build_both_apis(sources_dir, c_files, fmi_version, out,
+                        compiler=zig_cc(target.zig_target))  # fmt: skip
         for extra in out.parent.iterdir():  # the linker's import library and debug database
             if extra != out:
                 extra.unlink()
