@@ -53,6 +53,8 @@ def test_the_set_is_written_and_the_missing_model_named(ident, monkeypatch, tmp_
 
     monkeypatch.setattr(suite, "gauge_models", each_gauge)
     monkeypatch.setattr(suite, "arx_model", lambda *_a, **_k: pytest.fail("no discrete model"))
+    # the patched fits live in this process: the gauges' tasks run here, not on a pool
+    monkeypatch.setattr("gatetwin.fleet.default_workers", lambda: 1)
     out = tmp_path / "models"
     assert main(["models", "--records", str(bundled_records_dir()), "--out", str(out)]) == 0
     gauges = ["1D", "2E", "3F", "4G", "5H"]

@@ -252,6 +252,7 @@ def _print_to_stderr(message: str) -> None:
 
 def run_models(args: argparse.Namespace) -> int:
     from gatetwin.bundled import bundled_records_dir
+    from gatetwin.fleet import FleetSettings, default_workers
     from gatetwin.identification.suite import identify_folder
     from gatetwin.modelfile import write_model_files
 
@@ -259,7 +260,9 @@ def run_models(args: argparse.Namespace) -> int:
     if _is_fleet(args):
         return _run_fleet(args)
     folder = Path(args.records[0]) if args.records else bundled_records_dir()
-    ident = identify_folder(folder, progress=lambda line: _print_to_stderr(line.strip()))
+    # one gate: its gauges' fits spread over the CPUs, as gatetwin run spreads them
+    ident = identify_folder(folder, progress=lambda line: _print_to_stderr(line.strip()),
+                            fleet=FleetSettings(workers=default_workers()))  # fmt: skip
     for name, why in ident.not_identified.items():
         print(f"gatetwin: warning: {name} not identified ({' '.join(why.split())}); the "
               "others are written", file=sys.stderr)  # fmt: skip
