@@ -258,6 +258,37 @@ def test_identify_step_on_record() -> None:
     assert list(one.gauges) == ["3F"]
 
 
+def _with_logging_gap(s: Step, after_onset_s: float, rows: int, opening_after_mm: float):
+    """``s`` as a record with ``rows`` samples missing from ``after_onset_s`` after the onset
+    (a logging gap), the opening logged as ``opening_after_mm`` after it."""
+    first = int(np.searchsorted(s.t, s.logged_onset + after_onset_s))
+    keep = np.ones(s.n, dtype=bool)
+    keep[first : first + rows] = False
+    opening = np.where(np.arange(s.n) >= first + rows, opening_after_mm, s.opening)
+    return first, record_from_arrays(s.t[keep], opening[keep], s.hold[keep],
+                                     np.full(keep.sum(), 30.0), {"3F": s.h[keep]})  # fmt: skip
+
+
+def test_a_logging_gap_inside_the_response_does_not_end_the_fit() -> None:
+    """A gap of 25 samples half a time constant after the onset, the gate held through it:
+    the fit runs on to the end of the record (every valid sample) and finds the truth within
+    three of its standard errors. Where the opening changed inside a gap (an unobserved
+    step, here 80 s after the onset), the response ends at the gap."""
+    s = make_step(11, noise_sd=0.3, time_constant=60.0)
+    first, rec = _with_logging_gap(s, 30.0, 25, s.opening[-1])
+    assert len(rec.holds) == 3 and len(rec.steps) == 1  # the gap splits the hold after it
+    fit = identify_step(rec).gauges["3F"].fit
+    assert fit.n == s.n - 25 - s.n_open - (s.k_open - 40)  # pre window to the record's end
+    for value, se, truth in (
+        (fit.gain_mm_per_mm, fit.gain_se_mm_per_mm, s.gain),
+        (fit.time_constant_s, fit.time_constant_se_s, s.time_constant),
+    ):
+        assert abs(value - truth) <= 3 * se  # fmt: skip
+    first, moved = _with_logging_gap(s, 80.0, 25, s.opening[-1] + 5.0)
+    assert moved.unobserved_steps == 1
+    assert identify_step(moved).gauges["3F"].fit.n == first - s.n_open - (s.k_open - 40)
+
+
 def test_identify_step_refusals() -> None:
     s = make_step(7, noise_sd=0.4)
     flow = np.full(s.n, 30.0)
