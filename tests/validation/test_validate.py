@@ -306,6 +306,25 @@ def test_cli_pass_writes_json_junit_and_plots(
     assert (plots / pngs[0]).read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
 
 
+def test_cli_leaves_a_folders_static_table_out_and_refuses_it_alone(
+    fmus: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``records/*.csv`` holds the static rating table, which is no time series: named on
+    stderr and left out; given alone, one error line, exit 2 and no output."""
+    static = RECORDS / "static.csv"
+    args, json_path, *_ = _outputs(tmp_path)
+    assert main(["validate", str(fmus["right"]), str(static), str(A), *args]) == 0
+    err = capsys.readouterr().err
+    assert f"gatetwin: note: {static} is a static rating table, not a time series" in err
+    assert [r["record"] for r in json.loads(json_path.read_text())["records"]] == ["A.csv"]
+    other = tmp_path / "other"
+    code = main(["validate", str(fmus["right"]), str(static), "--json", str(other / "v.json")])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2 and err[-1] == (f"gatetwin: error: no time series to validate: {static} "
+                                     "is a static rating table")  # fmt: skip
+    assert not other.exists()
+
+
 def test_cli_threshold_failure_exits_1_with_junit_failures(
     fmus: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

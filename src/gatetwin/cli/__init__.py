@@ -246,7 +246,9 @@ def _run_routine_district(args: argparse.Namespace) -> int:
 
 def _add_validate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("fmu", metavar="FMU", help="FMI 2.0 or 3.0 co-simulation FMU to validate")
-    parser.add_argument("records", metavar="RECORD", nargs="+", help="measured record(s) (CSV)")
+    parser.add_argument("records", metavar="RECORD", nargs="+",
+                        help="measured record(s) (CSV); a static rating table among them is "
+                        "left out")  # fmt: skip
     parser.add_argument("--gauge", metavar="G", help="compare output level_<G>_mm (default: "
                         "the FMU's only level output)")  # fmt: skip
     parser.add_argument(
@@ -326,6 +328,25 @@ def _validate(args: argparse.Namespace, thresholds: Any) -> Any:
                                **options)  # fmt: skip
 
 
+def _time_series(records: list[str]) -> list[str]:
+    """The records to validate: a static rating table among them (a records folder's
+    ``*.csv`` holds one) is named on stderr and left out; static tables alone are refused."""
+    from gatetwin.errors import GatetwinError
+    from gatetwin.records.static import detect_table_kind
+
+    kept = []
+    for path in records:
+        if detect_table_kind(path) == "static":
+            print_to_stderr(f"gatetwin: note: {path} is a static rating table, not a time "
+                            "series: not validated")  # fmt: skip
+        else:
+            kept.append(path)
+    if not kept:
+        what = "is a static rating table" if len(records) == 1 else "are static rating tables"
+        raise GatetwinError(f"no time series to validate: {', '.join(records)} {what}")
+    return kept
+
+
 def _run_validate(args: argparse.Namespace) -> int:
     from gatetwin.validation import (
         EXIT_FAILED,
@@ -338,6 +359,7 @@ def _run_validate(args: argparse.Namespace) -> int:
     )
 
     thresholds = parse_thresholds(args.fail_under, args.fail_over)
+    args.records = _time_series(args.records)
     result = _validate(args, thresholds)
     plots = Path(args.plots) if args.plots else None
     junit = Path(args.junit) if args.junit else None
