@@ -211,8 +211,9 @@ def test_fmi3_warns_once_outside_the_schedule_as_the_fmi2_fmu_does(extracted):
 
 
 def test_both_versions_carry_one_binary_built_once(tmp_path, monkeypatch):
-    """A model's FMI 2.0 and 3.0 FMUs carry one binary with both glues compiled in: the
-    second export copies the first's build (one compiler run), and the binary answers to
+    """A plant's FMI 2.0 and 3.0 FMUs carry one binary with both glues compiled in: given
+    one ``builds`` dict, the second export takes the first's binary (one compiler run, the
+    same bytes and file mode), another plant compiles its own, and the binary answers to
     both versions' function names."""
     import ctypes
 
@@ -224,18 +225,21 @@ def test_both_versions_carry_one_binary_built_once(tmp_path, monkeypatch):
     compile_shared = c_build.compile_shared
     monkeypatch.setattr(c_build, "compile_shared",
                         lambda *a, **k: runs.append(a) or compile_shared(*a, **k))  # fmt: skip
-    monkeypatch.setattr(c_build, "_BUILT", {})
+    builds: dict = {}
     binaries = {}
-    for version in ("2.0", "3.0"):
-        fmu = export_fmu(fopdt_plant(), tmp_path / f"m{version}.fmu", backend="c",
-                         model_name="m", provenance={}, fmi_version=version)  # fmt: skip
+    for name, plant, version in (("a", fopdt_plant(), "2.0"), ("a", fopdt_plant(), "3.0"),
+                                 ("b", arx_plant(), "2.0")):  # fmt: skip
+        fmu = export_fmu(plant, tmp_path / f"{name}{version}.fmu", backend="c",
+                         model_name=name, provenance={}, fmi_version=version,
+                         builds=builds)  # fmt: skip
         with zipfile.ZipFile(fmu) as z:
-            (name,) = (n for n in z.namelist() if n.startswith("binaries/"))
-            binaries[version] = z.read(name)
-    assert len(runs) == 1
-    assert binaries["2.0"] == binaries["3.0"]
-    library = tmp_path / Path(name).name
-    library.write_bytes(binaries["2.0"])
+            (info,) = (i for i in z.infolist() if i.filename.startswith("binaries/"))
+            binaries[name, version] = (z.read(info), info.external_attr >> 16)
+    assert len(runs) == 2 and len(builds) == 2
+    assert binaries["a", "2.0"] == binaries["a", "3.0"]
+    assert binaries["b", "2.0"][0] != binaries["a", "2.0"][0]
+    library = tmp_path / Path(info.filename).name
+    library.write_bytes(binaries["a", "2.0"][0])
     loaded = ctypes.CDLL(str(library))
     assert all(hasattr(loaded, f) for f in ("fmi2DoStep", "fmi3DoStep", "fmi2Instantiate",
                                              "fmi3InstantiateCoSimulation"))  # fmt: skip

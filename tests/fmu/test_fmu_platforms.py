@@ -219,16 +219,21 @@ needs_wine = pytest.mark.skipif(WINE is None, reason="wine absent")
 
 
 def _wine_prefix_made() -> None:
-    """Make wine's prefix (~/.wine) before the first trace, one process at a time: two test
-    workers whose first wine runs make it at once race on its folders and the wine server's
-    socket ("chdir to /tmp/wine-…: No such file or directory"). ``wineboot -i`` makes it or
-    finds it made; ``wineserver -w`` waits until the services it started have quit."""
+    """Make wine's prefix (``$WINEPREFIX``, else ~/.wine) before the first trace, one process
+    at a time: two test workers whose first wine runs make it at once race on its folders
+    and the wine server's socket ("chdir to /tmp/wine-…: No such file or directory"). The
+    worker that finds no prefix runs ``wineboot -i`` (the tools beside ``wine``) and waits
+    with ``wineserver -w`` until the services it started have quit; the others find it."""
     import fcntl
 
+    prefix = Path(os.environ.get("WINEPREFIX") or Path.home() / ".wine")
+    folder = Path(WINE).parent  # the PATH folder wine was found in
     env = {**os.environ, "WINEDEBUG": "-all"}
     with open(Path(tempfile.gettempdir()) / f"gatetwin-wine-{os.getuid()}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        for command in (["wineboot", "-i"], ["wineserver", "-w"]):
+        if (prefix / "system.reg").is_file():
+            return
+        for command in ([folder / "wineboot", "-i"], [folder / "wineserver", "-w"]):
             subprocess.run(command, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                            stderr=subprocess.DEVNULL, timeout=600, check=True)  # fmt: skip
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -271,20 +271,24 @@ def _with_logging_gap(s: Step, after_onset_s: float, rows: int, opening_after_mm
 
 def test_a_logging_gap_inside_the_response_does_not_end_the_fit() -> None:
     """A gap of 25 samples half a time constant after the onset, the gate held through it:
-    the fit runs on to the end of the record (every valid sample) and finds the truth within
-    three of its standard errors. Where the opening changed inside a gap (an unobserved
-    step, here 80 s after the onset), the response ends at the gap."""
+    the record is still a step test (40 samples after the step, counted across the gap),
+    and the fit runs on to the end of the record (every valid sample) and finds the truth
+    within three of its standard errors. Where the opening changed by the actuator's
+    resolution inside a gap (an unobserved step; openings 8.1 and 9.1 mm, whose difference
+    rounds below 1), the response ends at the gap."""
     s = make_step(11, noise_sd=0.3, time_constant=60.0)
     first, rec = _with_logging_gap(s, 30.0, 25, s.opening[-1])
     assert len(rec.holds) == 3 and len(rec.steps) == 1  # the gap splits the hold after it
+    assert rec.test == "step" and rec.test_source == "detected"
     fit = identify_step(rec).gauges["3F"].fit
     assert fit.n == s.n - 25 - s.n_open - (s.k_open - 40)  # pre window to the record's end
     for value, se, truth in (
         (fit.gain_mm_per_mm, fit.gain_se_mm_per_mm, s.gain),
         (fit.time_constant_s, fit.time_constant_se_s, s.time_constant),
     ):
-        assert abs(value - truth) <= 3 * se  # fmt: skip
-    first, moved = _with_logging_gap(s, 80.0, 25, s.opening[-1] + 5.0)
+        assert abs(value - truth) <= 3 * se
+    low = replace(s, opening=s.opening - 16.9)  # 3.1 mm, then 8.1 mm after the step
+    first, moved = _with_logging_gap(low, 80.0, 25, 9.1)
     assert moved.unobserved_steps == 1
     assert identify_step(moved).gauges["3F"].fit.n == first - s.n_open - (s.k_open - 40)
 

@@ -36,6 +36,7 @@ def export_fmu(
     platforms: str | tuple[str, ...] = "host",
     fmi_version: str = "2.0",
     start_inputs: tuple[float, float] | None = None,
+    builds: dict[str, tuple[bytes, int]] | None = None,
 ) -> Path:
     """Build an FMU of ``plant`` at ``out_path``; return its path.
 
@@ -67,6 +68,11 @@ def export_fmu(
         Start values of ``opening_mm`` (mm) and ``flow_m3h`` (m3/h): where the FMU rests when
         a master initialises it without setting its inputs (default: the model's reference
         opening and the middle of its discharge range).
+    builds : dict, optional
+        C backend: binaries already built, kept by the caller (start with ``{}``): the FMI
+        2.0 and 3.0 FMUs of one plant carry one binary (both glues compiled in), so the
+        second export given the same dict takes the first's binary instead of compiling
+        it again (:func:`gatetwin.fmu.c_build.build_both_apis`).
 
     Raises
     ------
@@ -97,7 +103,7 @@ def export_fmu(
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(prefix=f".{target.name}.", dir=target.parent) as tmp:
-            _build(plant, desc, backend, Path(tmp), target, folders, fmi_version)
+            _build(plant, desc, backend, Path(tmp), target, folders, fmi_version, builds)
     except OSError as exc:
         raise OutputError(f"{target}: cannot write the FMU ({exc.strerror or exc})") from None
     return target
@@ -133,11 +139,12 @@ def _build(
     target: Path,
     folders: tuple[str, ...] = (),
     fmi_version: str = "2.0",
+    builds: dict[str, tuple[bytes, int]] | None = None,
 ) -> None:
     resources = _write_resources(plant, desc, backend, work / "resources")
     built = work / target.name
     if backend == "c":
-        _build_c(desc, work / "fmu", resources, built, folders, fmi_version)
+        _build_c(desc, work / "fmu", resources, built, folders, fmi_version, builds)
     else:
         from gatetwin.fmu.python_build import build_python_fmu
 
@@ -188,13 +195,14 @@ def _build_c(
     out: Path,
     folders: tuple[str, ...] = (),
     fmi_version: str = "2.0",
+    builds: dict[str, tuple[bytes, int]] | None = None,
 ) -> None:
     from fmpy import sharedLibraryExtension
 
     from gatetwin.fmu.c_build import build_c_fmu, zip_folder
 
     platform = _host_folder(fmi_version)
-    build_c_fmu(desc, fmu_dir, platform, sharedLibraryExtension, folders, fmi_version)
+    build_c_fmu(desc, fmu_dir, platform, sharedLibraryExtension, folders, fmi_version, builds)
     (fmu_dir / "resources").mkdir()
     for path in resources:
         (fmu_dir / "resources" / path.name).write_bytes(path.read_bytes())

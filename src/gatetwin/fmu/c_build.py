@@ -9,6 +9,7 @@ The FMU folder gets ``binaries/<platform>/<modelIdentifier>.so`` (built with ``$
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import os
 import shlex
@@ -45,7 +46,9 @@ __all__ = [
     "KERNEL_HEADERS",
     "KERNEL_PREFIX",
     "KERNEL_SOURCES",
+    "Builds",
     "FmiApi",
+    "build_both_apis",
     "build_c_fmu",
     "build_description_xml",
     "build_generated_component",
@@ -407,29 +410,26 @@ def compile_shared(
         raise ExportError(f"C compiler {cmd[0]} failed: {first.strip()}")
 
 
-#: Plant binaries built in this process, by the digest of what they were built from (every
-#: C file and header compiled, compiler and flags); the last :data:`BUILT_KEPT` are kept.
-_BUILT: dict[str, bytes] = {}
-#: How many binaries :data:`_BUILT` keeps (a few hundred kB each).
-BUILT_KEPT = 16
+#: C binaries already built: (bytes, file mode) by the digest of what each was built from
+#: (:func:`build_both_apis`).
+Builds = dict[str, tuple[bytes, int]]
 
 
 def build_both_apis(
     sources_dir: Path,
     c_files: tuple[str, ...],
-    fmi_version: str,
     out: Path,
     extra_flags: tuple[str, ...] = (),
     compiler: list[str] | None = None,
+    builds: Builds | None = None,
 ) -> None:
     """Build a plant's binary ``out`` from ``sources_dir`` with the glue of every FMI version
-    compiled in, not only ``fmi_version``'s: the FMI 2.0 and 3.0 FMUs of one model then share
-    one binary (the component, compiler and flags are the same, only the glue differs), built
-    once in this process and copied for the other version. The FMU's ``sources/`` keep their
-    own version's glue: built from them, the binary exports that version's functions alone,
-    with the same arithmetic."""
-    import hashlib
-
+    compiled in, not only the one of the FMU's ``sources/`` (which, built on their own, give
+    a binary exporting that version's functions alone, with the same arithmetic). The FMI
+    2.0 and 3.0 FMUs of one plant compile the same component with the same compiler and
+    flags, so with the same ``builds`` (a dict the caller keeps) the second takes the
+    first's binary, found by the digest of the compile command and of every C file and
+    header compiled; ``None`` builds afresh."""
     templates = templates_dir()
     glues = tuple(api.glue for api in FMI_APIS.values())
     files = (*glues, *(f for f in c_files if f not in glues))
@@ -448,13 +448,14 @@ def build_both_apis(
         for path in sorted(build.iterdir()):
             digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
         key = digest.hexdigest()
-        if key not in _BUILT:
-            compile_shared(build, files, out, extra_flags, compiler)
-            _BUILT[key] = out.read_bytes()
-            while len(_BUILT) > BUILT_KEPT:
-                del _BUILT[next(iter(_BUILT))]
-        else:
-            out.write_bytes(_BUILT[key])
+        if builds is not None and key in builds:
+            data, mode = builds[key]
+            out.write_bytes(data)
+            out.chmod(mode)
+            return
+        compile_shared(build, files, out, extra_flags, compiler)
+        if builds is not None:
+            builds[key] = (out.read_bytes(), out.stat().st_mode & 0o777)
 
 
 def build_c_fmu(
@@ -464,26 +465,28 @@ def build_c_fmu(
     extension: str,
     platforms: tuple[str, ...] = (),
     fmi_version: str = "2.0",
+    builds: Builds | None = None,
 ) -> None:
     """Lay out the C FMU in ``fmu_dir`` (sources, binaries, modelDescription.xml): the host's
     binary in ``binaries/<platform>``, and one per other folder of ``platforms``
-    (:func:`gatetwin.fmu.platforms.platforms_of`), cross-compiled."""
+    (:func:`gatetwin.fmu.platforms.platforms_of`), cross-compiled; each binary taken from
+    ``builds`` where it holds it (:func:`build_both_apis`)."""
     from gatetwin.fmu.platforms import Platform, platforms_of, zig_cc
 
     sources_dir = fmu_dir / "sources"
     c_files = write_sources(desc, sources_dir, fmi_version)
     binary_dir = fmu_dir / "binaries" / platform
     binary_dir.mkdir(parents=True, exist_ok=True)
-    build_both_apis(sources_dir, c_files, fmi_version,
-                    binary_dir / f"{desc.model_identifier}{extension}", HOST_FLAGS)  # fmt: skip
+    build_both_apis(sources_dir, c_files, binary_dir / f"{desc.model_identifier}{extension}",
+                    HOST_FLAGS, builds=builds)  # fmt: skip
     known = platforms_of(fmi_version)
     foreign = [known[f] for f in platforms if f != platform]
 
     def cross(target: Platform) -> None:
         out = fmu_dir / "binaries" / target.folder / f"{desc.model_identifier}{target.extension}"
         out.parent.mkdir(parents=True, exist_ok=True)
-        build_both_apis(sources_dir, c_files, fmi_version, out,
-                        compiler=zig_cc(target.zig_target))  # fmt: skip
+        build_both_apis(sources_dir, c_files, out, compiler=zig_cc(target.zig_target),
+                        builds=builds)  # fmt: skip
         for extra in out.parent.iterdir():  # the linker's import library and debug database
             if extra != out:
                 extra.unlink()

@@ -17,9 +17,9 @@ import numpy as np
 from gatetwin.errors import IdentificationError
 from gatetwin.identification.fopdt import FopdtFit, PaperStepResult, fit_fopdt, paper_step_method
 from gatetwin.identification.serial import finite_or_none, none_to_nan
-from gatetwin.records import RESOLUTION_MM, Record
+from gatetwin.records import Record
 
-__all__ = ["GaugeStep", "StepIdentification", "hold_mean_flow", "identify_step", "response_stop"]
+__all__ = ["GaugeStep", "StepIdentification", "hold_mean_flow", "identify_step"]
 
 
 @dataclass(frozen=True)
@@ -138,23 +138,6 @@ def hold_mean_flow(record: Record) -> float:
     return float(np.mean(q)) if q.size else float("nan")
 
 
-def response_stop(record: Record, step_index: int) -> int:
-    """End (exclusive) of the hold after step ``step_index``: its hold segment, and the hold
-    segments that follow it straight across logging gaps at the same opening (within
-    :data:`~gatetwin.records.RESOLUTION_MM`). A logging gap ends a hold segment (no lag
-    bridges it), but the gate held still through it; the step response goes on, and the fit
-    evaluates it at the samples' own times."""
-    after = record.steps[step_index].after
-    stop = after.stop
-    for segment in record.holds:
-        if segment.start < stop:
-            continue
-        if segment.start > stop or abs(segment.opening_mm - after.opening_mm) >= RESOLUTION_MM:
-            break  # the gate moved (samples not on hold), or the opening changed in the gap
-        stop = segment.stop
-    return stop
-
-
 def identify_step(
     record: Record,
     gauge: str | Sequence[str] | None = None,
@@ -167,8 +150,8 @@ def identify_step(
     of the hold after the step), then :func:`~gatetwin.identification.fopdt.fit_fopdt` on every
     valid sample from the first pre-window sample to the end of the hold after the step
     (valid: finite level, and hold or opening logged), started from ``pre_mean``. The hold
-    after the step goes on across logging gaps while the opening stays
-    (:func:`response_stop`).
+    after the step goes on to where the gate next moved, across logging gaps
+    (:attr:`~gatetwin.records.StepOnset.held_after`).
 
     Parameters
     ----------
@@ -199,7 +182,7 @@ def identify_step(
         )
     step = record.steps[step_index]
     pre_start = record.steps[step_index - 1].after.start if step_index > 0 else 0
-    stop = response_stop(record, step_index)
+    stop = step.held_after.stop
     t, hold, opening = record.time_s, record.hold, record.opening_mm
     results = {}
     for name in _gauge_names(record, gauge):

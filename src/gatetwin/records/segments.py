@@ -40,6 +40,7 @@ __all__ = [
     "choose_test",
     "detect_test",
     "find_steps",
+    "held_after",
     "is_gap",
     "segment_holds",
 ]
@@ -106,16 +107,25 @@ class StepOnset:
         Onset time, s: the time of that sample (start of gate motion as logged).
     before, after : HoldSegment
         The hold segments on either side of the step.
+    held : HoldSegment or None
+        ``after`` run on to where the gate next moved (:func:`held_after`): past its end
+        when the gate held through a logging gap; None: ``after``.
     """
 
     index: int
     time_s: float
     before: HoldSegment
     after: HoldSegment
+    held: HoldSegment | None = None
 
     @property
     def delta_e_mm(self) -> float:
         return self.after.opening_mm - self.before.opening_mm
+
+    @property
+    def held_after(self) -> HoldSegment:
+        """The hold after the step, to where the gate next moved (``held``, else ``after``)."""
+        return self.held if self.held is not None else self.after
 
 
 @dataclass(frozen=True)
@@ -301,6 +311,22 @@ def find_steps(seg: Segmentation, time_s: np.ndarray, period_s: float) -> tuple[
     return np.flatnonzero(change & ~gapped), int(np.count_nonzero(change & gapped))
 
 
+def held_after(holds: Sequence[HoldSegment], k: int) -> HoldSegment:
+    """Hold segment ``k`` run on through the segments that follow it sample after sample with
+    no step between them (as :func:`find_steps` tells one: the openings within
+    :data:`RESOLUTION_MM`): a logging gap, or a drift the actuator's resolution does not
+    call a move, ends a hold segment but not the gate's hold. Ends where samples not on
+    hold (the gate moving) or an opening change, observed or inside a gap, come."""
+    stop = holds[k].stop
+    for before, segment in zip(holds[k:], holds[k + 1 :], strict=False):
+        if segment.start != stop or not (
+            abs(segment.opening_mm - before.opening_mm) < RESOLUTION_MM - _TOL
+        ):
+            break
+        stop = segment.stop
+    return HoldSegment(holds[k].start, stop, holds[k].opening_mm)
+
+
 def choose_test(
     origin: Origin, option: str | None, sidecar: str | None, steps: Sequence[StepOnset]
 ) -> tuple[str, str]:
@@ -320,7 +346,7 @@ def detect_test(steps: Sequence[StepOnset]) -> str:
     if not steps:
         return "free"
     long_holds = all(
-        min(s.before.n_samples, s.after.n_samples) >= STEP_WINDOW_SAMPLES for s in steps
+        min(s.before.n_samples, s.held_after.n_samples) >= STEP_WINDOW_SAMPLES for s in steps
     )
     if len(steps) <= STEP_DETECT_MAX_STEPS and long_holds:
         return "step"
@@ -356,7 +382,7 @@ def _check_step_test(origin: Origin, record: Segmented) -> None:
             f"an opening change of ≥ {RESOLUTION_MM:g} mm between two hold segments",
         )
     first = record.steps[0]
-    for side, segment in (("before", first.before), ("after", first.after)):
+    for side, segment in (("before", first.before), ("after", first.held_after)):
         count, gauge = min((record.valid_samples(segment, g), g) for g in record.gauges)
         if count < STEP_WINDOW_SAMPLES:
             raise origin.error(

@@ -236,12 +236,14 @@ def export_model_fmus(job: tuple[str, str]) -> dict[str, bytes]:
     path, platforms = job
     model = read_model_file(path)
     files = {}
+    builds: dict[str, tuple[bytes, int]] = {}  # one binary serves both FMI versions
     with tempfile.TemporaryDirectory(prefix="gatetwin-export-") as tmp:
         for folder, backend, version in FMU_KINDS:
             out = Path(tmp) / folder / f"{model.name}.fmu"
             export_fmu(model.plant, out, backend=backend, model_name=model.name,
                        provenance=fmu_provenance(model), fmi_version=version,
-                       platforms=platforms if backend == "c" else "host")  # fmt: skip
+                       platforms=platforms if backend == "c" else "host",
+                       builds=builds)  # fmt: skip
             files[folder] = out.read_bytes()
     return files
 
