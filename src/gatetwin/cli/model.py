@@ -184,7 +184,8 @@ def add_models_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--workers", metavar="N", type=int,
         help="local processes, one gate per task, when no --scheduler is given (default: the "
-        "CPUs available; 1 runs the gates one after another in this process)",
+        "CPUs available; 1 runs the gates one after another in this process); one records "
+        "folder without it: its gauges are fitted on a pool of the CPUs available",
     )  # fmt: skip
     parser.add_argument(
         "--fmus", metavar="BACKEND", choices=("c", "python"),

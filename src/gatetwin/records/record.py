@@ -338,8 +338,9 @@ def read_record(
       (1e5 m³/s), a level outside -1000..1e5 mm.
     * A ``step`` record needs ≥ 40 valid (finite-level) hold samples at every gauge
       before and after its first step (after it: counted to where the gate next moved,
-      across logging gaps, :attr:`StepOnset.held_after`); a ``prbs`` record ≥ 2 steps and ≥ 30 usable hold
-      samples at every gauge (the first 2 of each hold segment are not usable).
+      across logging gaps, :attr:`StepOnset.held_after`); a ``prbs`` record ≥ 2 steps and
+      ≥ 30 usable hold samples at every gauge (the first 2 of each hold segment are not
+      usable).
     """
     if is_frame(path):
         return Record.from_pandas(path, test=test)
