@@ -491,7 +491,7 @@ def _build_record(
             float(cols.time_s[holds[k].stop]),
             holds[k],
             holds[k + 1],
-            segments.held_after(holds, k + 1),
+            segments.held_after(holds, k + 1, flow_m3h),
         )  # fmt: skip
         for k in pairs
     )

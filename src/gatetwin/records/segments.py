@@ -13,6 +13,7 @@ frozen classes. The rules are those of :func:`~gatetwin.records.read_record`:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -108,8 +109,9 @@ class StepOnset:
     before, after : HoldSegment
         The hold segments on either side of the step.
     held : HoldSegment or None
-        ``after`` run on to where the gate next moved (:func:`held_after`): past its end
-        when the gate held through a logging gap; None: ``after``.
+        ``after`` run on to where the gate next moved or the inflow changed
+        (:func:`held_after`): past its end when the gate held through a logging gap; None:
+        ``after``.
     """
 
     index: int
@@ -311,18 +313,30 @@ def find_steps(seg: Segmentation, time_s: np.ndarray, period_s: float) -> tuple[
     return np.flatnonzero(change & ~gapped), int(np.count_nonzero(change & gapped))
 
 
-def held_after(holds: Sequence[HoldSegment], k: int) -> HoldSegment:
+def held_after(holds: Sequence[HoldSegment], k: int,
+               flow_m3h: np.ndarray | None = None) -> HoldSegment:  # fmt: skip
     """Hold segment ``k`` run on through the segments that follow it sample after sample with
     no step between them (as :func:`find_steps` tells one: the openings within
-    :data:`RESOLUTION_MM`): a logging gap, or a drift the actuator's resolution does not
-    call a move, ends a hold segment but not the gate's hold. Ends where samples not on
-    hold (the gate moving) or an opening change, observed or inside a gap, come."""
+    :data:`RESOLUTION_MM`) and, given ``flow_m3h``, at the same inflow (the segment's median
+    within three robust standard deviations of the flow in segment ``k``): a logging gap,
+    or a drift the actuator's resolution does not call a move, ends a hold segment but not
+    the gate's hold. Ends where samples not on hold (the gate moving), an opening change
+    (observed or inside a gap) or an inflow change come."""
     stop = holds[k].stop
+    if flow_m3h is not None:
+        base = flow_m3h[holds[k].slice]
+        centre = float(np.nanmedian(base)) if np.any(np.isfinite(base)) else math.nan
+        spread = 3.0 * 1.4826 * float(np.nanmedian(np.abs(base - centre))) + _TOL * abs(centre)
     for before, segment in zip(holds[k:], holds[k + 1 :], strict=False):
         if segment.start != stop or not (
             abs(segment.opening_mm - before.opening_mm) < RESOLUTION_MM - _TOL
         ):
             break
+        if flow_m3h is not None:
+            flow = flow_m3h[segment.slice]
+            median = float(np.nanmedian(flow)) if np.any(np.isfinite(flow)) else math.nan
+            if not abs(median - centre) <= spread:
+                break
         stop = segment.stop
     return HoldSegment(holds[k].start, stop, holds[k].opening_mm)
 
