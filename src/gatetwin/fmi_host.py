@@ -4,10 +4,11 @@
 messages (instead of fmpy's default, which prints them) and returns an :class:`Instance`
 with the FMI 2.0 verbs whatever the version (for FMI 3.0: ``setupExperiment`` keeps the
 start time for ``fmi3EnterInitializationMode``, get/set Real are get/set Float64, ``doStep``
-asks for no early return). :class:`UnpackedFmu` is an FMU file unpacked into a folder of
-its own, its model description read, its one instance opened, closed and the folder deleted
-there. The validation harness, the SSP master, the observer's reference run and the closed
-loop's FMU plant and controller all open FMUs here.
+asks for no early return). :func:`unpack_fmu` unpacks an FMU file after checking its
+archive (size, members inside the folder); :class:`UnpackedFmu` is an FMU file unpacked
+into a folder of its own, its model description read, its one instance opened, closed and
+the folder deleted there. The validation harness, the SSP master, the observer's reference
+run and the closed loop's FMU plant and controller all unpack and open FMUs here.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from typing import Any
 
 from gatetwin.errors import GatetwinError
 
-__all__ = ["Instance", "UnpackedFmu", "open_instance"]
+__all__ = ["Instance", "UnpackedFmu", "open_instance", "unpack_fmu"]
 
 
 @dataclass(eq=False)
@@ -140,6 +141,33 @@ def open_instance(md: Any, unzip_dir: str, instance_name: str, *, what: str,
     return instance
 
 
+def unpack_fmu(path: str | os.PathLike[str], folder: str | os.PathLike[str], where: str,
+               error: type[GatetwinError] = GatetwinError) -> str:  # fmt: skip
+    """Unpack the FMU file ``path`` into ``folder`` (fmpy's ``extract``) and return the
+    folder: refused, with ``where`` naming it, unless it is a regular file holding a zip
+    archive that unpacks to at most :data:`gatetwin.records.limits.DEFAULT_MAX_BYTES`, every
+    member inside the folder (:func:`gatetwin.records.limits.check_archive`). Every FMU
+    gatetwin runs is unpacked here."""
+    import sys
+    import zipfile
+
+    from fmpy import extract
+
+    from gatetwin.records.limits import check_archive, open_regular
+
+    try:
+        with open_regular(path, sys.maxsize, "an FMU", error) as handle, \
+                zipfile.ZipFile(handle) as archive:  # fmt: skip
+            check_archive(archive, where, error)
+    except (OSError, zipfile.BadZipFile) as exc:
+        raise error(f"{where} is not an FMU: not a readable zip archive ({exc})") from None
+    try:
+        return extract(str(path), str(folder))
+    except Exception as exc:  # noqa: BLE001 - fmpy and zipfile raise plain exceptions
+        raise error(f"{where} is not an FMU: not unpacked "
+                    f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
+
+
 class UnpackedFmu:
     """The FMU file ``path`` unpacked into a temporary folder of its own, with its model
     description (``description``, fmpy's), its variables and their value references by name
@@ -159,26 +187,20 @@ class UnpackedFmu:
 
     def __init__(self, path: str | os.PathLike[str], *,
                  error: type[GatetwinError] = GatetwinError) -> None:  # fmt: skip
-        import sys
         import tempfile
-        import zipfile
 
-        from fmpy import extract, read_model_description
-
-        from gatetwin.records.limits import check_archive, open_regular
+        from fmpy import read_model_description
 
         self.path = Path(path)
         self.error = error
         self.instance: Instance | None = None
-        try:
-            with open_regular(self.path, sys.maxsize, "an FMU", error) as handle, \
-                    zipfile.ZipFile(handle) as archive:  # fmt: skip
-                check_archive(archive, str(self.path), error)
-        except (OSError, zipfile.BadZipFile) as exc:
-            raise error(f"{self.path} is not an FMU: not a readable zip archive ({exc})") from None
         self.folder = tempfile.mkdtemp(prefix="gatetwin-fmu-")
         try:
-            extract(str(self.path), self.folder)
+            unpack_fmu(self.path, self.folder, str(self.path), error)
+        except BaseException:
+            shutil.rmtree(self.folder, ignore_errors=True)
+            raise
+        try:
             self.description = read_model_description(self.folder)
         except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions on bad FMUs
             shutil.rmtree(self.folder, ignore_errors=True)

@@ -243,9 +243,9 @@ class _Master:
             raise
 
     def _instantiate(self, c: SspComponent, folder: Path) -> None:
-        from fmpy import extract, read_model_description
+        from fmpy import read_model_description
 
-        from gatetwin.fmi_host import open_instance
+        from gatetwin.fmi_host import open_instance, unpack_fmu
 
         path = folder / "package" / c.source
         try:
@@ -265,13 +265,8 @@ class _Master:
             self.steps[c.name] = float(period)
         elif md.defaultExperiment is not None and md.defaultExperiment.stepSize:
             self.steps.setdefault("", float(md.defaultExperiment.stepSize))
-        try:
-            with zipfile.ZipFile(path) as archive:
-                check_unpacked_size(archive, f"{self.where}: component {c.name}", SspError)
-        except zipfile.BadZipFile as exc:
-            raise SspError(f"{self.where}: component {c.name}: {c.source} is not a zip "
-                           f"archive ({exc})") from None  # fmt: skip
-        unzipped = extract(str(path), str(folder / f"fmu_{len(self.slaves)}"))
+        unzipped = unpack_fmu(path, folder / f"fmu_{len(self.slaves)}",
+                              f"{self.where}: component {c.name}", SspError)  # fmt: skip
         self.position.on(LOADING, self.index[c.name])
         self.slaves[c.name] = open_instance(
             md, unzipped, c.name, what=f"{self.where}: component {c.name}", error=SspError,

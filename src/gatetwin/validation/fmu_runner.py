@@ -372,8 +372,8 @@ def run_fmu(
         The binary cannot be loaded, or an FMI call fails (named, with its status, the
         FMU time, the record sample and the FMU's last warning or error message).
     """
-    from fmpy import extract
+    from gatetwin.fmi_host import unpack_fmu
 
     with tempfile.TemporaryDirectory(prefix="gatetwin-validate-") as tmp:
-        unzip_dir = extract(info.path, tmp)
+        unzip_dir = unpack_fmu(info.path, tmp, str(info.path), ValidationError)
         return simulate_extracted(info, unzip_dir, output, grid, opening_mm, flow_m3h)

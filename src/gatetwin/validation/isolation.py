@@ -152,11 +152,11 @@ class RunResult:
 
 def run_in_process(info: FmuInfo, requests: Sequence[RunRequest]) -> list[RunResult]:
     """Run every request in this process (no protection; for comparison and debugging)."""
-    from fmpy import extract
+    from gatetwin.fmi_host import unpack_fmu
 
     results = []
     with tempfile.TemporaryDirectory(prefix="gatetwin-validate-") as tmp:
-        unzip_dir = extract(info.path, tmp)
+        unzip_dir = unpack_fmu(info.path, tmp, str(info.path), ValidationError)
         for r in requests:
             start = time.perf_counter()
             out = simulate_extracted(info, unzip_dir, r.output, r.grid, r.opening_mm,
@@ -185,12 +185,12 @@ def run_isolated(
         record sample and the FMU's last log line), the binary cannot be loaded, or the
         limit is not a positive number.
     """
-    from fmpy import extract
+    from gatetwin.fmi_host import unpack_fmu
 
     check_timeout(timeout_s)
     limits = [timeout_s if timeout_s is not None else default_timeout_s(r.grid) for r in requests]
     with tempfile.TemporaryDirectory(prefix="gatetwin-validate-") as tmp:
-        unzip_dir = extract(info.path, tmp)
+        unzip_dir = unpack_fmu(info.path, tmp, str(info.path), ValidationError)
         answer = run_task(FmuTask(info, unzip_dir), list(requests), limits)
     if isinstance(answer, str):
         raise ValidationError(answer)
