@@ -195,8 +195,7 @@ class _Stretch:
         """
         x, q = self.design, self.hat
         m = x.shape[0]
-        i = np.arange(m)
-        rx = (phi ** np.abs(i[:, None] - i[None, :])) @ x  # R X
+        rx = _ar1_correlation_times(x, phi)  # R X
         qb = q @ (x.T @ rx)  # Q X'R X
         out = np.zeros((lags + 1, 2))
         for k in range(min(lags, m - 1) + 1):
@@ -205,6 +204,19 @@ class _Stretch:
                   + np.sum(qb[lo] * q[hi]))  # fmt: skip
             out[k] = (ar, (m if k == 0 else 0) - np.sum(q[lo] * x[hi]))
         return out
+
+
+def _ar1_correlation_times(x: np.ndarray, phi: float) -> np.ndarray:
+    """``R x`` for the AR(1) correlation ``R_ij = phi^|i - j|`` along ``x``'s rows, without
+    forming ``R``: the sum over ``j <= i`` is the first-order recursion ``f_i = x_i + phi
+    f_(i-1)``, the one over ``j >= i`` the same run backwards, and ``x_i`` is in both. O(m)
+    instead of the m x m matrix (a hold of hours at 10 s is thousands of samples: hundreds
+    of MB and a second per product, taken tens of times per stretch by the fit of ``phi``)."""
+    from scipy.signal import lfilter
+
+    forward = lfilter([1.0], [1.0, -phi], x, axis=0)
+    backward = lfilter([1.0], [1.0, -phi], x[::-1], axis=0)[::-1]
+    return forward + backward - x
 
 
 def _stretch(time_s: np.ndarray, level_mm: np.ndarray, start: int, stop: int) -> _Stretch | None:

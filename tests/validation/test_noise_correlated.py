@@ -156,3 +156,18 @@ def test_the_floor_of_a_field_gates_long_hold_is_its_gauge_noise() -> None:
     level = 1800.0 + 40.0 * np.exp(-(t - t[0]) / 9000.0) + sigma * rng.standard_normal(n)
     floor = noise_floor(t, level, np.ones(n, bool), [(0, n)])
     assert abs(floor.sigma_mm / sigma - 1.0) <= 5.0 / np.sqrt(2.0 * n / 2), floor
+
+
+@pytest.mark.parametrize("phi", [0.0, 0.3, 0.95, 0.9995])
+def test_the_correlation_product_by_recursion_is_the_matrix_product(phi):
+    """``R X`` by the forward and backward recursions equals the product with the formed
+    matrix ``R_ij = phi^|i - j|`` to round-off: the sums differ in order only, so 1e-12 of
+    the largest entry (thousands of terms of at most one each, each rounded to 1e-16)."""
+    from gatetwin.noise import _ar1_correlation_times
+
+    for m in (1, 2, 17, 700):
+        x = np.vander(np.linspace(-1.0, 1.0, m), 3)
+        i = np.arange(m)
+        dense = (phi ** np.abs(i[:, None] - i[None, :])) @ x
+        fast = _ar1_correlation_times(x, phi)
+        assert np.max(np.abs(fast - dense)) <= 1e-12 * max(np.max(np.abs(dense)), 1.0)
