@@ -143,11 +143,12 @@ def open_instance(md: Any, unzip_dir: str, instance_name: str, *, what: str,
 
 def unpack_fmu(path: str | os.PathLike[str], folder: str | os.PathLike[str], where: str,
                error: type[GatetwinError] = GatetwinError) -> str:  # fmt: skip
-    """Unpack the FMU file ``path`` into ``folder`` (fmpy's ``extract``) and return the
-    folder: refused, with ``where`` naming it, unless it is a regular file holding a zip
-    archive that unpacks to at most :data:`gatetwin.records.limits.DEFAULT_MAX_BYTES`, every
-    member inside the folder (:func:`gatetwin.records.limits.check_archive`). Every FMU
-    gatetwin runs is unpacked here."""
+    """Unpack the FMU file ``path`` into ``folder`` (fmpy's ``extract``, from the file opened
+    and checked, not from its name again) and return the folder: refused, with ``where``
+    naming it, unless it is a regular file holding a zip archive that unpacks to at most
+    :data:`gatetwin.records.limits.DEFAULT_MAX_BYTES`, every member inside the folder
+    (:func:`gatetwin.records.limits.check_archive`). Every FMU gatetwin runs is unpacked
+    here."""
     import sys
     import zipfile
 
@@ -155,17 +156,20 @@ def unpack_fmu(path: str | os.PathLike[str], folder: str | os.PathLike[str], whe
 
     from gatetwin.records.limits import check_archive, open_regular
 
-    try:
-        with open_regular(path, sys.maxsize, "an FMU", error) as handle, \
-                zipfile.ZipFile(handle) as archive:  # fmt: skip
-            check_archive(archive, where, error)
-    except (OSError, zipfile.BadZipFile) as exc:
-        raise error(f"{where} is not an FMU: not a readable zip archive ({exc})") from None
-    try:
-        return extract(str(path), str(folder))
-    except Exception as exc:  # noqa: BLE001 - fmpy and zipfile raise plain exceptions
-        raise error(f"{where} is not an FMU: not unpacked "
-                    f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
+    with open_regular(path, sys.maxsize, "an FMU", error) as handle:
+        try:
+            with zipfile.ZipFile(handle) as archive:
+                check_archive(archive, where, error)
+        except GatetwinError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - zipfile raises several kinds on a bad archive
+            raise error(f"{where} is not an FMU: not a readable zip archive ({exc})") from None
+        try:
+            handle.seek(0)
+            return str(extract(handle, folder))
+        except Exception as exc:  # noqa: BLE001 - fmpy and zipfile raise plain exceptions
+            raise error(f"{where} is not an FMU: not unpacked "
+                        f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
 
 
 class UnpackedFmu:

@@ -259,16 +259,17 @@ def test_identify_step_on_record() -> None:
 
 
 def _with_logging_gap(s: Step, after_onset_s: float, rows: int, opening_after_mm: float,
-                      flow_after_m3h: float = 30.0):  # fmt: skip
+                      flow_after_m3h: float = 30.0, flow_sd_m3h: float = 0.0):  # fmt: skip
     """``s`` as a record with ``rows`` samples missing from ``after_onset_s`` after the onset
     (a logging gap), the opening logged as ``opening_after_mm`` and the inflow as
-    ``flow_after_m3h`` after it (30 m³/h before)."""
+    ``flow_after_m3h`` after it (30 m³/h before), with a meter's noise of ``flow_sd_m3h``."""
     first = int(np.searchsorted(s.t, s.logged_onset + after_onset_s))
     keep = np.ones(s.n, dtype=bool)
     keep[first : first + rows] = False
     later = np.arange(s.n) >= first + rows
     opening = np.where(later, opening_after_mm, s.opening)
     flow = np.where(later, flow_after_m3h, 30.0)
+    flow = flow + np.random.default_rng(5).normal(0.0, flow_sd_m3h, s.n)
     return first, record_from_arrays(s.t[keep], opening[keep], s.hold[keep], flow[keep],
                                      {"3F": s.h[keep]})  # fmt: skip
 
@@ -279,7 +280,8 @@ def test_a_logging_gap_inside_the_response_does_not_end_the_fit() -> None:
     and the fit runs on to the end of the record (every valid sample) and finds the truth
     within three of its standard errors. Where the opening changed by the actuator's
     resolution inside a gap (an unobserved step; openings 8.1 and 9.1 mm, whose difference
-    rounds below 1), or the inflow did (30 to 36 m³/h), the response ends at the gap."""
+    rounds below 1), or the inflow did (30 to 36 m³/h), the response ends at the gap; a flow
+    meter's noise (0.3 m³/h) does not end it."""
     s = make_step(11, noise_sd=0.3, time_constant=60.0)
     first, rec = _with_logging_gap(s, 30.0, 25, s.opening[-1])
     assert len(rec.holds) == 3 and len(rec.steps) == 1  # the gap splits the hold after it
@@ -298,6 +300,10 @@ def test_a_logging_gap_inside_the_response_does_not_end_the_fit() -> None:
     first, inflow = _with_logging_gap(s, 80.0, 25, s.opening[-1], flow_after_m3h=36.0)
     assert inflow.unobserved_steps == 0
     assert identify_step(inflow).gauges["3F"].fit.n == first - s.n_open - (s.k_open - 40)
+    # a meter's noise is no inflow change, a gap three samples after the step included
+    for after_onset_s in (3.0, 30.0):
+        _, noisy = _with_logging_gap(s, after_onset_s, 25, s.opening[-1], flow_sd_m3h=0.3)
+        assert noisy.steps[0].held_after.stop == noisy.n_samples
 
 
 def test_identify_step_refusals() -> None:

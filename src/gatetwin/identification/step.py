@@ -150,8 +150,8 @@ def identify_step(
     of the hold after the step), then :func:`~gatetwin.identification.fopdt.fit_fopdt` on every
     valid sample from the first pre-window sample to the end of the hold after the step
     (valid: finite level, and hold or opening logged), started from ``pre_mean``. The hold
-    after the step goes on to where the gate next moved, across logging gaps
-    (:attr:`~gatetwin.records.StepOnset.held_after`).
+    after the step goes on to where the gate next moved or the inflow changed, across
+    logging gaps (:attr:`~gatetwin.records.StepOnset.held_after`).
 
     Parameters
     ----------

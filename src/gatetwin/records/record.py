@@ -337,10 +337,10 @@ def read_record(
       period outside 1e-3..3600 s, an opening above 1e5 mm, a flow above 3.6e8 m³/h
       (1e5 m³/s), a level outside -1000..1e5 mm.
     * A ``step`` record needs ≥ 40 valid (finite-level) hold samples at every gauge
-      before and after its first step (after it: counted to where the gate next moved,
-      across logging gaps, :attr:`StepOnset.held_after`); a ``prbs`` record ≥ 2 steps and
-      ≥ 30 usable hold samples at every gauge (the first 2 of each hold segment are not
-      usable).
+      before and after its first step (after it: counted to where the gate next moved or
+      the inflow changed, across logging gaps, :attr:`StepOnset.held_after`); a ``prbs``
+      record ≥ 2 steps and ≥ 30 usable hold samples at every gauge (the first 2 of each
+      hold segment are not usable).
     """
     if is_frame(path):
         return Record.from_pandas(path, test=test)
@@ -491,7 +491,7 @@ def _build_record(
             float(cols.time_s[holds[k].stop]),
             holds[k],
             holds[k + 1],
-            segments.held_after(holds, k + 1, flow_m3h),
+            segments.held_after(holds, k + 1, np.where(flow_filled, np.nan, flow_m3h)),
         )  # fmt: skip
         for k in pairs
     )

@@ -13,7 +13,6 @@ frozen classes. The rules are those of :func:`~gatetwin.records.read_record`:
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -25,6 +24,7 @@ from gatetwin.records.sidecar import TEST_TYPES
 
 __all__ = [
     "GAP_FACTOR",
+    "MIN_FLOW_SAMPLES",
     "PRBS_DETECT_MIN_STEPS",
     "PRBS_DROPPED_PER_SEGMENT",
     "PRBS_MIN_STEPS",
@@ -43,6 +43,7 @@ __all__ = [
     "find_steps",
     "held_after",
     "is_gap",
+    "same_inflow",
     "segment_holds",
 ]
 
@@ -126,7 +127,8 @@ class StepOnset:
 
     @property
     def held_after(self) -> HoldSegment:
-        """The hold after the step, to where the gate next moved (``held``, else ``after``)."""
+        """The hold after the step, to where the gate next moved or the inflow changed
+        (``held``, else ``after``)."""
         return self.held if self.held is not None else self.after
 
 
@@ -313,32 +315,44 @@ def find_steps(seg: Segmentation, time_s: np.ndarray, period_s: float) -> tuple[
     return np.flatnonzero(change & ~gapped), int(np.count_nonzero(change & gapped))
 
 
+#: Logged discharges a side needs before :func:`held_after` tells two inflows apart.
+MIN_FLOW_SAMPLES = 5
+
+
 def held_after(holds: Sequence[HoldSegment], k: int,
                flow_m3h: np.ndarray | None = None) -> HoldSegment:  # fmt: skip
     """Hold segment ``k`` run on through the segments that follow it sample after sample with
     no step between them (as :func:`find_steps` tells one: the openings within
-    :data:`RESOLUTION_MM`) and, given ``flow_m3h``, at the same inflow (the segment's median
-    within three robust standard deviations of the flow in segment ``k``): a logging gap,
-    or a drift the actuator's resolution does not call a move, ends a hold segment but not
-    the gate's hold. Ends where samples not on hold (the gate moving), an opening change
+    :data:`RESOLUTION_MM`) and, given the logged discharge ``flow_m3h`` (NaN where not
+    logged), at the same inflow (:func:`same_inflow` against the span so far): a logging
+    gap, or a drift the actuator's resolution does not call a move, ends a hold segment but
+    not the gate's hold. Ends where samples not on hold (the gate moving), an opening change
     (observed or inside a gap) or an inflow change come."""
     stop = holds[k].stop
-    if flow_m3h is not None:
-        base = flow_m3h[holds[k].slice]
-        centre = float(np.nanmedian(base)) if np.any(np.isfinite(base)) else math.nan
-        spread = 3.0 * 1.4826 * float(np.nanmedian(np.abs(base - centre))) + _TOL * abs(centre)
     for before, segment in zip(holds[k:], holds[k + 1 :], strict=False):
         if segment.start != stop or not (
             abs(segment.opening_mm - before.opening_mm) < RESOLUTION_MM - _TOL
         ):
             break
-        if flow_m3h is not None:
-            flow = flow_m3h[segment.slice]
-            median = float(np.nanmedian(flow)) if np.any(np.isfinite(flow)) else math.nan
-            if not abs(median - centre) <= spread:
-                break
+        if flow_m3h is not None and not same_inflow(flow_m3h[holds[k].start : stop],
+                                                    flow_m3h[segment.slice]):  # fmt: skip
+            break
         stop = segment.stop
     return HoldSegment(holds[k].start, stop, holds[k].opening_mm)
+
+
+def same_inflow(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two runs of logged discharges (NaN where not logged) are one inflow: their
+    medians within three robust standard deviations (1.4826 MAD) of the discharges about
+    their own run's median, pooled over both. A side with fewer than
+    :data:`MIN_FLOW_SAMPLES` logged values cannot tell them apart (one inflow)."""
+    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+    if min(a.size, b.size) < MIN_FLOW_SAMPLES:
+        return True
+    centre_a, centre_b = float(np.median(a)), float(np.median(b))
+    deviations = np.concatenate((a - centre_a, b - centre_b))
+    spread = 3.0 * 1.4826 * float(np.median(np.abs(deviations)))
+    return abs(centre_a - centre_b) <= spread + _TOL * max(abs(centre_a), abs(centre_b))
 
 
 def choose_test(

@@ -248,8 +248,10 @@ class _Master:
         from gatetwin.fmi_host import open_instance, unpack_fmu
 
         path = folder / "package" / c.source
+        unzipped = unpack_fmu(path, folder / f"fmu_{len(self.slaves)}",
+                              f"{self.where}: component {c.name}", SspError)  # fmt: skip
         try:
-            md = read_model_description(str(path))
+            md = read_model_description(unzipped)
         except Exception as exc:  # noqa: BLE001 - fmpy raises plain exceptions on bad FMUs
             raise SspError(f"{self.where}: component {c.name}: {c.source} is not an FMU "
                            f"({' '.join(str(exc).split())[:200]})") from None  # fmt: skip
@@ -265,8 +267,6 @@ class _Master:
             self.steps[c.name] = float(period)
         elif md.defaultExperiment is not None and md.defaultExperiment.stepSize:
             self.steps.setdefault("", float(md.defaultExperiment.stepSize))
-        unzipped = unpack_fmu(path, folder / f"fmu_{len(self.slaves)}",
-                              f"{self.where}: component {c.name}", SspError)  # fmt: skip
         self.position.on(LOADING, self.index[c.name])
         self.slaves[c.name] = open_instance(
             md, unzipped, c.name, what=f"{self.where}: component {c.name}", error=SspError,

@@ -114,7 +114,9 @@ def _archive_names(fmu: Path) -> set[str]:
         with open_regular(fmu, sys.maxsize, what, ValidationError) as handle, \
                 zipfile.ZipFile(handle) as archive:  # fmt: skip
             names = check_archive(archive, str(fmu), ValidationError)
-    except (zipfile.BadZipFile, OSError) as exc:
+    except ValidationError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - zipfile raises several kinds on a bad archive
         raise ValidationError(f"{fmu}: not an FMU (not a readable zip archive: {exc})") from None
     return set(names)
 
