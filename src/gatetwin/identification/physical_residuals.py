@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cache
 from typing import Any
@@ -99,7 +100,8 @@ def kernel_simulator() -> tuple[Callable[..., Any], Callable[..., Any]]:
     at_rest = njit(cache=True)(blocks.seiche_equilibrium)
     seiche_out = njit(cache=True)(blocks.seiche_output)
 
-    @njit(cache=False)
+    # nogil (both): the columns of a finite-difference Jacobian run in threads at once (_fit)
+    @njit(cache=False, nogil=True)
     def run(t: np.ndarray, e: np.ndarray, q: np.ndarray, p: np.ndarray, s: np.ndarray,
             out: np.ndarray) -> None:  # fmt: skip
         # s: the seiche's period, decay time and amplitude (amplitude 0: no seiche)
@@ -124,7 +126,7 @@ def kernel_simulator() -> tuple[Callable[..., Any], Callable[..., Any]]:
             if has_seiche:
                 out[i] += seiche_out(x2, s[0], s[2])
 
-    @njit(cache=False)
+    @njit(cache=False, nogil=True)
     def steady(e: np.ndarray, q: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         for i in range(e.size):
             gate = target_of(e[i], p)
@@ -181,6 +183,8 @@ def _fit(names: list[str], values: dict[str, float], residual: Callable[[np.ndar
     """Least squares over ``names`` (the rest of ``values`` held); ``max_nfev`` as in
     :func:`scipy.optimize.least_squares` (its default when None); ``bounds`` by name (none
     where not given)."""
+    from gatetwin.fleet.execute import default_workers
+
     index = [kernel.INDEX[n] for n in names]
     base = _vector(values)
     box = [(bounds or {}).get(n, (-np.inf, np.inf)) for n in names]
@@ -192,8 +196,11 @@ def _fit(names: list[str], values: dict[str, float], residual: Callable[[np.ndar
         return residual(p)
 
     x0 = np.clip(base[index], lower, upper)
-    result = least_squares(fun, x0, x_scale="jac", diff_step=1e-6, max_nfev=max_nfev,
-                           bounds=(lower, upper))  # fmt: skip
+    # the Jacobian's columns (one free run each) on the CPUs at once; the same evaluations
+    # as one after another, so the same result
+    with ThreadPoolExecutor(max_workers=default_workers()) as pool:
+        result = least_squares(fun, x0, x_scale="jac", diff_step=1e-6, max_nfev=max_nfev,
+                               bounds=(lower, upper), workers=pool.map)  # fmt: skip
     if not result.success or not np.all(np.isfinite(result.fun)):
         raise IdentificationError(f"physical fit did not converge ({result.message})")
     return {**values, **dict(zip(names, (float(v) for v in result.x), strict=True))}, result
