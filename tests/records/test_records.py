@@ -310,6 +310,11 @@ def test_static_table(tmp_path: Path) -> None:
 def test_detect_table_kind_of_a_record(tmp_path: Path) -> None:
     assert detect_table_kind(_write(tmp_path, _rows(STEP))) == "record"
     assert detect_table_kind(tmp_path / "missing.csv") == "record"
+    # a time series whose time column is misnamed is still a record (refused for time_s)
+    misnamed = _write(tmp_path, _rows(STEP), "t.csv", HEADER.replace("time_s", "time", 1))
+    assert detect_table_kind(misnamed) == "record"
+    with pytest.raises(RecordError, match="column 'time_s': missing"):
+        read_record(misnamed)
 
 
 def test_sidecar_with_nan_constant_is_refused(tmp_path: Path) -> None:

@@ -125,13 +125,15 @@ def read_static_table(path: str | Path, *, limits: ReadLimits | None = None) -> 
 def detect_table_kind(path: str | Path, *, limits: ReadLimits | None = None) -> str:
     """``"static"`` if the header is that of a rating table, else ``"record"``.
 
-    A rating table has no ``time_s`` column but ``flow_m3h``, ``opening_mm`` and a level
-    column. Anything unreadable is called a ``"record"`` so that
+    A rating table has no ``time_s`` and no ``state`` column but ``flow_m3h``,
+    ``opening_mm`` and a level column (a time series whose time column is misnamed keeps
+    its ``state``, and is a record :func:`~gatetwin.records.read_record` refuses naming
+    the missing ``time_s``). Anything unreadable is called a ``"record"`` so that
     :func:`~gatetwin.records.read_record` reports what is wrong with it.
     """
     header = read_header(path, limits)
     found = {p.quantity for p in map(parse_column, header) if p is not None and p.known}
-    if "time_s" in header or not {"flow", "opening", "level"} <= found:
+    if "time_s" in header or "state" in header or not {"flow", "opening", "level"} <= found:
         return "record"
     return "static"
 
