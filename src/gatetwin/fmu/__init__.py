@@ -12,12 +12,15 @@ import json
 import os
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gatetwin.errors import ExportError, OutputError
 from gatetwin.fmu.checks import check_finite_response
 from gatetwin.fmu.description import FmuDescription, describe
 from gatetwin.plant.model import ArxPlant, FopdtPlant, PhysicalPlant, Plant, plant_to_dict
+
+if TYPE_CHECKING:
+    from gatetwin.fmu.c_build import Builds
 
 BACKENDS = ("c", "python")
 #: FMI versions an FMU can be exported in (FMI 3.0: the C backend).
@@ -36,7 +39,7 @@ def export_fmu(
     platforms: str | tuple[str, ...] = "host",
     fmi_version: str = "2.0",
     start_inputs: tuple[float, float] | None = None,
-    builds: dict[str, tuple[bytes, int]] | None = None,
+    builds: Builds | None = None,
 ) -> Path:
     """Build an FMU of ``plant`` at ``out_path``; return its path.
 
@@ -139,7 +142,7 @@ def _build(
     target: Path,
     folders: tuple[str, ...] = (),
     fmi_version: str = "2.0",
-    builds: dict[str, tuple[bytes, int]] | None = None,
+    builds: Builds | None = None,
 ) -> None:
     resources = _write_resources(plant, desc, backend, work / "resources")
     built = work / target.name
@@ -195,7 +198,7 @@ def _build_c(
     out: Path,
     folders: tuple[str, ...] = (),
     fmi_version: str = "2.0",
-    builds: dict[str, tuple[bytes, int]] | None = None,
+    builds: Builds | None = None,
 ) -> None:
     from fmpy import sharedLibraryExtension
 

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import median_abs_deviation
 
 from gatetwin.errors import RecordError
 from gatetwin.records.checks import Origin
@@ -343,15 +344,18 @@ def held_after(holds: Sequence[HoldSegment], k: int,
 
 def same_inflow(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether two runs of logged discharges (NaN where not logged) are one inflow: their
-    medians within three robust standard deviations (1.4826 MAD) of the discharges about
-    their own run's median, pooled over both. A side with fewer than
+    medians within three robust standard deviations (the normal-scaled MAD,
+    :func:`scipy.stats.median_abs_deviation`) of the discharges about their own run's
+    median, pooled over both. A side with fewer than
     :data:`MIN_FLOW_SAMPLES` logged values cannot tell them apart (one inflow)."""
     a, b = a[np.isfinite(a)], b[np.isfinite(b)]
     if min(a.size, b.size) < MIN_FLOW_SAMPLES:
         return True
     centre_a, centre_b = float(np.median(a)), float(np.median(b))
     deviations = np.concatenate((a - centre_a, b - centre_b))
-    spread = 3.0 * 1.4826 * float(np.median(np.abs(deviations)))
+    # each side is about its own median already: the deviations' spread about zero
+    spread = 3.0 * float(median_abs_deviation(deviations, center=lambda x, axis: 0.0,
+                                              scale="normal"))  # fmt: skip
     return abs(centre_a - centre_b) <= spread + _TOL * max(abs(centre_a), abs(centre_b))
 
 

@@ -230,13 +230,14 @@ def export_model_fmus(job: tuple[str, str]) -> dict[str, bytes]:
     import tempfile
 
     from gatetwin.fmu import export_fmu
+    from gatetwin.fmu.c_build import Builds
     from gatetwin.fmu.provenance import fmu_provenance
     from gatetwin.modelfile import read_model_file
 
     path, platforms = job
     model = read_model_file(path)
     files = {}
-    builds: dict[str, tuple[bytes, int]] = {}  # one binary serves both FMI versions
+    builds: Builds = {}  # one binary serves both FMI versions
     with tempfile.TemporaryDirectory(prefix="gatetwin-export-") as tmp:
         for folder, backend, version in FMU_KINDS:
             out = Path(tmp) / folder / f"{model.name}.fmu"
