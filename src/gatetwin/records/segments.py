@@ -17,7 +17,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import median_abs_deviation
 
 from gatetwin.errors import RecordError
 from gatetwin.records.checks import Origin
@@ -348,6 +347,8 @@ def same_inflow(a: np.ndarray, b: np.ndarray) -> bool:
     :func:`scipy.stats.median_abs_deviation`) of the discharges about their own run's
     median, pooled over both. A side with fewer than
     :data:`MIN_FLOW_SAMPLES` logged values cannot tell them apart (one inflow)."""
+    from scipy.stats import median_abs_deviation  # scipy only when a step is read
+
     a, b = a[np.isfinite(a)], b[np.isfinite(b)]
     if min(a.size, b.size) < MIN_FLOW_SAMPLES:
         return True
