@@ -12,6 +12,7 @@ typedef struct {
     double real[GT_N_REAL];     /* every Real variable, indexed by value reference */
     double integral_mm;         /* the PI's integral term, mm */
     double previous_opening_mm; /* the opening of the last sample: the output, mm */
+    double filtered_mm;         /* the level through the measurement filter, mm */
     int initialized;            /* plant_initialize succeeded */
     int parameters_changed;     /* parameters were set since they were last checked */
 } ModelData;

@@ -25,6 +25,10 @@ static PlantStatus check_parameters(const ModelData *m, PlantMessage *msg)
     if (plant_check_parameter_values(r, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
+    if (!(r[VR_FILTER_TIME_S] >= 0.0)) {
+        plant_message(msg, "filter_time_s = %.17g must be >= 0", r[VR_FILTER_TIME_S]);
+        return PLANT_ERROR;
+    }
     if (!(r[VR_INTEGRAL_TIME_S] > 0.0 && r[VR_TRACKING_TIME_S] > 0.0 &&
           r[VR_SAMPLE_PERIOD_S] > 0.0 && r[VR_OPENING_RATE_MM_S] > 0.0)) {
         plant_message(msg,
@@ -111,8 +115,14 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
                       m->real[VR_OPENING_MIN_MM], m->real[VR_OPENING_MAX_MM]);
         return PLANT_ERROR;
     }
-    m->integral_mm = start_mm; /* bumpless: at rest the integral holds the opening */
+    if (!isfinite(m->real[VR_LEVEL_MM])) {
+        plant_message(msg, "input %s = %g is not finite", plant_variables[VR_LEVEL_MM].name,
+                      m->real[VR_LEVEL_MM]);
+        return PLANT_ERROR;
+    }
+    m->integral_mm = start_mm; /* bumpless: at rest the integral holds the opening, */
     m->previous_opening_mm = start_mm;
+    m->filtered_mm = m->real[VR_LEVEL_MM]; /* and the filter the level */
     m->parameters_changed = 0;
     m->initialized = 1;
     return PLANT_OK;
@@ -121,7 +131,7 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
 PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
 {
     const double *r = m->real;
-    double n, k, opening_mm, integral_mm;
+    double n, k, opening_mm, integral_mm, filtered_mm;
     if (component_check_step(m, step_s, msg) != PLANT_OK) {
         return PLANT_ERROR;
     }
@@ -134,14 +144,16 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     }
     opening_mm = m->previous_opening_mm;
     integral_mm = m->integral_mm;
+    filtered_mm = m->filtered_mm;
     for (k = 0.0; k < n; k += 1.0) {
-        gt_pi_step(r[VR_LEVEL_MM], r[VR_SETPOINT_MM], integral_mm, opening_mm,
+        gt_pi_step(r[VR_LEVEL_MM], r[VR_SETPOINT_MM], integral_mm, opening_mm, filtered_mm,
                    r[VR_GAIN_MM_PER_MM], r[VR_INTEGRAL_TIME_S], r[VR_TRACKING_TIME_S],
                    r[VR_OPENING_MIN_MM], r[VR_OPENING_MAX_MM], r[VR_OPENING_RATE_MM_S],
-                   r[VR_SAMPLE_PERIOD_S], &opening_mm, &integral_mm);
+                   r[VR_SAMPLE_PERIOD_S], r[VR_FILTER_TIME_S], &opening_mm, &integral_mm,
+                   &filtered_mm);
         /* finite inputs and parameters can still overflow (a huge error times the gain, a
          * tiny Ti); the range limits would hide it in the opening but not in the integral */
-        if (!isfinite(opening_mm) || !isfinite(integral_mm)) {
+        if (!isfinite(opening_mm) || !isfinite(integral_mm) || !isfinite(filtered_mm)) {
             plant_message(msg,
                           "sample %.0f of the step overflows: level %.17g mm, set-point %.17g mm "
                           "give integral %g mm and opening %g mm with these parameters",
@@ -151,6 +163,7 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
     }
     m->previous_opening_mm = opening_mm;
     m->integral_mm = integral_mm;
+    m->filtered_mm = filtered_mm;
     m->time_s += step_s;
     return PLANT_OK;
 }
@@ -181,10 +194,10 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
         return PLANT_ERROR;
     }
     if (!(fabs(m->time_s) <= GT_MAX_TIME_S) || !isfinite(m->integral_mm) ||
-        !isfinite(m->previous_opening_mm)) {
-        plant_message(msg, "state time %g s, integral %g mm or opening %g mm is not finite or "
-                      "beyond %g s", m->time_s, m->integral_mm, m->previous_opening_mm,
-                      GT_MAX_TIME_S);
+        !isfinite(m->previous_opening_mm) || (m->initialized && !isfinite(m->filtered_mm))) {
+        plant_message(msg, "state time %g s, integral %g mm, opening %g mm or filtered level "
+                      "%g mm is not finite or beyond %g s", m->time_s, m->integral_mm,
+                      m->previous_opening_mm, m->filtered_mm, GT_MAX_TIME_S);
         return PLANT_ERROR;
     }
     if (component_check_reals(m->real, msg) != PLANT_OK) {

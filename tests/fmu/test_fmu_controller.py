@@ -9,6 +9,7 @@ import ctypes
 import math
 import subprocess
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
@@ -50,12 +51,17 @@ def fmus(tmp_path_factory):
     controller = export_controller(model, "pi", folder / "fopdt_3F_pi.fmu", settings=demo)
     controller3 = export_controller(model, "pi", folder / "fmi3" / "fopdt_3F_pi.fmu",
                                     settings=demo, fmi_version="3.0")  # fmt: skip
+    # and with a measurement filter of five sample periods
+    filtered = replace(demo, pi=replace(demo.pi, filter_time_s=6.0))
+    controller_filtered = export_controller(model, "pi", folder / "filtered" / "fopdt_3F_pi.fmu",
+                                            settings=filtered)  # fmt: skip
     # the plant FMU as run_mpc_demo(plant_kind="fmu") exports it
     plant = export_fmu(model.plant, folder / "gatetwin_mpc_plant.fmu", backend="c",
                        model_name="gatetwin_mpc_plant",
                        provenance={"purpose": "gatetwin mpc-demo plant"})  # fmt: skip
     return {"model": model, "controller": controller, "controller3": controller3,
-            "plant": plant, "folder": folder}  # fmt: skip
+            "controller_filtered": controller_filtered, "filtered": filtered, "plant": plant,
+            "folder": folder}  # fmt: skip
 
 
 @pytest.mark.parametrize("which", ["controller", "controller3"], ids=["fmi2", "fmi3"])
@@ -124,6 +130,23 @@ def test_plant_fmu_with_pi_fmu_is_the_python_loop(fmus, which):
     assert abs(iae_fmu - iae_py) <= SAME_ARITHMETIC_MM * scenario.samples(1.2) * 1.2
 
 
+def test_a_filtered_pi_fmu_is_the_filtered_python_loop(fmus):
+    """The PI FMU exported with a 6-s level filter against PiController tuned for the same
+    filter (SIMC on the filtered loop), on the demo's noisy set-point steps: the same
+    arithmetic, so the same loop to the bit; and the filter calms the gate (the unfiltered
+    PI's travel is the comparison, the same scenario and noise seed)."""
+    s = fmus["filtered"]
+    scenario = demo_scenarios(30.0, s)[0]
+    pi = pi_controller(fmus["model"].plant, s)
+    assert pi.tuning.filter_time_s == 6.0
+    python = _loop(fmus, pi, scenario, s)
+    cosim = _fmu_loop(fmus, "controller_filtered", scenario, s)
+    assert np.max(np.abs(cosim.command_mm - python.command_mm)) <= SAME_ARITHMETIC_MM
+    assert np.max(np.abs(cosim.level_mm - python.level_mm)) <= SAME_ARITHMETIC_MM
+    unfiltered = _loop(fmus, pi_controller(fmus["model"].plant, DemoSettings()), scenario, s)
+    assert loop_metrics(python)["travel_mm"] < loop_metrics(unfiltered)["travel_mm"]
+
+
 def _driver(fmus, name):
     unzipped = Path(extract(str(fmus["controller"]), str(fmus["folder"] / name)))
     driver = open_fmu(unzipped, name)
@@ -155,13 +178,15 @@ def test_a_step_off_the_sample_grid_is_refused_with_a_logged_reason(fmus):
 
 
 def test_a_step_that_overflows_is_refused_with_a_logged_reason(fmus):
-    """Finite inputs whose error overflows (Kc * 2e308): the range limits would hide it in the
-    opening, not in the integral; the step is refused and says why."""
+    """Finite inputs whose error overflows (set-point − level = −2e308, read unfiltered): the
+    range limits would hide it in the opening, not in the integral; the step is refused and
+    says why."""
     driver = _driver(fmus, "overflow")
     vr, slave = driver.vr, driver.slave
     period = slave.getReal([vr["sample_period_s"]])[0]
     slave.doStep(0.0, period)
-    slave.setReal([vr["level_3F_mm"], vr["setpoint_mm"]], [1e308, -1e308])
+    slave.setReal([vr["filter_time_s"], vr["level_3F_mm"], vr["setpoint_mm"]],
+                  [0.0, 1e308, -1e308])  # fmt: skip
     with pytest.raises(FMICallException):
         slave.doStep(period, period)
     assert any("sample 1 of the step overflows" in m for m in _errors(driver))
@@ -193,25 +218,30 @@ def test_the_c_pi_law_is_the_python_one_to_the_bit(tmp_path):
     subprocess.run([*find_compiler(), *flags, "-o", "pi_law.so", "pi_law.c", "-lm"],
                    cwd=tmp_path, check=True, capture_output=True)  # fmt: skip
     f = ctypes.CDLL(str(tmp_path / "pi_law.so")).gt_pi_step
-    f.argtypes = [ctypes.c_double] * 11 + [ctypes.POINTER(ctypes.c_double)] * 2
+    f.argtypes = [ctypes.c_double] * 13 + [ctypes.POINTER(ctypes.c_double)] * 3
     f.restype = None
     rng = np.random.default_rng(3)
-    for _ in range(5000):
+    for k in range(5000):
         lo = float(rng.uniform(0, 30))
         args = [float(rng.uniform(100, 400)), float(rng.uniform(100, 400)),
                 float(rng.uniform(-50, 150)), float(rng.uniform(lo, lo + 80)),
+                float(rng.uniform(100, 400)),
                 float(-rng.uniform(0.1, 20)), float(rng.uniform(1, 100)),
                 float(rng.uniform(0.5, 50)), lo, lo + float(rng.uniform(1, 100)),
-                float(rng.uniform(0.01, 2)), float(rng.uniform(0.1, 5))]  # fmt: skip
-        out = [ctypes.c_double(), ctypes.c_double()]
+                float(rng.uniform(0.01, 2)), float(rng.uniform(0.1, 5)),
+                0.0 if k % 4 == 0 else float(rng.uniform(0.01, 500))]  # fmt: skip
+        out = [ctypes.c_double(), ctypes.c_double(), ctypes.c_double()]
         f(*args, *[ctypes.byref(o) for o in out])
-        assert (out[0].value, out[1].value) == pi_step(*args)
+        assert tuple(o.value for o in out) == pi_step(*args)
 
 
 def test_export_controller_refuses_what_it_does_not_build_without_output(tmp_path, capsys):
     for argv in (
         ["--kind", "mpc", "--fmi", "3", str(MODEL)],
         ["--kind", "pi", "--horizon", "30", str(MODEL)],
+        ["--kind", "mpc", "--pi-filter", "6", str(MODEL)],
+        ["--kind", "pi", "--pi-filter", "-1", str(MODEL)],
+        ["--kind", "pi", "--pi-filter", "nan", str(MODEL)],
         ["--kind", "pi", str(MODELS / "arx_3F.json")],
         ["--fmi", "3", str(MODELS / "arx_3F.json")],
     ):

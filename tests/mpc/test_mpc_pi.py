@@ -33,6 +33,50 @@ def test_simc_matches_hand_calculation():
     assert slow.integral_time_s == pytest.approx(40.0)
 
 
+def test_simc_tunes_for_the_measurement_filter_by_the_half_rule():
+    # K = -13.6, T = 62 s, L = 2 s, Ts = 1.2 s, Tf = 6 s: half of the smaller lag (Tf) goes to
+    # the delay, half to T: theta = 2.6 + 3 = 5.6 s, T' = 65 s, tau_c = 5.6 s;
+    # Kc = 65 / (-13.6 * 11.2) = -0.426733 mm/mm, Ti = min(65, 44.8) = 44.8 s
+    t = simc_pi(-13.6, 62.0, 2.0, sample_period_s=1.2, filter_time_s=6.0)
+    assert t.effective_delay_s == pytest.approx(5.6)
+    assert t.gain_mm_per_mm == pytest.approx(-0.426733, abs=1e-6)
+    assert t.integral_time_s == pytest.approx(44.8)
+    assert t.filter_time_s == 6.0 and t.to_dict()["filter_time_s"] == 6.0
+    # a filter slower than the plant is the larger lag: T' = 80 + 31 = 111 s, theta = 33.6 s
+    slow = simc_pi(-13.6, 62.0, 2.0, sample_period_s=1.2, filter_time_s=80.0)
+    assert slow.effective_delay_s == pytest.approx(33.6)
+    assert slow.gain_mm_per_mm == pytest.approx(111.0 / (-13.6 * 67.2))
+    # the margins see the filter as a lag of its own, and SIMC keeps them near its design
+    margins = loop_margins(t)
+    assert margins.gain_margin > 2.7 and 45.0 < margins.phase_margin_deg < 70.0
+    for bad in (-1.0, math.nan, math.inf):
+        with pytest.raises(ControlError):
+            simc_pi(-13.6, 62.0, 2.0, filter_time_s=bad)
+        with pytest.raises(ControlError):
+            PiSettings(filter_time_s=bad)
+
+
+def test_the_level_filter_passes_white_noise_as_a_first_order_filter_does():
+    """Level = set-point + white noise N(0, 1) and a loop held open (no rate or range limit
+    reached): the filtered level's SD is sqrt(a / (2 - a)) of the noise's, a = Ts / (Tf + Ts)
+    (the backward-Euler filter's variance ratio). With Tf = 5 Ts, a = 1/6 and the filtered
+    samples are AR(1) with rho = 5/6, so 40,000 samples are worth 40,000 (1 - rho) / (1 + rho)
+    = 3,636 independent ones: the SD's standard error is 1/sqrt(2 * 3636) = 1.2 %; the
+    tolerance is four of those."""
+    ts, tf = 1.2, 6.0
+    pi = PiController(simc_pi(-13.6, 62.0, 2.0, sample_period_s=ts, filter_time_s=tf),
+                      PiSettings(opening_range_mm=(0.0, 1e9), opening_rate_mm_s=1e9,
+                                 sample_period_s=ts))  # fmt: skip
+    pi.reset(25.0, 185.0, 40.0)
+    noise = np.random.default_rng(7).standard_normal(40_000)
+    filtered = []
+    for n in noise:
+        pi.step(185.0 + n, 40.0, 185.0)
+        filtered.append(pi.filtered_mm - 185.0)
+    a = ts / (tf + ts)
+    assert np.std(filtered[100:]) == pytest.approx(math.sqrt(a / (2 - a)), rel=4 * 0.012)
+
+
 def test_simc_for_a_scheduled_plant_uses_the_operating_discharge():
     plant = FopdtPlant("3F", 25.0, Schedule((30.0, 50.0), {
         "gain_mm_per_mm": (-15.0, -11.0), "time_constant_s": (70.0, 50.0),

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -357,6 +358,12 @@ def add_export_controller_arguments(parser: argparse.ArgumentParser) -> None:
         help="mpc: control the model's FOPDT with its effect blocks dropped (the MPC FMU does "
         "not cover them; a model with effect blocks is refused otherwise)",
     )  # fmt: skip
+    parser.add_argument(
+        "--pi-filter", metavar="S", type=float,
+        help="pi: time constant of a first-order filter on the measured level, s (default 0: "
+        "none); SIMC tunes Kc and Ti for the filtered loop. On a noisy gauge sampled fast the "
+        "unfiltered PI moves the gate at every reading; a few sample periods calm it",
+    )  # fmt: skip
     parser.add_argument("--out", metavar="NAME.fmu", required=True)
     parser.add_argument(
         "--fmi",
@@ -373,9 +380,13 @@ def run_export_controller(args: argparse.Namespace) -> int:
     check_controller_kind(args.kind)
     if args.horizon is not None and args.kind != "mpc":
         raise GatetwinError("--horizon applies to --kind mpc")
+    if args.pi_filter is not None and args.kind != "pi":
+        raise GatetwinError("--pi-filter applies to --kind pi")
+    if args.pi_filter is not None and not 0 <= args.pi_filter < math.inf:
+        raise GatetwinError(f"--pi-filter: {args.pi_filter} s must be finite and >= 0")
     model = read_model_file(args.model)
     settings = None
-    if args.horizon is not None or args.opening_range is not None:
+    if args.horizon is not None or args.opening_range is not None or args.pi_filter is not None:
         from gatetwin.fmu.controller_settings import controller_plant, derived_settings
 
         given = tuple(args.opening_range) if args.opening_range else None
@@ -387,6 +398,8 @@ def run_export_controller(args: argparse.Namespace) -> int:
             raise GatetwinError(f"--opening-range: {exc}") from None
         if args.horizon is not None:
             settings = replace(settings, mpc=replace(settings.mpc, horizon=args.horizon))
+        if args.pi_filter is not None:
+            settings = replace(settings, pi=replace(settings.pi, filter_time_s=args.pi_filter))
     check_writable(args.out)
     if args.without_effects and args.kind != "mpc":
         raise GatetwinError("--without-effects applies to --kind mpc")

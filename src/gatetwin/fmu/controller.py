@@ -16,9 +16,12 @@ Variables (value references in this order):
 * output ``opening_mm`` (discrete: it changes at samples only);
 * tunable ``gain_mm_per_mm`` (``Kc``), ``integral_time_s`` (``Ti``), ``tracking_time_s``
   (``Tt``), ``opening_min_mm``, ``opening_max_mm``, ``opening_rate_mm_s``;
-* fixed ``sample_period_s`` and ``start_opening_mm``.
+* fixed ``sample_period_s`` and ``start_opening_mm``;
+* tunable ``filter_time_s`` (``Tf`` of the level's measurement filter).
 
-Start values: SIMC on the model's FOPDT at the demo's discharge and the demo's PI limits and
+Start values: SIMC with the noise rule's measurement filter
+(:func:`gatetwin.mpc.pi.noise_filter_time_s`) on the model's FOPDT at the demo's discharge and
+the demo's PI limits and
 start opening (:class:`gatetwin.mpc.demo.DemoSettings`, :func:`gatetwin.mpc.demo.pi_controller`).
 Sampling semantics: ``controller_pi.c``. Only the PI is built here; this module does not run
 controllers (see :mod:`gatetwin.mpc.fmu_controller` and :mod:`gatetwin.ssp`).
@@ -215,7 +218,8 @@ def describe_pi_controller(
     t = pi.tuning
     summary = (
         f"gatetwin PI controller of the level at gauge {plant.gauge}: SIMC tuning at Q = "
-        f"{s.flow_m3h:g} m3/h (Kc {t.gain_mm_per_mm:.4g} mm/mm, Ti {t.integral_time_s:.4g} s), "
+        f"{s.flow_m3h:g} m3/h (Kc {t.gain_mm_per_mm:.4g} mm/mm, Ti {t.integral_time_s:.4g} s, "
+        f"level filter Tf {t.filter_time_s:.4g} s), "
         f"rate and range limits, back-calculation anti-windup; sample period "
         f"{pi.settings.sample_period_s:g} s"
     )
@@ -270,6 +274,9 @@ def _pi_variables(
         ("start_opening_mm", "parameter", "fixed", "exact", "mm",
          "Opening at rest: the first output and the integral's start (bumpless)",
          start_opening_mm),
+        ("filter_time_s", "parameter", "tunable", "exact", "s",
+         "Tf: time constant of the level's measurement filter (>= 0; 0: none); the filter "
+         "starts at the level input's value at initialisation", t.filter_time_s),
     ]  # fmt: skip
     return tuple(
         VariableSpec(r[0], vr, *r[1:], initial_dependency=r[0] == "start_opening_mm")

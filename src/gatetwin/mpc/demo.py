@@ -345,7 +345,8 @@ def _pi_tuning(plant_model: Plant, s: DemoSettings) -> PiTuning:
             f"{type(plant_model).__name__}"
         )
     # tuned for the period it steps at (its own; the MPC's prediction step may be coarser)
-    return simc_pi_for_plant(plant_model, s.flow_m3h, sample_period_s=s.pi.sample_period_s)
+    return simc_pi_for_plant(plant_model, s.flow_m3h, sample_period_s=s.pi.sample_period_s,
+                             filter_time_s=s.pi.filter_time_s)  # fmt: skip
 
 
 def run_mpc_demo(

@@ -7,8 +7,15 @@ SIMC (Skogestad 2003) for ``G(s) = K e^{−θs}/(T s + 1)``::
 with ``τc = θ`` by default ("tight" control). For a sampled loop the zero-order hold adds
 about half a sample of delay, so ``θ = L + Ts/2`` (Skogestad's rule for digital control).
 
-Gain and phase margins come from python-control on the continuous loop ``C(s) G(s)``,
-where — for the margins only — the delay ``e^{−θs}`` is replaced by a Padé
+**The measurement filter** (``PiSettings.filter_time_s``, off by default). A gauge reads
+with noise, and the proportional term passes it to the gate: a pool sampled fast has
+``|Kc K| = T / 2θ`` in the tens, and the gate chases every reading. The PI can read the
+level through a first-order filter of time constant ``Tf``, which SIMC then treats as a
+second lag of the plant (Skogestad's half rule: half of the smaller lag goes to the delay,
+half to the larger one), so ``Kc`` and ``Ti`` come out for the filtered loop.
+
+Gain and phase margins come from python-control on the continuous loop ``C(s) G(s)`` with
+the filter's lag, where — for the margins only — the delay ``e^{−θs}`` is replaced by a Padé
 approximation (:func:`control.pade`); the controller itself never uses it.
 
 The controller is positional, with back-calculation anti-windup (the integral tracks
@@ -45,11 +52,14 @@ class PiTuning:
     closed_loop_time_constant_s : float
         ``τc`` used, s.
     effective_delay_s : float
-        ``θ = L + Ts/2``, s.
+        ``θ = L + Ts/2`` plus the delay share of the filter (half of the smaller of ``Tf``
+        and ``T``), s.
     plant_gain_mm_per_mm, plant_time_constant_s, plant_dead_time_s : float
         The FOPDT ``K``, ``T``, ``L`` tuned for.
     flow_m3h : float
         Discharge at which ``K``, ``T``, ``L`` were evaluated (NaN if given directly), m³/h.
+    filter_time_s : float
+        ``Tf`` of the level's measurement filter, s (0: none).
     """
 
     gain_mm_per_mm: float
@@ -60,6 +70,7 @@ class PiTuning:
     plant_time_constant_s: float
     plant_dead_time_s: float
     flow_m3h: float = math.nan
+    filter_time_s: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
@@ -76,6 +87,7 @@ def simc_pi(
     *,
     closed_loop_time_constant_s: float | None = None,
     sample_period_s: float = SAMPLE_PERIOD_S,
+    filter_time_s: float = 0.0,
 ) -> PiTuning:
     """SIMC PI settings for ``K e^{−Ls}/(T s + 1)`` sampled every ``sample_period_s``.
 
@@ -90,18 +102,33 @@ def simc_pi(
     sample_period_s : float
         ``Ts``, s; half of it is added to the delay for the zero-order hold (0 for a
         continuous controller).
+    filter_time_s : float
+        ``Tf`` of the level's measurement filter, s (0: none). SIMC tunes for the plant with
+        the filter as its second lag.
     """
     if not (gain_mm_per_mm != 0 and math.isfinite(gain_mm_per_mm)):
         raise ControlError(f"simc: plant gain must be finite and non-zero (got {gain_mm_per_mm})")
     if not (time_constant_s > 0 and dead_time_s >= 0 and sample_period_s >= 0):
         raise ControlError("simc: need T > 0, L >= 0 and Ts >= 0")
-    theta = dead_time_s + 0.5 * sample_period_s
+    if not (filter_time_s >= 0 and math.isfinite(filter_time_s)):
+        raise ControlError(f"simc: filter time constant must be finite and >= 0 "
+                           f"(got {filter_time_s})")  # fmt: skip
+    tau, theta = _half_rule(time_constant_s, dead_time_s + 0.5 * sample_period_s, filter_time_s)
     tau_c = theta if closed_loop_time_constant_s is None else float(closed_loop_time_constant_s)
     if not tau_c > 0 or tau_c + theta <= 0:
         raise ControlError(f"simc: closed-loop time constant must be > 0 (got {tau_c})")
-    kc = time_constant_s / (gain_mm_per_mm * (tau_c + theta))
-    ti = min(time_constant_s, 4.0 * (tau_c + theta))
-    return PiTuning(kc, ti, tau_c, theta, gain_mm_per_mm, time_constant_s, dead_time_s)
+    kc = tau / (gain_mm_per_mm * (tau_c + theta))
+    ti = min(tau, 4.0 * (tau_c + theta))
+    return PiTuning(kc, ti, tau_c, theta, gain_mm_per_mm, time_constant_s, dead_time_s,
+                    filter_time_s=float(filter_time_s))  # fmt: skip
+
+
+def _half_rule(time_constant_s: float, delay_s: float, filter_time_s: float
+               ) -> tuple[float, float]:  # fmt: skip
+    """``(T, θ)`` of the FOPDT that stands for the plant's lag, the filter's lag and the delay:
+    half of the smaller lag goes to the larger, half to the delay (Skogestad's half rule)."""
+    big, small = max(time_constant_s, filter_time_s), min(time_constant_s, filter_time_s)
+    return big + 0.5 * small, delay_s + 0.5 * small
 
 
 def simc_pi_for_plant(
@@ -110,8 +137,10 @@ def simc_pi_for_plant(
     *,
     closed_loop_time_constant_s: float | None = None,
     sample_period_s: float = SAMPLE_PERIOD_S,
+    filter_time_s: float = 0.0,
 ) -> PiTuning:
-    """SIMC settings from the scheduled FOPDT evaluated at the operating discharge."""
+    """SIMC settings from the scheduled FOPDT evaluated at the operating discharge
+    (``filter_time_s`` as in :func:`simc_pi`)."""
     if not isinstance(plant, FopdtPlant):
         raise ControlError(f"simc needs an FOPDT plant (got {type(plant).__name__})")
     s = plant.schedule
@@ -121,6 +150,7 @@ def simc_pi_for_plant(
         s.at("dead_time_s", flow_m3h),
         closed_loop_time_constant_s=closed_loop_time_constant_s,
         sample_period_s=sample_period_s,
+        filter_time_s=filter_time_s,
     )
     return PiTuning(**{**asdict(tuning), "flow_m3h": float(flow_m3h)})
 
@@ -158,12 +188,16 @@ class LoopMargins:
 
 
 def loop_margins(tuning: PiTuning, *, pade_order: int = 8) -> LoopMargins:
-    """Gain and phase margins of the PI loop on the FOPDT with delay ``θ = L + Ts/2``."""
+    """Gain and phase margins of the PI loop on the FOPDT with delay ``L + Ts/2`` and the
+    measurement filter's lag."""
     kc, ti = tuning.gain_mm_per_mm, tuning.integral_time_s
     pi_tf = control.tf([kc * ti, kc], [ti, 0.0])
     lag = control.tf([tuning.plant_gain_mm_per_mm], [tuning.plant_time_constant_s, 1.0])
-    num, den = control.pade(tuning.effective_delay_s, pade_order)
-    loop = pi_tf * lag * control.tf(num, den)
+    filt = control.tf([1.0], [tuning.filter_time_s, 1.0])
+    # the delay without the filter's share, which the filter's own lag stands for here
+    share = 0.5 * min(tuning.filter_time_s, tuning.plant_time_constant_s)
+    num, den = control.pade(tuning.effective_delay_s - share, pade_order)
+    loop = pi_tf * lag * filt * control.tf(num, den)
     gm, pm, _, wpc, wgc, _ = control.stability_margins(loop)
     gm_db = 20.0 * math.log10(gm) if gm > 0 and math.isfinite(gm) else math.inf
     return LoopMargins(float(gm), gm_db, float(pm), float(wpc), float(wgc), pade_order)
@@ -184,18 +218,25 @@ class PiSettings:
     tracking_time_s : float or None
         Back-calculation time ``Tt``, s; default ``Ti / 2`` (between the sample period and
         ``Ti``, as Åström & Hägglund recommend).
+    filter_time_s : float
+        ``Tf`` of the level's measurement filter that the demo's SIMC tuning is made for
+        (:func:`gatetwin.mpc.demo.pi_controller`), s; 0 (default): none. The controller runs
+        the filter its :class:`PiTuning` was made for.
     """
 
     opening_range_mm: tuple[float, float] = (5.0, 100.0)
     opening_rate_mm_s: float = 0.6
     sample_period_s: float = SAMPLE_PERIOD_S
     tracking_time_s: float | None = None
+    filter_time_s: float = 0.0
 
     def __post_init__(self) -> None:
         lo, hi = self.opening_range_mm
         ok = 0 <= lo < hi and self.opening_rate_mm_s > 0 and self.sample_period_s > 0
+        ok = ok and 0 <= self.filter_time_s < math.inf
         if not ok or (self.tracking_time_s is not None and not self.tracking_time_s > 0):
-            raise ControlError("pi settings: invalid range, rate, period or tracking time")
+            raise ControlError("pi settings: invalid range, rate, period, tracking time or "
+                               "filter time")  # fmt: skip
 
 
 class PiController:
@@ -211,15 +252,18 @@ class PiController:
         self.settings = settings or PiSettings()
         self.integral_mm = math.nan
         self.previous_opening_mm = math.nan
+        self.filtered_mm = math.nan
         self.last_solve_s = 0.0
 
     def reset(self, opening_mm: float, level_mm: float, flow_m3h: float) -> None:
-        """Start at rest at ``opening_mm`` (bumpless: the integral holds the opening)."""
+        """Start at rest at ``opening_mm`` (bumpless: the integral holds the opening, the
+        filter the level)."""
         lo, hi = self.settings.opening_range_mm
         if not lo <= opening_mm <= hi:
             raise ControlError(f"pi: start opening {opening_mm} mm outside [{lo}, {hi}] mm")
         self.integral_mm = float(opening_mm)
         self.previous_opening_mm = float(opening_mm)
+        self.filtered_mm = float(level_mm)
 
     @property
     def tracking_time_s(self) -> float:
@@ -236,10 +280,10 @@ class PiController:
             raise ControlError("pi: call reset() before step()")
         s, t = self.settings, self.tuning
         lo, hi = s.opening_range_mm
-        opening, self.integral_mm = pi_step(
+        opening, self.integral_mm, self.filtered_mm = pi_step(
             float(level_mm), float(setpoint_mm), self.integral_mm, self.previous_opening_mm,
-            t.gain_mm_per_mm, t.integral_time_s, self.tracking_time_s, float(lo), float(hi),
-            s.opening_rate_mm_s, s.sample_period_s,
+            self.filtered_mm, t.gain_mm_per_mm, t.integral_time_s, self.tracking_time_s,
+            float(lo), float(hi), s.opening_rate_mm_s, s.sample_period_s, t.filter_time_s,
         )  # fmt: skip
         self.previous_opening_mm = opening
         return opening

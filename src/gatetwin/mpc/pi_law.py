@@ -24,6 +24,7 @@ def pi_step(
     setpoint_mm: float,
     integral_mm: float,
     previous_opening_mm: float,
+    filtered_mm: float,
     gain_mm_per_mm: float,
     integral_time_s: float,
     tracking_time_s: float,
@@ -31,15 +32,22 @@ def pi_step(
     opening_max_mm: float,
     opening_rate_mm_s: float,
     sample_period_s: float,
-) -> tuple[float, float]:
-    """One sample of the PI: ``(opening_mm, integral_mm)`` after it.
+    filter_time_s: float,
+) -> tuple[float, float, float]:
+    """One sample of the PI: ``(opening_mm, integral_mm, filtered_mm)`` after it.
 
-    ``wanted = Kc e + I`` with ``e = setpoint − level``; the opening is ``wanted`` clipped
-    to ``previous ± rate · Ts``, then to ``[opening_min, opening_max]``; the integral moves by
-    ``Kc Ts / Ti · e + Ts / Tt · (opening − wanted)`` (back-calculation). Units: mm, s, mm/s,
-    mm/mm.
+    The level is first filtered, ``y += Ts / (Tf + Ts) · (level − y)`` (the backward-Euler
+    first-order filter of time constant ``Tf``; ``Tf = 0``: the level itself). Then ``wanted
+    = Kc e + I`` with ``e = setpoint − y``; the opening is ``wanted`` clipped to ``previous ±
+    rate · Ts``, then to ``[opening_min, opening_max]``; the integral moves by ``Kc Ts / Ti ·
+    e + Ts / Tt · (opening − wanted)`` (back-calculation). Units: mm, s, mm/s, mm/mm.
     """
-    error = setpoint_mm - level_mm
+    filtered = level_mm
+    if filter_time_s > 0.0:
+        filtered = filtered_mm + sample_period_s / (filter_time_s + sample_period_s) * (
+            level_mm - filtered_mm
+        )
+    error = setpoint_mm - filtered
     wanted = gain_mm_per_mm * error + integral_mm
     travel = opening_rate_mm_s * sample_period_s
     opening = min(max(wanted, previous_opening_mm - travel), previous_opening_mm + travel)
@@ -48,4 +56,4 @@ def pi_step(
         gain_mm_per_mm * sample_period_s / integral_time_s * error
         + sample_period_s / tracking_time_s * (opening - wanted)
     )
-    return opening, integral
+    return opening, integral, filtered
