@@ -3,6 +3,7 @@ writes itself (not the shipped ASCE model), and the shipped model briefly."""
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 from pathlib import Path
@@ -210,6 +211,33 @@ def test_a_hold_that_would_overtop_is_moved_in_bank_and_a_flooded_record_refused
     run = run_schedule(core, fitted, noise_mm=0.0, seed=1)
     check_in_bank(run, fitted.name)
     assert max(run["levels"]["A2"]) < core.top_mm()
+
+
+@pytest.mark.slow
+def test_the_field_canals_free_records_are_placed_in_bank(tmp_path: Path) -> None:
+    """``swmm experiment --design free`` on the field canal of ``swmm_canal.py`` at its base
+    opening: the random record's hold at -28 % inflow with the gate 1.3 m open leaves the water
+    at the gate's lip, where SWMM switches the orifice between its laws and the level never
+    settles (it ends 0.003 mm above the lip after two days). That hold is out of orifice regime
+    and moves to a smaller opening in bank; it was taken for a pool overtopping, no opening
+    near it was in bank, and the whole experiment was refused."""
+    from gatetwin.records.record import read_record
+    from swmm_canal import GATE, GAUGES, INFLOW_NODE, write_field_canal
+    from swmm_canal import OPENING_MM as BASE_MM
+
+    inp = write_field_canal(tmp_path)
+    out = tmp_path / "free"
+    argv = ["swmm", "experiment", str(inp), "--gate", GATE, "--gauges",
+            *[f"{n}={d:g}" for n, d in GAUGES.items()], "--inflow", INFLOW_NODE,
+            "--design", "free", "--opening", f"{BASE_MM:g}", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    random = read_record(out / "free_random.csv")
+    sidecar = json.loads((out / "free_random.json").read_text(encoding="utf-8"))
+    assert "1300 -> 1200 mm at Q = 25811.7 m3/h" in sidecar["description"]
+    # the level at the gate (the first gauge) stays above the held opening: orifice regime
+    held = np.isfinite(random.opening_mm)
+    gauge = next(iter(random.levels_mm))
+    assert held.any() and np.all(random.levels_mm[gauge][held] > random.opening_mm[held])
 
 
 def _refused(capsys, argv: list[str]) -> str:

@@ -271,6 +271,12 @@ class SwmmCore:
 
     # ----------------------------------------------------------------- readings
 
+    @property
+    def running(self) -> bool:
+        """Whether a simulation is open (after :meth:`start`, also one whose spin-up was
+        refused: its levels are those it ended with)."""
+        return self._sim is not None
+
     def level_mm(self, node: str | None = None) -> float:
         """Level at a gauge node above the gate's sill, mm (default: the output gauge)."""
         node = node or self.spec.output_node

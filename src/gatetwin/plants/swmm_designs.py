@@ -140,17 +140,26 @@ class InBank:
         self._seen: dict[tuple[float, float], int] = {}
 
     def side(self, opening_mm: float, flow_m3h: float) -> int:
-        """+1 when the steady level is too high (or none), -1 too low, 0 in bank."""
+        """+1 when the steady level is too high (or there is none away from the gate's lip),
+        -1 too low (at or under the lip: out of orifice regime), 0 in bank."""
         key = (opening_mm, flow_m3h)
         if key not in self._seen:
             core = self.core
             try:
                 level = core.start(opening_mm, flow_m3h)
+                steady = True
             except PlantError:
-                self._seen[key] = 1  # no steady state: the pool overtops
-                return 1
+                if not core.running:
+                    raise
+                level, steady = core.level_mm(), False
             too_high = core.flooding() or level > core.top_mm() - self.margin_mm
-            self._seen[key] = 1 if too_high else (-1 if level <= opening_mm else 0)
+            # no steady state is a pool still rising to its top, or a level dithering at the
+            # gate's lip, where SWMM switches the orifice between its weir and orifice laws
+            at_lip = not steady and level < opening_mm + self.margin_mm
+            if too_high or not (steady or at_lip):
+                self._seen[key] = 1
+            else:
+                self._seen[key] = -1 if at_lip or level <= opening_mm else 0
         return self._seen[key]
 
     def opening(self, opening_mm: float, flow_m3h: float) -> float:
