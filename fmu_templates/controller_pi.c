@@ -156,8 +156,10 @@ PlantStatus plant_do_step(ModelData *m, double step_s, PlantMessage *msg)
         if (!isfinite(opening_mm) || !isfinite(integral_mm) || !isfinite(filtered_mm)) {
             plant_message(msg,
                           "sample %.0f of the step overflows: level %.17g mm, set-point %.17g mm "
-                          "give integral %g mm and opening %g mm with these parameters",
-                          k + 1.0, r[VR_LEVEL_MM], r[VR_SETPOINT_MM], integral_mm, opening_mm);
+                          "give filtered level %g mm, integral %g mm and opening %g mm with these "
+                          "parameters",
+                          k + 1.0, r[VR_LEVEL_MM], r[VR_SETPOINT_MM], filtered_mm, integral_mm,
+                          opening_mm);
             return PLANT_ERROR; /* the state stays as it was before the step */
         }
     }
@@ -194,7 +196,7 @@ PlantStatus plant_check_state(const ModelData *m, int initialized, PlantMessage 
         return PLANT_ERROR;
     }
     if (!(fabs(m->time_s) <= GT_MAX_TIME_S) || !isfinite(m->integral_mm) ||
-        !isfinite(m->previous_opening_mm) || (m->initialized && !isfinite(m->filtered_mm))) {
+        !isfinite(m->previous_opening_mm) || !isfinite(m->filtered_mm)) {
         plant_message(msg, "state time %g s, integral %g mm, opening %g mm or filtered level "
                       "%g mm is not finite or beyond %g s", m->time_s, m->integral_mm,
                       m->previous_opening_mm, m->filtered_mm, GT_MAX_TIME_S);

@@ -47,6 +47,8 @@ def test_simc_tunes_for_the_measurement_filter_by_the_half_rule():
     assert slow.effective_delay_s == pytest.approx(33.6)
     assert slow.gain_mm_per_mm == pytest.approx(111.0 / (-13.6 * 67.2))
     # the margins see the filter as a lag of its own, and SIMC keeps them near its design
+    # (tau_c = theta: GM ~ 3, PM ~ 47 degrees, Skogestad 2003) within the half rule's
+    # approximation of the second lag
     margins = loop_margins(t)
     assert margins.gain_margin > 2.7 and 45.0 < margins.phase_margin_deg < 70.0
     for bad in (-1.0, math.nan, math.inf):
@@ -60,13 +62,13 @@ def test_the_level_filter_passes_white_noise_as_a_first_order_filter_does():
     """Level = set-point + white noise N(0, 1) and a loop held open (no rate or range limit
     reached): the filtered level's SD is sqrt(a / (2 - a)) of the noise's, a = Ts / (Tf + Ts)
     (the backward-Euler filter's variance ratio). With Tf = 5 Ts, a = 1/6 and the filtered
-    samples are AR(1) with rho = 5/6, so 40,000 samples are worth 40,000 (1 - rho) / (1 + rho)
-    = 3,636 independent ones: the SD's standard error is 1/sqrt(2 * 3636) = 1.2 %; the
-    tolerance is four of those."""
+    samples are AR(1) with rho = 5/6, so for their variance 40,000 samples are worth 40,000
+    (1 - rho²) / (1 + rho²) = 7,213 independent ones: the SD's standard error is 1/sqrt(2 *
+    7213) = 0.83 %; the tolerance is four of those."""
     ts, tf = 1.2, 6.0
     pi = PiController(simc_pi(-13.6, 62.0, 2.0, sample_period_s=ts, filter_time_s=tf),
                       PiSettings(opening_range_mm=(0.0, 1e9), opening_rate_mm_s=1e9,
-                                 sample_period_s=ts))  # fmt: skip
+                                 sample_period_s=ts, filter_time_s=tf))  # fmt: skip
     pi.reset(25.0, 185.0, 40.0)
     noise = np.random.default_rng(7).standard_normal(40_000)
     filtered = []
@@ -74,7 +76,17 @@ def test_the_level_filter_passes_white_noise_as_a_first_order_filter_does():
         pi.step(185.0 + n, 40.0, 185.0)
         filtered.append(pi.filtered_mm - 185.0)
     a = ts / (tf + ts)
-    assert np.std(filtered[100:]) == pytest.approx(math.sqrt(a / (2 - a)), rel=4 * 0.012)
+    assert np.std(filtered[100:]) == pytest.approx(math.sqrt(a / (2 - a)), rel=4 * 0.0083)
+    # and a step of the level reaches 1 - (1 - a)^k of it after k samples
+    pi.reset(25.0, 185.0, 40.0)
+    steps = []
+    for _ in range(10):
+        pi.step(186.0, 40.0, 185.0)
+        steps.append(pi.filtered_mm - 185.0)
+    assert steps == pytest.approx([1 - (1 - a) ** k for k in range(1, 11)], abs=1e-12)
+    # a tuning made for another filter than the settings' is refused
+    with pytest.raises(ControlError, match="level filter"):
+        PiController(simc_pi(-13.6, 62.0, 2.0, filter_time_s=tf), PiSettings())
 
 
 def test_simc_for_a_scheduled_plant_uses_the_operating_discharge():

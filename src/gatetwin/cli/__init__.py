@@ -412,6 +412,8 @@ def _add_mpc_demo_arguments(parser: argparse.ArgumentParser) -> None:
         "the bundled records); a gate whose validity does not hold the flume demo's operating "
         "point gets scenarios, limits and sample period from its own model file",
     )  # fmt: skip
+    parser.add_argument("--pi-filter", metavar="S", type=float,
+                        help=_model_cmds.PI_FILTER_HELP)  # fmt: skip
 
 
 def _run_mpc_demo(args: argparse.Namespace) -> int:
@@ -431,6 +433,14 @@ def _run_mpc_demo(args: argparse.Namespace) -> int:
         from gatetwin.modelfile import read_model_file
 
         extra["settings"] = demo_settings(read_model_file(args.model))
+    _model_cmds.check_pi_filter(args.pi_filter)
+    if args.pi_filter is not None:
+        from dataclasses import replace
+
+        from gatetwin.mpc.demo import DemoSettings
+
+        settings = extra.get("settings") or DemoSettings()
+        extra["settings"] = replace(settings, pi=replace(settings.pi, filter_time_s=args.pi_filter))
     minutes = args.minutes
     if minutes is None:  # the flume's 30 minutes, longer for a slow gate's own model
         from gatetwin.fmu.controller_settings import DEMO_MINUTES, demo_minutes

@@ -331,6 +331,20 @@ def run_export(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Help of ``--pi-filter`` (``export-controller``, ``mpc-demo``).
+PI_FILTER_HELP = (
+    "time constant of a first-order filter on the PI's measured level, s (default 0: none); "
+    "SIMC tunes Kc and Ti for the filtered loop. On a noisy gauge sampled fast the unfiltered "
+    "PI moves the gate at every reading; a few sample periods calm it"
+)
+
+
+def check_pi_filter(value: float | None) -> None:
+    """Refuse a ``--pi-filter`` that is not a finite time constant >= 0, in one line."""
+    if value is not None and not 0 <= value < math.inf:
+        raise GatetwinError(f"--pi-filter: {value} s must be finite and >= 0")
+
+
 def add_export_controller_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "model", metavar="MODEL.json",
@@ -358,12 +372,8 @@ def add_export_controller_arguments(parser: argparse.ArgumentParser) -> None:
         help="mpc: control the model's FOPDT with its effect blocks dropped (the MPC FMU does "
         "not cover them; a model with effect blocks is refused otherwise)",
     )  # fmt: skip
-    parser.add_argument(
-        "--pi-filter", metavar="S", type=float,
-        help="pi: time constant of a first-order filter on the measured level, s (default 0: "
-        "none); SIMC tunes Kc and Ti for the filtered loop. On a noisy gauge sampled fast the "
-        "unfiltered PI moves the gate at every reading; a few sample periods calm it",
-    )  # fmt: skip
+    parser.add_argument("--pi-filter", metavar="S", type=float,
+                        help=f"pi: {PI_FILTER_HELP}")  # fmt: skip
     parser.add_argument("--out", metavar="NAME.fmu", required=True)
     parser.add_argument(
         "--fmi",
@@ -382,8 +392,7 @@ def run_export_controller(args: argparse.Namespace) -> int:
         raise GatetwinError("--horizon applies to --kind mpc")
     if args.pi_filter is not None and args.kind != "pi":
         raise GatetwinError("--pi-filter applies to --kind pi")
-    if args.pi_filter is not None and not 0 <= args.pi_filter < math.inf:
-        raise GatetwinError(f"--pi-filter: {args.pi_filter} s must be finite and >= 0")
+    check_pi_filter(args.pi_filter)
     model = read_model_file(args.model)
     settings = None
     if args.horizon is not None or args.opening_range is not None or args.pi_filter is not None:

@@ -19,9 +19,8 @@ Variables (value references in this order):
 * fixed ``sample_period_s`` and ``start_opening_mm``;
 * tunable ``filter_time_s`` (``Tf`` of the level's measurement filter).
 
-Start values: SIMC with the noise rule's measurement filter
-(:func:`gatetwin.mpc.pi.noise_filter_time_s`) on the model's FOPDT at the demo's discharge and
-the demo's PI limits and
+Start values: SIMC on the model's FOPDT (for the settings' level filter, none by default) at
+the demo's discharge and the demo's PI limits and
 start opening (:class:`gatetwin.mpc.demo.DemoSettings`, :func:`gatetwin.mpc.demo.pi_controller`).
 Sampling semantics: ``controller_pi.c``. Only the PI is built here; this module does not run
 controllers (see :mod:`gatetwin.mpc.fmu_controller` and :mod:`gatetwin.ssp`).
@@ -275,8 +274,9 @@ def _pi_variables(
          "Opening at rest: the first output and the integral's start (bumpless)",
          start_opening_mm),
         ("filter_time_s", "parameter", "tunable", "exact", "s",
-         "Tf: time constant of the level's measurement filter (>= 0; 0: none); the filter "
-         "starts at the level input's value at initialisation", t.filter_time_s),
+         "Tf: time constant of the level's measurement filter (>= 0; 0: none), which the "
+         "start values of Kc and Ti were tuned for (setting it does not retune them); the "
+         "filter starts at the level input's value at initialisation", t.filter_time_s),
     ]  # fmt: skip
     return tuple(
         VariableSpec(r[0], vr, *r[1:], initial_dependency=r[0] == "start_opening_mm")

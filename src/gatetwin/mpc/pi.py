@@ -195,7 +195,7 @@ def loop_margins(tuning: PiTuning, *, pade_order: int = 8) -> LoopMargins:
     lag = control.tf([tuning.plant_gain_mm_per_mm], [tuning.plant_time_constant_s, 1.0])
     filt = control.tf([1.0], [tuning.filter_time_s, 1.0])
     # the delay without the filter's share, which the filter's own lag stands for here
-    share = 0.5 * min(tuning.filter_time_s, tuning.plant_time_constant_s)
+    share = _half_rule(tuning.plant_time_constant_s, 0.0, tuning.filter_time_s)[1]
     num, den = control.pade(tuning.effective_delay_s - share, pade_order)
     loop = pi_tf * lag * filt * control.tf(num, den)
     gm, pm, _, wpc, wgc, _ = control.stability_margins(loop)
@@ -219,9 +219,9 @@ class PiSettings:
         Back-calculation time ``Tt``, s; default ``Ti / 2`` (between the sample period and
         ``Ti``, as Åström & Hägglund recommend).
     filter_time_s : float
-        ``Tf`` of the level's measurement filter that the demo's SIMC tuning is made for
-        (:func:`gatetwin.mpc.demo.pi_controller`), s; 0 (default): none. The controller runs
-        the filter its :class:`PiTuning` was made for.
+        ``Tf`` of the level's measurement filter, s; 0 (default): none. The demo's SIMC
+        tuning is made for it (:func:`gatetwin.mpc.demo.pi_controller`), and a
+        :class:`PiController` refuses a tuning made for another.
     """
 
     opening_range_mm: tuple[float, float] = (5.0, 100.0)
@@ -250,6 +250,10 @@ class PiController:
     def __init__(self, tuning: PiTuning, settings: PiSettings | None = None) -> None:
         self.tuning = tuning
         self.settings = settings or PiSettings()
+        if self.settings.filter_time_s != tuning.filter_time_s:
+            raise ControlError(f"pi: the settings' level filter ({self.settings.filter_time_s} "
+                               f"s) is not the one the tuning was made for "
+                               f"({tuning.filter_time_s} s)")  # fmt: skip
         self.integral_mm = math.nan
         self.previous_opening_mm = math.nan
         self.filtered_mm = math.nan
@@ -261,6 +265,8 @@ class PiController:
         lo, hi = self.settings.opening_range_mm
         if not lo <= opening_mm <= hi:
             raise ControlError(f"pi: start opening {opening_mm} mm outside [{lo}, {hi}] mm")
+        if not math.isfinite(level_mm):
+            raise ControlError(f"pi: start level {level_mm} mm is not finite")
         self.integral_mm = float(opening_mm)
         self.previous_opening_mm = float(opening_mm)
         self.filtered_mm = float(level_mm)

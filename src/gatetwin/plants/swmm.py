@@ -36,6 +36,7 @@ from gatetwin.plants.swmm_inp import InpFile, Orifice
 __all__ = [
     "EXTRA_MESSAGE",
     "RESOLUTION_MM",
+    "NotSteadyError",
     "SwmmCore",
     "SwmmPlantSpec",
     "gauge_name",
@@ -271,12 +272,6 @@ class SwmmCore:
 
     # ----------------------------------------------------------------- readings
 
-    @property
-    def running(self) -> bool:
-        """Whether a simulation is open (after :meth:`start`, also one whose spin-up was
-        refused: its levels are those it ended with)."""
-        return self._sim is not None
-
     def level_mm(self, node: str | None = None) -> float:
         """Level at a gauge node above the gate's sill, mm (default: the output gauge)."""
         node = node or self.spec.output_node
@@ -393,12 +388,23 @@ class SwmmCore:
                 return
         window = history[-n - 1 :]
         left = _left_to_go_mm(history, n) if len(history) > 3 * n else math.inf
-        raise PlantError(
+        raise NotSteadyError(
             f"{spec.inp_path.name}: not steady after {spec.max_spin_up_s / 3600:g} h of spin-up "
             f"(level at {spec.output_node} still moves {max(window) - min(window):.2f} mm over "
             f"{n * step:g} s, {left:.2f} mm left of its approach; tolerance "
-            f"{spec.steady_tolerance_mm:g} mm)"
+            f"{spec.steady_tolerance_mm:g} mm)",
+            min(window),
+            max(window),
         )
+
+
+class NotSteadyError(PlantError):
+    """A spin-up that found no steady state; ``low_mm`` and ``high_mm`` bound the output
+    gauge's level over its last window."""
+
+    def __init__(self, message: str, low_mm: float, high_mm: float) -> None:
+        super().__init__(message)
+        self.low_mm, self.high_mm = low_mm, high_mm
 
 
 def _left_to_go_mm(history: list[float], n: int) -> float:

@@ -12,7 +12,7 @@ import numpy as np
 from scipy.signal import max_len_seq
 
 from gatetwin.errors import PlantError
-from gatetwin.plants.swmm import SwmmCore
+from gatetwin.plants.swmm import NotSteadyError, SwmmCore
 from gatetwin.plants.swmm_experiments import (
     DESIGNS,
     FIT_FLOW_FACTORS,
@@ -147,19 +147,18 @@ class InBank:
             core = self.core
             try:
                 level = core.start(opening_mm, flow_m3h)
-                steady = True
+            except NotSteadyError as exc:
+                # no steady state: a pool still rising to its top, or a level dithering at
+                # the gate's lip (reaching it within the steady tolerance over the last
+                # window), where SWMM switches the orifice between its weir and orifice laws
+                lip = exc.low_mm <= opening_mm + core.spec.steady_tolerance_mm
+                self._seen[key] = -1 if lip and not core.flooding() else 1
+                return self._seen[key]
             except PlantError:
-                if not core.running:
-                    raise
-                level, steady = core.level_mm(), False
+                self._seen[key] = 1  # no steady state: the pool overtops
+                return 1
             too_high = core.flooding() or level > core.top_mm() - self.margin_mm
-            # no steady state is a pool still rising to its top, or a level dithering at the
-            # gate's lip, where SWMM switches the orifice between its weir and orifice laws
-            at_lip = not steady and level < opening_mm + self.margin_mm
-            if too_high or not (steady or at_lip):
-                self._seen[key] = 1
-            else:
-                self._seen[key] = -1 if at_lip or level <= opening_mm else 0
+            self._seen[key] = 1 if too_high else (-1 if level <= opening_mm else 0)
         return self._seen[key]
 
     def opening(self, opening_mm: float, flow_m3h: float) -> float:
