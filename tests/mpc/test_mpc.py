@@ -97,6 +97,12 @@ def test_cli_mpc_demo(tmp_path, capsys):
                  "nan"]) == 2  # fmt: skip
     err = capsys.readouterr().err
     assert err.startswith("gatetwin: error:") and err.count("\n") == 1
+    refused = tmp_path / "refused"
+    assert main(["mpc-demo", "--json", str(refused / "m.json"), "--plots", str(refused),
+                 "--pi-filter", "-2"]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert err.startswith("gatetwin: error: --pi-filter") and err.count("\n") == 1
+    assert not refused.exists()
 
 
 def test_a_demo_refused_half_way_leaves_no_plots(tmp_path, capsys, monkeypatch):
