@@ -14,6 +14,7 @@ from gatetwin._io import check_writable, undone_on_failure, write_json_atomic
 from gatetwin.errors import GatetwinError, IdentificationError
 
 __all__ = [
+    "PI_FILTER_HELP",
     "TEST_CHOICES",
     "add_export_arguments",
     "add_export_controller_arguments",
@@ -22,6 +23,7 @@ __all__ = [
     "add_models_arguments",
     "add_observe_arguments",
     "add_routine_arguments",
+    "check_pi_filter",
     "run_export",
     "run_export_controller",
     "run_export_observer",
