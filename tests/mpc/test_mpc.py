@@ -204,3 +204,44 @@ def test_mpc_with_a_seiche_does_not_hunt_on_the_flume(plant):
     # than half of that over the run, set-point steps included
     assert reversals < scenario.duration_s / 11.5, reversals
     assert mpc["gate_reversals_per_hour"] <= pi["gate_reversals_per_hour"]
+
+
+def test_the_plot_title_scores_the_loop_at_its_own_sample_period(tmp_path, monkeypatch):
+    """A loop sampled at 30 s: the figure's title gives the IAE the metrics JSON gives (the
+    sum of |error| times 30 s, not the flume's 1.2 s), and the level axis names the gauge."""
+    from dataclasses import replace
+
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from gatetwin.mpc.demo import DemoSettings, compare_controllers, demo_scenarios, plot_runs
+    from gatetwin.mpc.loop import LoopSettings, loop_metrics
+    from gatetwin.mpc.pi import PiSettings
+    from gatetwin.plant import FopdtPlant, Schedule
+
+    plant = FopdtPlant("N2", 25.0, Schedule((30.0, 50.0), {
+        "gain_mm_per_mm": (-4.0, -4.0), "time_constant_s": (3000.0, 3000.0),
+        "dead_time_s": (0.0, 0.0), "level_ref_mm": (1500.0, 1500.0)}))  # fmt: skip
+    demo = DemoSettings()
+    s = replace(
+        demo,
+        mpc=replace(demo.mpc, sample_period_s=30.0),
+        pi=PiSettings(sample_period_s=30.0),
+        loop=LoopSettings(sample_period_s=30.0),
+    )
+    scenario = demo_scenarios(60.0, s)[0]
+    run = compare_controllers(plant, scenario, plant_kind="model", settings=s,
+                              controllers=("pi",))["pi"]  # fmt: skip
+    texts: list[str] = []
+    title, label = Figure.suptitle, Axes.set_ylabel
+    monkeypatch.setattr(
+        Figure, "suptitle", lambda fig, t, **kw: texts.append(t) or title(fig, t, **kw)
+    )
+    monkeypatch.setattr(
+        Axes, "set_ylabel", lambda ax, t, **kw: texts.append(t) or label(ax, t, **kw)
+    )
+    plot_runs({"pi": run}, tmp_path / "p.png", s.loop, gauge="N2")
+    iae = loop_metrics(run, s.loop)["iae"]
+    assert iae == pytest.approx(loop_metrics(run)["iae"] * 30.0 / 1.2)  # the default's 1.2 s
+    assert f"pi {iae:.0f}" in texts[-1] and "level at N2 (mm)" in texts
+    assert (tmp_path / "p.png").is_file()

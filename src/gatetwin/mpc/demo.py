@@ -424,7 +424,8 @@ def run_mpc_demo(
         metrics = {name: {**loop_metrics(run, s.loop), **run.extra} for name, run in runs.items()}
         out["scenarios"][scenario.name] = metrics
         if out_plots_dir is not None:
-            plot_runs(runs, Path(out_plots_dir) / f"{scenario.name}.png")
+            plot_runs(runs, Path(out_plots_dir) / f"{scenario.name}.png", s.loop,
+                      plant_model.gauge)  # fmt: skip
         if progress is not None:
             iae = ", ".join(f"{name} {m['iae']:.0f}" for name, m in metrics.items())
             progress(f"{plant_kind} {scenario.name}: IAE (mm·s) {iae}")
@@ -493,8 +494,11 @@ def _settings_summary(s: DemoSettings, minutes: float) -> dict[str, Any]:
     }
 
 
-def plot_runs(runs: dict[str, ClosedLoopRun], path: str | Path) -> Path:
-    """Level, set-point, opening and discharge of each controller's run, one PNG."""
+def plot_runs(runs: dict[str, ClosedLoopRun], path: str | Path,
+              loop: LoopSettings | None = None, gauge: str = "3F") -> Path:  # fmt: skip
+    """Level, set-point, opening and discharge of each controller's run, one PNG; the title's
+    IAE scored with ``loop`` (its sample period: the loop's, default the flume's), the level
+    axis named for ``gauge``."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(10, 8), layout="constrained")
@@ -513,14 +517,14 @@ def plot_runs(runs: dict[str, ClosedLoopRun], path: str | Path) -> Path:
         lw=1.0,
         label="set-point",
     )
-    axes[0].set_ylabel("level at 3F (mm)")
+    axes[0].set_ylabel(f"level at {gauge} (mm)")
     axes[1].set_ylabel("opening (mm)")
     axes[2].set_ylabel("Q (m³/h)")
     axes[2].set_xlabel("time (min)")
     for ax in axes:
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8)
-    iae = ", ".join(f"{name} {loop_metrics(run)['iae']:.0f}" for name, run in runs.items())
+    iae = ", ".join(f"{name} {loop_metrics(run, loop)['iae']:.0f}" for name, run in runs.items())
     fig.suptitle(f"{first.scenario.name} — {first.plant} — IAE (mm·s): {iae}")
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)

@@ -308,7 +308,7 @@ def closed_loops(req: DemoRequest, core: SwmmCore, point_doc: dict[str, float], 
                 for name, design in designs.items()}  # fmt: skip
         out["scenarios"][scenario.name] = {n: canal_indicators(r, point, s.loop)
                                            for n, r in runs.items()}  # fmt: skip
-        plot_runs(runs, work / "loops" / f"{scenario.name}.png")
+        plot_runs(runs, work / "loops" / f"{scenario.name}.png", s.loop, gauge)
         iae = {n: round(m["iae_mean_mm"], 1) for n, m in out["scenarios"][scenario.name].items()}
         say(f"swmm demo: {scenario.name}: mean |error| (mm) {iae}")
     return out
