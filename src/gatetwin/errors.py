@@ -15,6 +15,7 @@ __all__ = [
     "IdentificationError",
     "ModelFileError",
     "NoWindowError",
+    "NotSteadyError",
     "OnsetError",
     "OutputError",
     "PipelineError",
@@ -77,6 +78,18 @@ class SspError(GatetwinError, ValueError):
 class PlantError(GatetwinError, ValueError):
     """A plant model (an EPA SWMM ``.inp`` and the names in it) cannot be driven, or a
     needed optional extra is missing; the message names the file and the item at fault."""
+
+
+class NotSteadyError(PlantError):
+    """A plant's spin-up found no steady state; ``low_mm`` and ``high_mm`` bound the output
+    gauge's level over its last window."""
+
+    def __init__(self, message: str, low_mm: float, high_mm: float) -> None:
+        super().__init__(message)
+        self.low_mm, self.high_mm = low_mm, high_mm
+
+    def __reduce__(self) -> tuple[type, tuple[str, float, float]]:
+        return type(self), (str(self), self.low_mm, self.high_mm)
 
 
 class ValidationError(GatetwinError, ValueError):

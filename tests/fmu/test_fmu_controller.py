@@ -145,7 +145,8 @@ def test_a_filtered_pi_fmu_is_the_filtered_python_loop(fmus):
     assert np.max(np.abs(cosim.level_mm - python.level_mm)) <= SAME_ARITHMETIC_MM
     unfiltered = _loop(fmus, pi_controller(fmus["model"].plant, DemoSettings()), scenario, s)
     filtered_metrics, unfiltered_metrics = loop_metrics(python), loop_metrics(unfiltered)
-    assert filtered_metrics["travel_mm"] < unfiltered_metrics["travel_mm"]
+    # "takes most of the noise out of the gate's travel": less than half of it is left
+    assert filtered_metrics["travel_mm"] < 0.5 * unfiltered_metrics["travel_mm"]
     assert filtered_metrics["iae"] <= unfiltered_metrics["iae"]  # as docs/closed-loop.md says
 
 

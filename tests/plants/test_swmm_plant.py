@@ -213,6 +213,48 @@ def test_a_hold_that_would_overtop_is_moved_in_bank_and_a_flooded_record_refused
     assert max(run["levels"]["A2"]) < core.top_mm()
 
 
+def test_a_level_that_never_settles_at_the_gates_lip_is_out_of_orifice_regime() -> None:
+    """InBank's rule without SWMM: a spin-up refused with its last window reaching the
+    opening (within the steady tolerance) is at the lip, -1; one refused far above it is a
+    pool still rising, +1, as is any other refusal; a steady level at or under the opening
+    is -1 and one in bank 0."""
+    from types import SimpleNamespace
+
+    from gatetwin.errors import NotSteadyError
+    from gatetwin.plants.swmm_designs import InBank
+
+    outcomes = {
+        1300.0: NotSteadyError("not steady", 1299.4, 1300.6),  # dithering at the lip
+        1350.0: NotSteadyError("not steady", 1350.2, 1350.8),  # 0.2 mm above: within 0.3
+        1000.0: NotSteadyError("not steady", 2500.0, 2600.0),  # rising far above
+        900.0: PlantError("opening outside the gate"),
+        1200.0: 1352.9,  # steady, above the opening: in bank
+        1400.0: 1355.8,  # steady, under the opening
+    }
+
+    class Core:
+        spec = SimpleNamespace(steady_tolerance_mm=0.3)
+        height_mm = 2000.0
+
+        def start(self, opening_mm: float, flow_m3h: float) -> float:
+            outcome = outcomes[opening_mm]
+            if isinstance(outcome, Exception):
+                raise outcome
+            return outcome
+
+        def flooding(self) -> bool:
+            return False
+
+        def top_mm(self) -> float:
+            return 4000.0
+
+    bank = InBank.__new__(InBank)
+    bank.core, bank.step_mm, bank.margin_mm, bank._seen = Core(), 100.0, 256.0, {}
+    sides = {e: bank.side(e, 25811.7) for e in outcomes}
+    assert sides == {1300.0: -1, 1350.0: -1, 1000.0: 1, 900.0: 1, 1200.0: 0, 1400.0: -1}
+    assert bank.opening(1300.0, 25811.7) == 1200.0
+
+
 @pytest.mark.slow
 def test_the_field_canals_free_records_are_placed_in_bank(tmp_path: Path) -> None:
     """``swmm experiment --design free`` on the field canal of ``swmm_canal.py`` at its base

@@ -423,6 +423,7 @@ def _run_mpc_demo(args: argparse.Namespace) -> int:
         raise GatetwinError("--swmm-plant goes with --plant swmm, and --plant swmm needs it")
     if args.plant == "swmm" and args.model is None:
         raise GatetwinError("--plant swmm: give --model, an FOPDT identified on that model")
+    _model_cmds.check_pi_filter(args.pi_filter)
     plant, extra = load_demo_plant(args.model), {}
     if args.plant == "swmm":
         from gatetwin.plants.swmm_loop import mpc_demo_inputs
@@ -433,14 +434,11 @@ def _run_mpc_demo(args: argparse.Namespace) -> int:
         from gatetwin.modelfile import read_model_file
 
         extra["settings"] = demo_settings(read_model_file(args.model))
-    _model_cmds.check_pi_filter(args.pi_filter)
     if args.pi_filter is not None:
-        from dataclasses import replace
-
         from gatetwin.mpc.demo import DemoSettings
 
         settings = extra.get("settings") or DemoSettings()
-        extra["settings"] = replace(settings, pi=replace(settings.pi, filter_time_s=args.pi_filter))
+        extra["settings"] = _model_cmds.with_pi_filter(settings, args.pi_filter)
     minutes = args.minutes
     if minutes is None:  # the flume's 30 minutes, longer for a slow gate's own model
         from gatetwin.fmu.controller_settings import DEMO_MINUTES, demo_minutes

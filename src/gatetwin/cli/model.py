@@ -31,6 +31,7 @@ __all__ = [
     "run_models",
     "run_observe",
     "run_routine",
+    "with_pi_filter",
 ]
 
 TEST_CHOICES = ("step", "prbs")
@@ -347,6 +348,14 @@ def check_pi_filter(value: float | None) -> None:
         raise GatetwinError(f"--pi-filter: {value} s must be finite and >= 0")
 
 
+def with_pi_filter(settings: Any, value: float | None) -> Any:
+    """``settings`` (a :class:`~gatetwin.mpc.demo.DemoSettings`) with the PI's level filter
+    ``value`` s, or as they are when it is None."""
+    if value is None:
+        return settings
+    return replace(settings, pi=replace(settings.pi, filter_time_s=value))
+
+
 def add_export_controller_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "model", metavar="MODEL.json",
@@ -409,8 +418,7 @@ def run_export_controller(args: argparse.Namespace) -> int:
             raise GatetwinError(f"--opening-range: {exc}") from None
         if args.horizon is not None:
             settings = replace(settings, mpc=replace(settings.mpc, horizon=args.horizon))
-        if args.pi_filter is not None:
-            settings = replace(settings, pi=replace(settings.pi, filter_time_s=args.pi_filter))
+        settings = with_pi_filter(settings, args.pi_filter)
     check_writable(args.out)
     if args.without_effects and args.kind != "mpc":
         raise GatetwinError("--without-effects applies to --kind mpc")

@@ -30,13 +30,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from gatetwin.errors import PlantError
+from gatetwin.errors import NotSteadyError, PlantError
 from gatetwin.plants.swmm_inp import InpFile, Orifice
 
 __all__ = [
     "EXTRA_MESSAGE",
     "RESOLUTION_MM",
-    "NotSteadyError",
     "SwmmCore",
     "SwmmPlantSpec",
     "gauge_name",
@@ -396,15 +395,6 @@ class SwmmCore:
             min(window),
             max(window),
         )
-
-
-class NotSteadyError(PlantError):
-    """A spin-up that found no steady state; ``low_mm`` and ``high_mm`` bound the output
-    gauge's level over its last window."""
-
-    def __init__(self, message: str, low_mm: float, high_mm: float) -> None:
-        super().__init__(message)
-        self.low_mm, self.high_mm = low_mm, high_mm
 
 
 def _left_to_go_mm(history: list[float], n: int) -> float:

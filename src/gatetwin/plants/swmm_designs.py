@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 from scipy.signal import max_len_seq
 
-from gatetwin.errors import PlantError
-from gatetwin.plants.swmm import NotSteadyError, SwmmCore
+from gatetwin.errors import NotSteadyError, PlantError
+from gatetwin.plants.swmm import SwmmCore
 from gatetwin.plants.swmm_experiments import (
     DESIGNS,
     FIT_FLOW_FACTORS,

@@ -329,7 +329,6 @@ def _read_arrow(
     words: dict[str, list[Words]] = {label: [] for label in kept if label not in floats}
     nulls = dict.fromkeys(floats, 0)
     done = 0
-    reader = None
     try:
         reader = pacsv.open_csv(
             handle,
@@ -354,12 +353,6 @@ def _read_arrow(
             done += size
     except (pa.ArrowException, ValueError):
         return None
-    finally:
-        # stop the parse-ahead thread now: a reader left to the interpreter's exit (after a
-        # refused file, whose error the fallback parser then reports) was torn down with
-        # that thread still joinable, and the C++ runtime aborted the process
-        if reader is not None:
-            reader.close()
     for out in floats.values():
         out.resize(done, refcheck=False)  # gives back the untouched tail, no copy
     if done == 0 or not all(_finite(floats[k], nulls[k]) for k in floats):
