@@ -171,6 +171,23 @@ def test_a_nan_level_is_refused_with_a_logged_reason(fmus):
     driver.close()
 
 
+@pytest.mark.parametrize("value", [-1.0, math.nan])
+def test_a_bad_filter_time_is_refused_with_a_logged_reason(fmus, value):
+    """filter_time_s set to a negative number (or NaN, which the glue refuses itself) in step
+    mode: the call or the next step fails with the reason logged, and the opening holds."""
+    driver = _driver(fmus, f"bad_filter_{value}", "controller_filtered")
+    vr, slave = driver.vr, driver.slave
+    period = slave.getReal([vr["sample_period_s"]])[0]
+    slave.doStep(0.0, period)
+    before = slave.getReal([vr["opening_mm"]])[0]
+    with pytest.raises(FMICallException):
+        slave.setReal([vr["filter_time_s"]], [value])
+        slave.doStep(period, period)
+    assert any("filter_time_s" in m for m in _errors(driver))
+    assert slave.getReal([vr["opening_mm"]])[0] == before
+    driver.close()
+
+
 def test_a_step_off_the_sample_grid_is_refused_with_a_logged_reason(fmus):
     driver = _driver(fmus, "off_grid")
     period = driver.slave.getReal([driver.vr["sample_period_s"]])[0]
