@@ -115,9 +115,7 @@ PlantStatus plant_initialize(ModelData *m, PlantMessage *msg)
                       m->real[VR_OPENING_MIN_MM], m->real[VR_OPENING_MAX_MM]);
         return PLANT_ERROR;
     }
-    if (!isfinite(m->real[VR_LEVEL_MM])) {
-        plant_message(msg, "input %s = %g is not finite", plant_variables[VR_LEVEL_MM].name,
-                      m->real[VR_LEVEL_MM]);
+    if (check_inputs(m, msg) != PLANT_OK) { /* the filter starts at the level input */
         return PLANT_ERROR;
     }
     m->integral_mm = start_mm; /* bumpless: at rest the integral holds the opening, */

@@ -81,15 +81,15 @@ class PlantError(GatetwinError, ValueError):
 
 
 class NotSteadyError(PlantError):
-    """A plant's spin-up found no steady state; ``low_mm`` and ``high_mm`` bound the output
-    gauge's level over its last window."""
+    """A plant's spin-up found no steady state; ``low_mm`` is the output gauge's lowest level
+    over its last window."""
 
-    def __init__(self, message: str, low_mm: float, high_mm: float) -> None:
+    def __init__(self, message: str, low_mm: float) -> None:
         super().__init__(message)
-        self.low_mm, self.high_mm = low_mm, high_mm
+        self.low_mm = low_mm
 
-    def __reduce__(self) -> tuple[type, tuple[str, float, float]]:
-        return type(self), (str(self), self.low_mm, self.high_mm)
+    def __reduce__(self) -> tuple[type, tuple[str, float]]:
+        return type(self), (str(self), self.low_mm)
 
 
 class ValidationError(GatetwinError, ValueError):

@@ -393,7 +393,6 @@ class SwmmCore:
             f"{n * step:g} s, {left:.2f} mm left of its approach; tolerance "
             f"{spec.steady_tolerance_mm:g} mm)",
             min(window),
-            max(window),
         )
 
 

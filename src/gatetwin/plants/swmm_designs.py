@@ -152,13 +152,13 @@ class InBank:
                 # the gate's lip (reaching it within the steady tolerance over the last
                 # window), where SWMM switches the orifice between its weir and orifice laws
                 lip = exc.low_mm <= opening_mm + core.spec.steady_tolerance_mm
-                self._seen[key] = -1 if lip and not core.flooding() else 1
-                return self._seen[key]
+                side = -1 if lip and not core.flooding() else 1
             except PlantError:
-                self._seen[key] = 1  # no steady state: the pool overtops
-                return 1
-            too_high = core.flooding() or level > core.top_mm() - self.margin_mm
-            self._seen[key] = 1 if too_high else (-1 if level <= opening_mm else 0)
+                side = 1  # no steady state: the pool overtops
+            else:
+                too_high = core.flooding() or level > core.top_mm() - self.margin_mm
+                side = 1 if too_high else (-1 if level <= opening_mm else 0)
+            self._seen[key] = side
         return self._seen[key]
 
     def opening(self, opening_mm: float, flow_m3h: float) -> float:

@@ -485,13 +485,14 @@ def _build_record(
         for a, b, e in zip(seg.starts, seg.stops, seg.openings_mm, strict=True)
     )
     pairs, unobserved = segments.find_steps(seg, cols.time_s, period)
+    logged_flow = np.where(flow_filled, np.nan, flow_m3h)  # the inflow test's discharges
     steps = tuple(
         StepOnset(
             holds[k].stop,
             float(cols.time_s[holds[k].stop]),
             holds[k],
             holds[k + 1],
-            segments.held_after(holds, k + 1, np.where(flow_filled, np.nan, flow_m3h)),
+            segments.held_after(holds, k + 1, logged_flow),
         )  # fmt: skip
         for k in pairs
     )
